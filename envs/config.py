@@ -1,0 +1,68 @@
+"""Validated environment configuration (pydantic): defaults live here, callers override."""
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from envs.errors import BenchError
+
+
+class RewardWeights(BaseModel):
+    """Positive weights of eq:reward. The paper gives no values; see docs/decisions.md."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    q_p: float = Field(1.0, gt=0, description="progress: shortest-path distance reduction")
+    q_g: float = Field(10.0, gt=0, description="first arrival at the goal")
+    q_c: float = Field(2.0, gt=0, description="collision (involved in a conflict this step)")
+    q_tau: float = Field(0.1, gt=0, description="per step while the task is unfinished")
+
+
+class EnvConfig(BaseModel):
+    """Everything that defines a warehouse episode distribution and its channel."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    n_robots: int = Field(20, ge=1, le=10_000, description="team size N")
+    layout: str = Field("wh20", description="preset name, MovingAI .map path or ASCII .txt path")
+    groups: int = Field(4, ge=1, description="number of fixed groups Z (robot i in group i mod Z)")
+    horizon: int = Field(500, ge=1, description="maximum episode length T")
+    on_goal: Literal["remove", "stay"] = Field(
+        "remove", description="completed robots leave the floor, or stay as obstacles and Wait"
+    )
+    loss_p: float = Field(0.2, ge=0.0, le=1.0, description="mean inter-group message loss p")
+    loss_model: Literal["bernoulli", "gilbert_elliott"] = Field(
+        "bernoulli", description="i.i.d. loss per link and step, or bursty two-state loss"
+    )
+    burst_length: float = Field(
+        4.0, ge=1.0, description="mean length of a loss burst (gilbert_elliott only), steps"
+    )
+    comm_graph: Literal["complete", "ring"] = Field(
+        "complete", description="directed inter-group graph G: all pairs, or z-1 -> z <- z+1"
+    )
+    d_m: int = Field(3, ge=1, description="scalars per robot in a message (2 position + 1 control)")
+    reward: RewardWeights = Field(default_factory=RewardWeights)
+
+    @model_validator(mode="after")
+    def _groups_fit(self) -> EnvConfig:
+        if self.groups > self.n_robots:
+            raise ValueError(f"groups={self.groups} exceeds n_robots={self.n_robots}")
+        return self
+
+    @classmethod
+    def make(cls, **kwargs: object) -> EnvConfig:
+        """Build a config, turning validation failures into one clear BenchError."""
+        try:
+            return cls(**kwargs)
+        except ValidationError as exc:
+            raise BenchError(format_validation_error("environment config", exc)) from None
+
+
+def format_validation_error(what: str, exc: ValidationError) -> str:
+    """One line naming each bad field and why."""
+    parts = []
+    for err in exc.errors():
+        loc = ".".join(str(p) for p in err["loc"]) or "(config)"
+        parts.append(f"{loc}: {err['msg']}")
+    return f"invalid {what}: " + "; ".join(parts)

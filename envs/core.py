@@ -1,0 +1,197 @@
+"""The batched warehouse core: B independent episodes of N robots stepped at once in numpy.
+
+State arrays are shaped (B, N); positions are free-cell indices of the layout. One call to
+``step`` advances every episode (no Python loop over robots or episodes). Semantics
+(SPEC 2, eq:system_dynamics, eq:reward):
+
+* a move into a shelf or off the grid leaves the robot in place (an *invalid move*);
+* robot i is *in collision* if its intended next cell equals another robot's intended next
+  cell (vertex conflict; includes entering the cell of a robot that stays) or i and j swap
+  cells (edge conflict). Colliding movers stay where they are; this repeats until no
+  conflict remains (cascades). Every robot involved in a conflict in any round has the
+  collision indicator of eq:reward set. Following a robot that leaves and rotations around
+  a cycle of three or more robots are allowed;
+* a robot completes its task the first step it stands on its goal. ``on_goal="remove"``:
+  it then leaves the floor; ``"stay"``: it remains as an obstacle and only Waits;
+* an episode terminates when every robot has completed, and is truncated at t = T
+  (kept apart). Finished episodes are frozen: stepping them changes nothing, rewards 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from envs.actions import N_ACTIONS, WAIT
+from envs.config import EnvConfig
+from envs.distances import distance_cache
+from envs.errors import BenchError
+from envs.layouts import Layout, load_layout
+
+
+@dataclass
+class StepResult:
+    """What one batched step returns. Shapes in comments."""
+
+    reward: np.ndarray  # (B,) float64 team reward R_t of eq:reward
+    progress: np.ndarray  # (B, N) q_p (D(p_t, g) - D(p_{t+1}, g))
+    goal_bonus: np.ndarray  # (B, N) q_g 1^g
+    collision_penalty: np.ndarray  # (B, N) -q_c 1^c
+    time_penalty: np.ndarray  # (B, N) -q_tau 1^u
+    collision: np.ndarray  # (B, N) bool, involved in a conflict this step
+    invalid: np.ndarray  # (B, N) bool, moved into a shelf or off the grid
+    reached: np.ndarray  # (B, N) bool, reached the goal for the first time this step
+    active: np.ndarray  # (B, N) bool, robot-steps that count (episode running, task unfinished)
+    terminated: np.ndarray  # (B,) bool, all robots completed at this step
+    truncated: np.ndarray  # (B,) bool, horizon reached at this step without termination
+
+
+class WarehouseCore:
+    """Batched dynamics, collisions and reward of the paper's warehouse (no randomness)."""
+
+    def __init__(self, config: EnvConfig, layout: Layout | None = None) -> None:
+        self.config = config
+        self.layout = layout if layout is not None else load_layout(config.layout)
+        self.n = config.n_robots
+        self.horizon = config.horizon
+        self.remove = config.on_goal == "remove"
+        w = config.reward
+        self._q = (float(w.q_p), float(w.q_g), float(w.q_c), float(w.q_tau))
+        self._next = np.ascontiguousarray(self.layout.next_cell.reshape(-1))  # (F*5,)
+        self._valid = np.ascontiguousarray(self.layout.move_valid.reshape(-1))
+        self._dist = distance_cache(self.layout)
+        self.batch = 0
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, starts: np.ndarray, goals: np.ndarray) -> None:
+        """Start B episodes from (B, N) start and goal cell indices."""
+        starts = np.asarray(starts, dtype=np.int64)
+        goals = np.asarray(goals, dtype=np.int64)
+        if starts.ndim != 2 or starts.shape != goals.shape or starts.shape[1] != self.n:
+            raise BenchError(
+                f"reset: starts and goals must both be (B, {self.n}), got {starts.shape} and {goals.shape}"
+            )
+        b, n, f = starts.shape[0], self.n, self.layout.n_free
+        self.batch = b
+        self.pos = starts.copy()  # (B, N) cell index p_t
+        self.goal = goals.copy()  # (B, N) cell index g
+        self.t = 0
+        self.done = self.pos == self.goal  # (B, N) task completed
+        self.ended = np.zeros(b, dtype=bool)  # (B,) episode over
+        self.prev_actions = np.full((b, n), WAIT, dtype=np.int64)  # U_{t-1}
+        uniq, inv = np.unique(self.goal, return_inverse=True)
+        self._fields = np.ascontiguousarray(self._dist.fields(uniq).reshape(-1))  # (U*F,)
+        self._goal_base = inv.reshape(b, n).astype(np.int64) * f  # (B, N)
+        self.dist = self._fields[self._goal_base + self.pos]  # (B, N) D(p_t, g)
+        # Scratch grids for conflict detection, indexed by b*F + cell (+ B*N dummy slots).
+        m = b * n
+        self._base = (np.arange(b, dtype=np.int64) * f)[:, None]  # (B, 1)
+        self._idx = np.arange(m, dtype=np.int64)
+        self._dummy = b * f + self._idx
+        self._claim = np.zeros(b * f + m, dtype=np.int64)
+        self._flag = np.zeros(b * f + m, dtype=bool)
+        self._occ = np.full(b * f + m, -1, dtype=np.int64)
+
+    @property
+    def occupying(self) -> np.ndarray:
+        """(B, N) bool: robots standing on the floor (blocking others)."""
+        return ~self.done if self.remove else np.ones_like(self.done)
+
+    def distances_to_goal(self, cells: np.ndarray) -> np.ndarray:
+        """D(cells[b, i, ...], g_i) for (B, N, ...) cell indices."""
+        base = self._goal_base.reshape(self._goal_base.shape + (1,) * (cells.ndim - 2))
+        return self._fields[base + cells]
+
+    # ------------------------------------------------------------------- step
+    def step(self, actions: np.ndarray) -> StepResult:
+        """Advance every running episode by one step with (B, N) actions in 0..4."""
+        a = np.asarray(actions)
+        if a.shape != self.pos.shape:
+            raise BenchError(f"step: actions must be shaped {self.pos.shape}, got {a.shape}")
+        if a.size and (a.min() < 0 or a.max() >= N_ACTIONS):
+            bad = int(a.reshape(-1)[(a.reshape(-1) < 0) | (a.reshape(-1) >= N_ACTIONS)][0])
+            raise BenchError(f"step: action {bad} outside 0..{N_ACTIONS - 1} (Up, Down, Left, Right, Wait)")
+        running = ~self.ended  # (B,)
+        frozen = self.done | ~running[:, None]  # completed robots and finished episodes Wait
+        a = np.where(frozen, WAIT, a).astype(np.int64)
+        flat = self.pos * N_ACTIONS + a
+        tgt = self._next[flat]
+        invalid = ~self._valid[flat]
+
+        occ = self.occupying.reshape(-1)
+        key_now = (self._base + self.pos).reshape(-1)
+        key_next = (self._base + tgt).reshape(-1)
+        if not occ.all():  # robots off the floor claim a private dummy slot
+            key_now = np.where(occ, key_now, self._dummy)
+            key_next = np.where(occ, key_next, self._dummy)
+        collision = self._resolve(key_now, key_next, occ)
+        new_key = key_next
+        new_pos = (new_key.reshape(self.pos.shape) - self._base)
+        new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
+        collision = collision.reshape(self.pos.shape)
+
+        q_p, q_g, q_c, q_tau = self._q
+        new_dist = self._fields[self._goal_base + new_pos]
+        reached = ~self.done & (new_pos == self.goal)
+        active = ~frozen  # robot-steps that count for rates
+        done = self.done | reached
+        progress = q_p * (self.dist - new_dist).astype(np.float64)
+        goal_bonus = q_g * reached
+        collision_penalty = -q_c * collision
+        time_penalty = -q_tau * (active & ~done)
+        reward = (progress + goal_bonus + collision_penalty + time_penalty).sum(axis=1) / self.n
+
+        self.pos, self.dist, self.done = new_pos, new_dist, done
+        self.prev_actions = a
+        self.t += 1
+        terminated = running & done.all(axis=1)
+        truncated = running & ~terminated & (self.t >= self.horizon)
+        self.ended = self.ended | terminated | truncated
+        return StepResult(
+            reward=reward, progress=progress, goal_bonus=goal_bonus.astype(np.float64),
+            collision_penalty=collision_penalty, time_penalty=time_penalty.astype(np.float64),
+            collision=collision, invalid=invalid & active, reached=reached, active=active,
+            terminated=terminated, truncated=truncated,
+        )
+
+    def _resolve(self, key_now: np.ndarray, key_next: np.ndarray, occ: np.ndarray) -> np.ndarray:
+        """Revert conflicting moves in place of ``key_next`` until none remain.
+
+        Returns (B*N,) bool: robots involved in a vertex or edge conflict in any round.
+        """
+        idx, claim, flag, occ_grid = self._idx, self._claim, self._flag, self._occ
+        collision = np.zeros(idx.shape, dtype=bool)
+        moving = key_next != key_now
+        if not moving.any():
+            return collision
+        occ_grid[key_now[occ]] = idx[occ]
+        while True:
+            # Vertex conflicts: a key claimed by two or more robots.
+            claim[key_next] = idx
+            lost = claim[key_next] != idx
+            conflict = np.zeros_like(collision)
+            if lost.any():
+                dup_keys = key_next[lost]
+                flag[dup_keys] = True
+                conflict = flag[key_next]
+                flag[dup_keys] = False
+            # Edge conflicts: i moves into j's cell while j moves into i's cell.
+            j = occ_grid[key_next]
+            cand = moving & (j >= 0)
+            if cand.any():
+                jj = j[cand]
+                swap = key_next[jj] == key_now[cand]
+                if swap.any():
+                    ci = np.flatnonzero(cand)[swap]
+                    conflict[ci] = True
+                    conflict[jj[swap]] = True
+            if not conflict.any():
+                break
+            collision |= conflict
+            revert = conflict & moving
+            if not revert.any():
+                break
+            key_next[revert] = key_now[revert]
+            moving &= ~revert
+        occ_grid[key_now[occ]] = -1
+        return collision
