@@ -1,0 +1,170 @@
+"""The contract every method implements, so the bench treats all of them alike.
+
+A method is built from an environment config, its hyperparameters (a pydantic model,
+``Params``) and a seed. It exposes:
+
+* ``begin(batch, greedy)`` -> a controller state for B episodes (recurrent states, loss
+  processes, rollout storage); ``decide(batch, state, greedy)`` -> a ``Decision`` for
+  the current step. The shared loops below drive these.
+* ``evaluate(chunk, seed)`` -> one metric row per evaluation episode of that chunk
+  (greedy at every level, SPEC 3 "Execution"); chunks are fixed-size, so evaluation
+  fans out over workers and gives the same rows in any split.
+* ``train_iteration()`` -> one update from ``batch_episodes`` fresh episodes; returns one
+  row per episode (learned methods; a planner returns no rows and learns nothing).
+* ``state_dict()`` / ``load_state_dict()`` -> tensors and plain data only (parameters,
+  optimizer states, RNG states, counters), loadable with ``torch.load(weights_only=True)``;
+  a run resumed from it continues exactly as an uninterrupted one.
+"""
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from algorithms.common.episodes import (
+    EVAL_STREAM,
+    TRAIN_STREAM,
+    Decision,
+    EpisodeBatch,
+    EpisodeStats,
+    batch_rng,
+)
+from envs.config import EnvConfig, format_validation_error
+from envs.errors import BenchError
+from envs.layouts import load_layout
+
+
+class MethodParams(BaseModel):
+    """Hyperparameters shared by every method; subclasses add their own fields."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    batch_episodes: int = Field(8, ge=1, description="episodes per training update (batched in one process)")
+    eval_chunk: int = Field(10, ge=1, description="evaluation episodes per chunk (the unit of fan-out)")
+
+
+class Method(ABC):
+    """Base class of all methods; see the module docstring for the contract."""
+
+    name: ClassVar[str]
+    learned: ClassVar[bool] = True
+    Params: ClassVar[type[MethodParams]] = MethodParams
+
+    def __init__(self, env: EnvConfig, params: Mapping[str, Any] | None = None, seed: int = 0) -> None:
+        self.env = env
+        self.params = self.parse_params(params or {})
+        self.seed = int(seed)
+        self.layout = load_layout(env.layout)
+        self.iterations = 0  # training updates done
+        self.episodes_done = 0
+        torch.manual_seed(self.seed)  # initial weights: a pure function of the seed
+        self.torch_gen = torch.Generator().manual_seed(self.seed + 1)  # action sampling
+
+    @classmethod
+    def parse_params(cls, params: Mapping[str, Any]) -> MethodParams:
+        try:
+            return cls.Params(**dict(params))
+        except ValidationError as exc:
+            raise BenchError(format_validation_error(f"{cls.name} parameters", exc)) from None
+
+    # ------------------------------------------------------------- controller
+    @abstractmethod
+    def begin(self, batch: EpisodeBatch, greedy: bool) -> Any:
+        """Controller state for the episodes of ``batch`` (called once, before step 0)."""
+
+    @abstractmethod
+    def decide(self, batch: EpisodeBatch, state: Any, greedy: bool) -> Decision:
+        """Controls for the current step of every episode of ``batch``."""
+
+    def observe(self, batch: EpisodeBatch, state: Any, result: Any) -> None:
+        """Hook after each environment step (training methods store rewards here)."""
+
+    # ------------------------------------------------------------------ loops
+    def run(self, batch: EpisodeBatch, greedy: bool) -> tuple[Any, list[dict[str, float]]]:
+        """Run every episode of ``batch`` to its end; returns (state, metric rows)."""
+        core = batch.core
+        stats = EpisodeStats(core.batch, core.n, self.env.d_m)
+        state = self.begin(batch, greedy)
+        while batch.running:
+            running = ~core.ended
+            dec = self.decide(batch, state, greedy)
+            res = core.step(dec.actions)
+            stats.add(running, res, dec)
+            self.observe(batch, state, res)
+        return state, stats.finish(core.done)
+
+    def evaluate(self, chunk: int, seed: int | None = None) -> list[dict[str, float]]:
+        """Greedy rows for evaluation chunk ``chunk`` (episodes chunk*eval_chunk + k)."""
+        size = self.params.eval_chunk
+        rng = batch_rng(self.seed if seed is None else seed, EVAL_STREAM, chunk)
+        with torch.no_grad():
+            _, rows = self.run(EpisodeBatch(self.env, size, rng, self.layout), greedy=True)
+        for k, row in enumerate(rows):
+            row["episode"] = chunk * size + k
+        return rows
+
+    def train_iteration(self) -> list[dict[str, float]]:
+        """One update from ``batch_episodes`` fresh episodes; rows carry the losses."""
+        if not self.learned:
+            return []
+        t0 = time.perf_counter()
+        rng = batch_rng(self.seed, TRAIN_STREAM, self.iterations)
+        batch = EpisodeBatch(self.env, self.params.batch_episodes, rng, self.layout)
+        with torch.no_grad():
+            state, rows = self.run(batch, greedy=False)
+        losses = self.update(state)
+        wall = (time.perf_counter() - t0) / len(rows)
+        for k, row in enumerate(rows):
+            row.update(losses)
+            row["episode"] = self.episodes_done + k
+            row["wall_s"] = wall
+        self.iterations += 1
+        self.episodes_done += len(rows)
+        return rows
+
+    def update(self, state: Any) -> dict[str, float]:
+        """Gradient step(s) from a finished training batch; returns named losses."""
+        raise NotImplementedError(f"{self.name} does not learn")
+
+    # ------------------------------------------------------------ checkpoints
+    def modules(self) -> dict[str, torch.nn.Module | torch.optim.Optimizer]:
+        """Named modules and optimizers whose state is checkpointed."""
+        return {}
+
+    def state_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {
+            "iterations": self.iterations,
+            "episodes_done": self.episodes_done,
+            "torch_gen": self.torch_gen.get_state(),
+            "torch_global": torch.get_rng_state(),
+        }
+        for key, mod in self.modules().items():
+            out[key] = mod.state_dict()
+        return out
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        self.iterations = int(state["iterations"])
+        self.episodes_done = int(state["episodes_done"])
+        self.torch_gen.set_state(state["torch_gen"])
+        torch.set_rng_state(state["torch_global"])
+        for key, mod in self.modules().items():
+            mod.load_state_dict(state[key])
+
+
+def sample_categorical(logits: torch.Tensor, greedy: bool, gen: torch.Generator) -> torch.Tensor:
+    """Argmax (execution) or a sample (training) from logits (..., K) -> (...) int64."""
+    if greedy:
+        return logits.argmax(dim=-1)
+    probs = torch.softmax(logits.reshape(-1, logits.shape[-1]).double(), dim=-1)
+    return torch.multinomial(probs, 1, generator=gen).reshape(logits.shape[:-1])
+
+
+def masked_logits(logits: torch.Tensor, mask: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """Set logits of disallowed actions (mask False) to a large negative number."""
+    m = torch.as_tensor(mask, dtype=torch.bool)
+    return logits.masked_fill(~m, -1e9)

@@ -1,0 +1,124 @@
+"""A batch of B episodes with its own seeded streams, and per-episode metrics.
+
+Every method runs its episodes through ``EpisodeBatch`` (scenarios and loss streams drawn
+from one ``numpy.random.Generator``) and records what its controller did each step in a
+``Decision``; ``EpisodeStats`` turns the steps into the metric rows the store keeps
+(SPEC 4: eval columns). Seeds: ``batch_rng(seed, stream, index)`` derives an independent
+generator from the cell seed with ``SeedSequence``, so an episode chunk gives the same
+numbers whichever worker runs it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from envs.config import EnvConfig
+from envs.core import StepResult, WarehouseCore
+from envs.layouts import Layout, load_layout
+from envs.scenarios import sample_scenarios
+
+TRAIN_STREAM, EVAL_STREAM = 0, 1
+
+
+def batch_rng(seed: int, stream: int, index: int) -> np.random.Generator:
+    """Generator for chunk ``index`` of stream ``stream`` (train/eval) of a cell seed."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(stream), int(index)]))
+
+
+class EpisodeBatch:
+    """B episodes on one layout: the core plus the generator that drew its scenarios.
+
+    Methods draw their own loss processes from ``rng`` right after construction, in a fixed
+    order, so the whole batch is a pure function of (config, rng seed).
+    """
+
+    def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator,
+                 layout: Layout | None = None) -> None:
+        self.config = config
+        self.rng = rng
+        self.core = WarehouseCore(config, layout if layout is not None else load_layout(config.layout))
+        starts, goals = sample_scenarios(self.core.layout, config.n_robots, batch, rng)
+        self.core.reset(starts, goals)
+
+    @property
+    def running(self) -> bool:
+        return not bool(self.core.ended.all())
+
+
+@dataclass
+class Decision:
+    """What a controller decided at one step for B episodes (all arrays shaped (B,) or (B, N))."""
+
+    actions: np.ndarray  # (B, N) executed controls U_t
+    proposed: np.ndarray | None = None  # (B, N) controls proposed before the safety filter
+    candidates: np.ndarray | None = None  # (B,) candidates examined, summed over groups
+    filter_calls: np.ndarray | None = None  # (B,) group-steps that ran the filter
+    fallbacks: np.ndarray | None = None  # (B,) group-steps that fell back to joint Wait
+    pred_sq_err: np.ndarray | None = None  # (B,) summed squared error of predicted messages
+    pred_count: np.ndarray | None = None  # (B,) number of lost messages predicted
+    payload: np.ndarray | float = 0.0  # (B,) or scalar: scalars transmitted this step
+
+
+EVAL_METRICS = (
+    "team_return", "success_rate", "collision_rate", "invalid_rate", "correction_rate",
+    "mean_candidates", "fallback_rate", "predictor_error", "payload_scalars_per_step",
+    "payload_dec_per_step", "steps",
+)
+
+
+@dataclass
+class EpisodeStats:
+    """Accumulates per-episode sums over steps for B episodes."""
+
+    batch: int
+    n_robots: int
+    d_m: int = 3
+    sums: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        keys = ("ret", "coll", "invalid", "active", "corr", "cand", "calls", "fallback",
+                "sq_err", "pred_n", "payload", "steps")
+        self.sums = {k: np.zeros(self.batch, dtype=np.float64) for k in keys}
+        self.success = np.zeros(self.batch, dtype=np.float64)
+
+    def add(self, running: np.ndarray, res: StepResult, dec: Decision) -> None:
+        """Record one step; ``running`` (B,) marks episodes that were running before it."""
+        s, run = self.sums, running.astype(np.float64)
+        act = res.active
+        s["ret"] += res.reward
+        s["coll"] += (res.collision & act).sum(axis=1)
+        s["invalid"] += res.invalid.sum(axis=1)
+        s["active"] += act.sum(axis=1)
+        s["steps"] += run
+        if dec.proposed is not None:
+            s["corr"] += ((dec.proposed != dec.actions) & act).sum(axis=1)
+        for key, val in (("cand", dec.candidates), ("calls", dec.filter_calls),
+                         ("fallback", dec.fallbacks), ("sq_err", dec.pred_sq_err),
+                         ("pred_n", dec.pred_count)):
+            if val is not None:
+                s[key] += np.asarray(val, dtype=np.float64) * run
+        s["payload"] += np.broadcast_to(np.asarray(dec.payload, dtype=np.float64), run.shape) * run
+
+    def finish(self, done: np.ndarray) -> list[dict[str, float]]:
+        """One row per episode; ``done`` (B, N) is the final completion mask."""
+        s = self.sums
+        steps = np.maximum(s["steps"], 1)
+        active = np.maximum(s["active"], 1)
+        calls = s["calls"]
+        rows = []
+        for b in range(self.batch):
+            rows.append({
+                "team_return": float(s["ret"][b]),
+                "success_rate": float(done[b].mean()),
+                "collision_rate": float(s["coll"][b] / active[b]),
+                "invalid_rate": float(s["invalid"][b] / active[b]),
+                "correction_rate": float(s["corr"][b] / active[b]),
+                "mean_candidates": float(s["cand"][b] / calls[b]) if calls[b] else float("nan"),
+                "fallback_rate": float(s["fallback"][b] / calls[b]) if calls[b] else float("nan"),
+                "predictor_error": float(s["sq_err"][b] / s["pred_n"][b]) if s["pred_n"][b] else float("nan"),
+                "payload_scalars_per_step": float(s["payload"][b] / steps[b]),
+                "payload_dec_per_step": float(self.n_robots * (self.n_robots - 1) * self.d_m),
+                "steps": int(s["steps"][b]),
+            })
+        return rows

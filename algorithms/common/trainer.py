@@ -1,0 +1,110 @@
+"""The paper's trainer, shared by every learned method (eq:training_return..eq:losses).
+
+* ``mc_returns``: undiscounted Monte-Carlo return G_t = sum_{k>=t} R_k (eq:training_return).
+* ``CentralCritic``: V_omega(X_t) on the global state, a DeepSets network over robots so
+  one architecture serves any N (mean-pooled per-robot embeddings + episode progress).
+* ``RolloutBuffer``: preallocated (T, B, ...) arrays; memory is bounded by one batch,
+  never by the number of episodes trained.
+* ``policy_gradient_losses``: the team advantage A_t = G_t - V(X_t) (eq:advantage)
+  shared by every actor, the actor loss -A log pi and the critic loss (V - G)^2
+  (eq:losses). Optimizers are Adam (the paper's choice) unless a method says otherwise.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from envs.core import WarehouseCore
+
+CRITIC_FEATURES = 6
+
+
+def mc_returns(rewards: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """(T, B) rewards -> (T, B) returns G_t = sum_{k=t}^{T-1} R_k (eq:training_return)."""
+    r = torch.as_tensor(rewards, dtype=torch.float32)
+    return torch.flip(torch.cumsum(torch.flip(r, dims=[0]), dim=0), dims=[0])
+
+
+def critic_features(core: WarehouseCore) -> np.ndarray:
+    """(B, N, 6) float32 global state X_t per robot: position, goal, distance, done."""
+    h, w = core.layout.shape
+    scale = np.array([h, w], dtype=np.float32)
+    rc = core.layout.cells[core.pos].astype(np.float32) / scale
+    grc = core.layout.cells[core.goal].astype(np.float32) / scale
+    dist = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)[..., None]
+    done = core.done.astype(np.float32)[..., None]
+    return np.concatenate([rc, grc, dist, done], axis=-1)
+
+
+class CentralCritic(nn.Module):
+    """V_omega(X_t): DeepSets over the robots' global features plus time t / T."""
+
+    def __init__(self, hidden: int = 64) -> None:
+        super().__init__()
+        self.phi = nn.Sequential(nn.Linear(CRITIC_FEATURES, hidden), nn.ReLU(),
+                                 nn.Linear(hidden, hidden), nn.ReLU())
+        self.rho = nn.Sequential(nn.Linear(hidden + 2, hidden), nn.ReLU(), nn.Linear(hidden, 1))
+
+    def forward(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
+        """robots (..., N, 6), t_frac (...) -> V (...)."""
+        pooled = self.phi(robots).mean(dim=-2)
+        done_frac = robots[..., 5].mean(dim=-1, keepdim=True)
+        return self.rho(torch.cat([pooled, t_frac[..., None], done_frac], dim=-1)).squeeze(-1)
+
+
+class RolloutBuffer:
+    """Named, preallocated (T, B, ...) arrays filled step by step during a rollout."""
+
+    def __init__(self, horizon: int, batch: int, shapes: dict[str, tuple[tuple[int, ...], np.dtype]]):
+        self.data = {k: np.zeros((horizon, batch, *shape), dtype=dt) for k, (shape, dt) in shapes.items()}
+        self.rewards = np.zeros((horizon, batch), dtype=np.float32)
+        self.running = np.zeros((horizon, batch), dtype=bool)
+        self.t = 0
+
+    def add(self, **fields: np.ndarray) -> None:
+        for key, val in fields.items():
+            self.data[key][self.t] = val
+
+    def reward(self, reward: np.ndarray, running: np.ndarray) -> None:
+        self.rewards[self.t] = reward
+        self.running[self.t] = running
+        self.t += 1
+
+    def tensor(self, key: str) -> torch.Tensor:
+        """The first ``t`` steps of a field as a tensor (T_used, B, ...)."""
+        return torch.from_numpy(self.data[key][: self.t])
+
+
+@dataclass
+class PGLosses:
+    actor: torch.Tensor
+    critic: torch.Tensor
+    advantage_mean: float
+    return_mean: float
+
+
+def policy_gradient_losses(
+    logp: torch.Tensor, values: torch.Tensor, rewards: np.ndarray, running: np.ndarray,
+    normalize: bool = True,
+) -> PGLosses:
+    """Team-advantage actor and critic losses (eq:advantage, eq:losses).
+
+    logp (T, B): summed log-probabilities of everything sampled at step t (every group's
+    reference and joint control, or every robot's action); values (T, B): V(X_t);
+    rewards, running (T, B). Steps after an episode ended are masked out. With
+    ``normalize`` the advantage is scaled by its batch standard deviation (a constant
+    factor per batch; see docs/decisions.md).
+    """
+    g = mc_returns(rewards)
+    mask = torch.as_tensor(running, dtype=torch.float32)
+    n = mask.sum().clamp_min(1.0)
+    adv = (g - values).detach()
+    if normalize:
+        std = torch.sqrt(((adv * mask) ** 2).sum() / n).clamp_min(1e-6)
+        adv = adv / std
+    actor = -(adv * logp * mask).sum() / n
+    critic = (((values - g) ** 2) * mask).sum() / n
+    return PGLosses(actor, critic, float((adv * mask).sum() / n), float((g * mask).sum() / n))
