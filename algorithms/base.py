@@ -83,6 +83,7 @@ class Method(ABC):
 
     def observe(self, batch: EpisodeBatch, state: Any, result: Any) -> None:
         """Hook after each environment step (training methods store rewards here)."""
+        return None
 
     # ------------------------------------------------------------------ loops
     def run(self, batch: EpisodeBatch, greedy: bool) -> tuple[Any, list[dict[str, float]]]:
