@@ -1,0 +1,37 @@
+# The README's two quick-start commands are `make smoke` and `make test`; CI calls `make test`.
+VENV ?= .venv
+BENCH := $(VENV)/bin/bench
+PY := $(VENV)/bin/python
+
+.PHONY: setup smoke test lint anchors clean-venv
+
+$(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
+	VENV=$(VENV) bash scripts/setup.sh
+	touch $@
+
+setup: $(VENV)/.installed
+
+## Set up, run the smoke grid on this machine and build its report.
+smoke: setup
+	$(BENCH) run --grid smoke --out results/smoke
+	$(BENCH) report --run results/smoke
+
+## Set up and run the whole test suite (2 workers).
+test: setup
+	$(PY) -m pytest -q -n 2 --dist loadfile
+
+lint: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/hadolint Dockerfile
+
+## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1).
+anchors: .anchors-venv/.installed
+
+.anchors-venv/.installed:
+	python3 -m venv .anchors-venv
+	.anchors-venv/bin/pip install --quiet --upgrade pip
+	.anchors-venv/bin/pip install --quiet "pogema" "rware"
+	touch $@
+
+clean-venv:
+	rm -rf $(VENV) .anchors-venv
