@@ -98,6 +98,23 @@ def policy_gradient_losses(
     ``normalize`` the advantage is scaled by its batch standard deviation (a constant
     factor per batch; see docs/decisions.md).
     """
+    adv, g, mask, n = team_advantage(values, rewards, running, normalize)
+    actor = -(adv * logp * mask).sum() / n
+    critic = (((values - g) ** 2) * mask).sum() / n
+    return PGLosses(actor, critic, float((adv * mask).sum() / n), float((g * mask).sum() / n))
+
+
+def team_advantage(
+    values: torch.Tensor, rewards: np.ndarray, running: np.ndarray, normalize: bool = True,
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Detached team advantage A_t = G_t - V(X_t) (eq:advantage) and what weighs it.
+
+    values, rewards, running (T, B) -> (adv, G, mask, n): adv and G (T, B), mask (T, B)
+    float of running steps, n = number of running steps (>= 1). With ``normalize`` adv is
+    divided by its batch root-mean-square. ``policy_gradient_losses`` is built on it;
+    methods whose actor loss is too large for one backward pass (chunked over time) use it
+    directly and weight each chunk's log-probabilities with the same adv / n.
+    """
     g = mc_returns(rewards)
     mask = torch.as_tensor(running, dtype=torch.float32)
     n = mask.sum().clamp_min(1.0)
@@ -105,6 +122,4 @@ def policy_gradient_losses(
     if normalize:
         std = torch.sqrt(((adv * mask) ** 2).sum() / n).clamp_min(1e-6)
         adv = adv / std
-    actor = -(adv * logp * mask).sum() / n
-    critic = (((values - g) ** 2) * mask).sum() / n
-    return PGLosses(actor, critic, float((adv * mask).sum() / n), float((g * mask).sum() / n))
+    return adv, g, mask, n
