@@ -24,13 +24,15 @@ lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/hadolint Dockerfile
 
-## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1).
+## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1);
+## bench/perf_env.py drives them through bench/anchors_script.py.
 anchors: .anchors-venv/.installed
 
-.anchors-venv/.installed:
+.anchors-venv/.installed: bench/anchors-requirements.txt
 	python3 -m venv .anchors-venv
 	.anchors-venv/bin/pip install --quiet --upgrade pip
-	.anchors-venv/bin/pip install --quiet "pogema" "rware"
+	.anchors-venv/bin/pip install --quiet -r bench/anchors-requirements.txt
+	.anchors-venv/bin/python -c "import pogema, rware; print('anchors ready: pogema', pogema.__version__)"
 	touch $@
 
 clean-venv:

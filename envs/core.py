@@ -9,7 +9,8 @@ State arrays are shaped (B, N); positions are free-cell indices of the layout. O
   cell (vertex conflict; includes entering the cell of a robot that stays) or i and j swap
   cells (edge conflict). Colliding movers stay where they are; this repeats until no
   conflict remains (cascades). Every robot involved in a conflict in any round has the
-  collision indicator of eq:reward set. Following a robot that leaves and rotations around
+  collision indicator of eq:reward set (except a completed robot, whose terms are all 0,
+  docs/decisions.md). Following a robot that leaves and rotations around
   a cycle of three or more robots are allowed;
 * a robot completes its task the first step it stands on its goal. ``on_goal="remove"``:
   it then leaves the floor; ``"stay"``: it remains as an obstacle and only Waits;
@@ -128,12 +129,13 @@ class WarehouseCore:
         new_key = key_next
         new_pos = (new_key.reshape(self.pos.shape) - self._base)
         new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
-        collision = collision.reshape(self.pos.shape)
+        active = ~frozen  # robot-steps that count for rates
+        # A completed robot ("stay") that is bumped into gets no terms (docs/decisions.md).
+        collision = collision.reshape(self.pos.shape) & active
 
         q_p, q_g, q_c, q_tau = self._q
         new_dist = self._fields[self._goal_base + new_pos]
         reached = ~self.done & (new_pos == self.goal)
-        active = ~frozen  # robot-steps that count for rates
         done = self.done | reached
         progress = q_p * (self.dist - new_dist).astype(np.float64)
         goal_bonus = q_g * reached

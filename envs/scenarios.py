@@ -73,7 +73,7 @@ def validate_scenario(
     if len(bad):
         i = int(bad[0])
         raise BenchError(
-            f"goal {tuple(layout.cells[g[i]])} of robot {i} is unreachable from its start "
-            f"{tuple(layout.cells[s[i]])} in layout {layout.name!r}"
+            f"goal {tuple(map(int, layout.cells[g[i]]))} of robot {i} is unreachable from its "
+            f"start {tuple(map(int, layout.cells[s[i]]))} in layout {layout.name!r}"
         )
     return s, g
