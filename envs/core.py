@@ -168,31 +168,23 @@ class WarehouseCore:
             return collision
         occ_grid[key_now[occ]] = idx[occ]
         while True:
-            # Vertex conflicts: a key claimed by two or more robots.
+            # Vertex conflicts: a key claimed by two or more robots (the last write wins,
+            # so every other claimant of a shared key sees someone else's index).
             claim[key_next] = idx
-            lost = claim[key_next] != idx
-            conflict = np.zeros_like(collision)
-            if lost.any():
-                dup_keys = key_next[lost]
-                flag[dup_keys] = True
-                conflict = flag[key_next]
-                flag[dup_keys] = False
+            dup_keys = key_next[claim[key_next] != idx]
+            flag[dup_keys] = True
+            conflict = flag[key_next]
+            flag[dup_keys] = False
             # Edge conflicts: i moves into j's cell while j moves into i's cell.
-            j = occ_grid[key_next]
-            cand = moving & (j >= 0)
-            if cand.any():
-                jj = j[cand]
-                swap = key_next[jj] == key_now[cand]
-                if swap.any():
-                    ci = np.flatnonzero(cand)[swap]
-                    conflict[ci] = True
-                    conflict[jj[swap]] = True
+            ci = np.flatnonzero(moving)
+            jj = occ_grid[key_next[ci]]
+            swap = (jj >= 0) & (key_next[jj] == key_now[ci])
+            conflict[ci[swap]] = True
+            conflict[jj[swap]] = True
             if not conflict.any():
                 break
             collision |= conflict
             revert = conflict & moving
-            if not revert.any():
-                break
             key_next[revert] = key_now[revert]
             moving &= ~revert
         occ_grid[key_now[occ]] = -1
