@@ -1,0 +1,206 @@
+"""Fully decentralized MARL baseline (paper Sec. IV "fully decentralized MARL baseline").
+
+Every robot selects its own control from its robot-level observation plus the messages
+received from all other robots over lossy all-to-all links, without the group hierarchy:
+
+* observation o_t^i = [own state over the static map (``own_features``),
+  egocentric maps of the last received messages of every other robot (``AllToAllBoard``)];
+  the message maps sum-pool one-hot relative positions, so any N uses the same network;
+* actor pi_theta(u^i | o^i): one MLP with parameters shared by all robots and **no robot
+  index one-hot** (robots are interchangeable; a one-hot would tie the network to N);
+  moves into shelves are masked (the environment's action mask);
+* trained with the paper's trainer (algorithms/common/trainer.py): Monte-Carlo team
+  return (eq:training_return), centralized critic V_omega(X_t) and team advantage
+  A_t = G_t - V(X_t) (eq:advantage), actor loss -A_t sum_i log pi(u_t^i | o_t^i) and
+  critic loss (V - G)^2 (eq:losses), Adam. Rollouts run under no_grad into a
+  ``RolloutBuffer``; the update is one batched forward (chunked over robot-steps only to
+  bound memory: the gradient is the same);
+* payload N (N - 1) d_m scalars per step (Sec. III-A, C_dec);
+* ``safety_filter=True`` runs the hierarchical method's filter (Algorithm 1) with every
+  robot its own group, on the received (possibly stale) positions of the others.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from pydantic import Field
+from torch import nn
+
+from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.common.all_to_all import AllToAllBoard, map_feature_size
+from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.robot_obs import (
+    HISTORY_SIZE,
+    action_mask,
+    own_feature_size,
+    own_features,
+    own_history,
+)
+from algorithms.common.sampling import action_stream
+from algorithms.common.trainer import (
+    CRITIC_FEATURES,
+    CentralCritic,
+    RolloutBuffer,
+    critic_features,
+    team_advantage,
+)
+from envs.actions import N_ACTIONS
+from envs.channel import LossProcess
+from envs.errors import BenchError
+from envs.observations import PatchExtractor
+
+
+class DecentralizedParams(MethodParams):
+    """Hyperparameters of the decentralized baseline (defaults tuned on small layouts)."""
+
+    hidden: int = Field(128, ge=4, description="width of the actor's two hidden layers")
+    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 shelf patch and message maps")
+    lr: float = Field(1e-3, gt=0, description="actor Adam learning rate")
+    critic_lr: float = Field(1e-3, gt=0, description="critic Adam learning rate")
+    critic_hidden: int = Field(64, ge=4, description="width of the centralized critic")
+    normalize_advantage: bool = Field(True, description="scale A_t by its batch RMS (docs/decisions.md)")
+    entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
+    max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
+    eval_sampling: bool = Field(False, description="evaluate with sampled instead of argmax actions")
+    safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
+    chunk_rows: int = Field(65536, ge=256, description="robot-steps per backward chunk (memory only)")
+
+
+class DecentralizedActor(nn.Module):
+    """pi_theta(u | o): (..., F) observations and (..., 5) masks -> (..., 5) masked logits."""
+
+    def __init__(self, n_in: int, hidden: int) -> None:
+        super().__init__()
+        self.net = nn.Sequential(nn.Linear(n_in, hidden), nn.ReLU(), nn.Linear(hidden, hidden),
+                                 nn.ReLU(), nn.Linear(hidden, N_ACTIONS))
+
+    def forward(self, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        return masked_logits(self.net(obs), mask)
+
+
+@dataclass
+class DecentralizedState:
+    """Controller state of B episodes (``buffer`` only while training)."""
+
+    board: AllToAllBoard
+    patch: PatchExtractor
+    buffer: RolloutBuffer | None
+    running: np.ndarray  # (B,) episodes running before the current step
+    collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
+    greedy: bool  # argmax actions (else sampled from ``gen``)
+    gen: torch.Generator
+    filter: Any = None
+
+
+class DecentralizedMethod(Method):
+    name = "decentralized"
+    Params = DecentralizedParams
+    params: DecentralizedParams
+
+    def __init__(self, env, params=None, seed: int = 0) -> None:
+        super().__init__(env, params, seed)
+        p = self.params
+        self.n_obs = (own_feature_size(p.patch_radius) + HISTORY_SIZE
+                      + map_feature_size(p.patch_radius))
+        self.actor = DecentralizedActor(self.n_obs, p.hidden)
+        self.critic = CentralCritic(p.critic_hidden)
+        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.lr)
+        self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
+        if p.safety_filter:
+            raise BenchError("decentralized: safety_filter=True needs the hierarchical safety "
+                             "filter (algorithms/hierarchical/safety_filter.py), not available yet")
+
+    def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
+        return {"actor": self.actor, "critic": self.critic,
+                "actor_opt": self.actor_opt, "critic_opt": self.critic_opt}
+
+    # ------------------------------------------------------------- controller
+    def begin(self, batch: EpisodeBatch, greedy: bool) -> DecentralizedState:
+        core, env, p = batch.core, self.env, self.params
+        b, n = core.pos.shape
+        loss = LossProcess((b, n, n), env.loss_p, batch.rng, env.loss_model, env.burst_length)
+        buffer = None
+        if not greedy:
+            buffer = RolloutBuffer(env.horizon, b, {
+                "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
+                "actions": ((n,), np.int64), "active": ((n,), bool),
+                "critic": ((n, CRITIC_FEATURES), np.float32), "t_frac": ((), np.float32),
+            })
+        state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
+                                   PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
+                                   np.zeros((b, n), dtype=bool),
+                                   *action_stream(batch, greedy, p.eval_sampling, self.torch_gen))
+        return state
+
+    def observe_robots(self, state: DecentralizedState) -> np.ndarray:
+        """(B, N, F) observations from the core and the received messages."""
+        core = state.board.core
+        return np.concatenate([own_features(core, state.patch), own_history(core, state.collided),
+                               state.board.features()], axis=-1)
+
+    def decide(self, batch: EpisodeBatch, state: DecentralizedState, greedy: bool) -> Decision:
+        core = batch.core
+        state.board.receive()
+        obs = self.observe_robots(state)
+        mask = action_mask(core)
+        logits = self.actor(torch.from_numpy(obs), torch.from_numpy(mask))
+        actions = sample_categorical(logits, state.greedy, state.gen).numpy()
+        state.running = ~core.ended
+        if state.buffer is not None:
+            state.buffer.add(obs=obs, mask=mask, actions=actions,
+                             active=~core.done & state.running[:, None],
+                             critic=critic_features(core),
+                             t_frac=np.full(core.batch, core.t / self.env.horizon, np.float32))
+        payload = float(state.board.payload)
+        if state.filter is not None:
+            return state.filter(state.board, logits, actions, payload)
+        return Decision(actions=actions, payload=payload)
+
+    def observe(self, batch: EpisodeBatch, state: DecentralizedState, result: Any) -> None:
+        state.collided = result.collision
+        if state.buffer is not None:
+            state.buffer.reward(result.reward, state.running)
+
+    # ---------------------------------------------------------------- update
+    def update(self, state: DecentralizedState) -> dict[str, float]:
+        """One actor and one critic Adam step from the finished batch (eq:losses)."""
+        buf, p = state.buffer, self.params
+        assert buf is not None, "update() needs a training rollout"
+        running = buf.running[: buf.t]
+        rewards = buf.rewards[: buf.t]
+        values = self.critic(buf.tensor("critic"), buf.tensor("t_frac"))  # (T, B)
+        adv, g, mask, n = team_advantage(values, rewards, running, p.normalize_advantage)
+        critic_loss = (((values - g) ** 2) * mask).sum() / n
+        self.critic_opt.zero_grad()
+        critic_loss.backward()
+        nn.utils.clip_grad_norm_(self.critic.parameters(), p.max_grad_norm)
+        self.critic_opt.step()
+
+        # Actor: -sum_{t,b} A_t sum_i log pi(u_t^i | o_t^i) / n over the active robot-steps.
+        active = buf.data["active"][: buf.t]  # (T, B, N)
+        obs = buf.data["obs"][: buf.t][active]
+        act_mask = buf.data["mask"][: buf.t][active]
+        actions = torch.from_numpy(buf.data["actions"][: buf.t][active])
+        weight = np.broadcast_to(adv.numpy()[..., None], active.shape)[active] / float(n)
+        weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32))
+        rows = obs.shape[0]
+        self.actor_opt.zero_grad()
+        actor_total, entropy_total = 0.0, 0.0
+        for lo in range(0, rows, p.chunk_rows):
+            sl = slice(lo, lo + p.chunk_rows)
+            logp_all = torch.log_softmax(self.actor(torch.from_numpy(obs[sl]),
+                                                    torch.from_numpy(act_mask[sl])), dim=-1)
+            logp = logp_all.gather(-1, actions[sl, None]).squeeze(-1)
+            entropy = -(logp_all.exp() * logp_all).sum(-1)
+            loss = -(weight_t[sl] * logp).sum() - p.entropy_coef * entropy.sum() / max(rows, 1)
+            loss.backward()
+            actor_total += float(-(weight_t[sl] * logp.detach()).sum())
+            entropy_total += float(entropy.detach().sum())
+        grad_norm = float(nn.utils.clip_grad_norm_(self.actor.parameters(), p.max_grad_norm))
+        self.actor_opt.step()
+        return {"actor_loss": actor_total, "critic_loss": float(critic_loss.detach()),
+                "entropy": entropy_total / max(rows, 1), "grad_norm": grad_norm,
+                "return_mean": float((g * mask).sum() / n)}

@@ -1,0 +1,251 @@
+"""IC3Net (Singh, Jain and Sukhbaatar, ICLR 2019) in the warehouse, with lossy links.
+
+Faithful to the reference code (IC3Net/IC3Net comm.py, trainer.py; facts in
+shared/REFERENCES.md), per robot i and step t, with parameters shared by all robots:
+
+* e_t^i = W_e o_t^i (one linear encoder, no nonlinearity in recurrent mode);
+* communication (``average_comm``): c_t^i = sum_j L_t[j, i] h_{t-1}^j / (alive_t - 1), the
+  previous hidden states of the robots i hears, divided by the number of alive robots
+  minus one as in the reference ``comm_mode="avg"``; the link mask
+  L_t[j, i] = g_{t-1}^j g_{t-1}^i a^j a^i A_t[j, i] (j != i) combines the gate sampled at the
+  previous step (a closed gate stops both sending and receiving, as in the reference
+  code's mask g_i g_j), alive robots (a completed robot neither sends nor receives) and
+  the lossy channel (each message dropped with probability p per directed link and step);
+* (h_t^i, c_t^i) = LSTMCell(e_t^i + C c_t^i, (h_{t-1}^i, c_{t-1}^i)), repeated
+  ``comm_passes`` times (each pass communicates the newest hidden states);
+* heads on h_t^i: action log-softmax (5, masked like every method's), gate log-softmax
+  (2: silent / talk; nobody talks at t = 0), value V^i (1);
+* REINFORCE with the per-robot value as baseline: loss = -sum A (log pi(u) + log pi(g))
+  + 0.01 sum (V - G)^2 - entropy term, over alive robot-steps, divided by the number of
+  environment steps; A = G_t - V^i, G_t the Monte-Carlo team return (eq:training_return,
+  gamma = 1, shared with every method); RMSprop(lr 1e-3, alpha 0.97, eps 1e-6); hidden 64.
+
+Rollouts run under no_grad and store inputs, link masks and samples in a
+``RolloutBuffer``; the update replays the episode with gradients, batched over episodes
+and robots, in chunks of ``detach_gap`` steps (truncated backpropagation through time as
+in the reference ``detach_gap``; each chunk is backpropagated before the next so memory
+is bounded). Payload: H scalars per communication pass on every directed link whose
+sender and receiver both have their gate open and are alive (transmitted, lost or not).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import torch
+from pydantic import Field
+from torch import nn
+
+from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.robot_obs import (
+    HISTORY_SIZE,
+    action_mask,
+    own_feature_size,
+    own_features,
+    own_history,
+)
+from algorithms.common.sampling import action_stream
+from algorithms.common.trainer import RolloutBuffer, mc_returns
+from envs.actions import N_ACTIONS
+from envs.channel import LossProcess
+from envs.observations import PatchExtractor
+
+
+class IC3NetParams(MethodParams):
+    """Hyperparameters; defaults are the reference code's unless stated."""
+
+    hidden: int = Field(64, ge=4, description="hidden size H of encoder, LSTM and messages")
+    comm_passes: int = Field(1, ge=1, description="communication passes per step")
+    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 shelf patch")
+    lr: float = Field(1e-3, gt=0, description="RMSprop learning rate")
+    rms_alpha: float = Field(0.97, gt=0, lt=1, description="RMSprop smoothing constant")
+    rms_eps: float = Field(1e-6, gt=0, description="RMSprop epsilon")
+    value_coef: float = Field(0.01, ge=0, description="weight of the value loss")
+    entropy_coef: float = Field(0.0, ge=0, description="entropy bonus (reference: 0)")
+    detach_gap: int = Field(50, ge=1, description="steps per truncated-BPTT chunk")
+    gate: Literal["learned", "open", "closed"] = Field(
+        "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
+    communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
+    eval_sampling: bool = Field(False, description="evaluate with sampled actions (the reference always samples)")
+
+
+def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
+    """IC3Net's averaged communication vectors.
+
+    h (B, N, H) previous hidden states; links (B, N_send, N_recv) 0/1 (gate, alive, loss
+    and no self-link already applied); alive (B,) number of alive robots. Returns
+    (B, N, H): c^i = sum_j links[j, i] h^j / (alive - 1) where alive > 1 (reference
+    ``comm_mode="avg"``), the plain sum otherwise (then nothing is heard anyway).
+    """
+    denom = torch.where(alive > 1, alive - 1, torch.ones_like(alive)).to(h.dtype)
+    return torch.einsum("bji,bjh->bih", links.to(h.dtype), h) / denom[:, None, None]
+
+
+class IC3NetPolicy(nn.Module):
+    """Encoder, C per pass, LSTM cell and the action / gate / value heads."""
+
+    def __init__(self, n_in: int, hidden: int, comm_passes: int) -> None:
+        super().__init__()
+        self.hidden = hidden
+        self.encoder = nn.Linear(n_in, hidden)
+        self.comm = nn.ModuleList([nn.Linear(hidden, hidden) for _ in range(comm_passes)])
+        self.lstm = nn.LSTMCell(hidden, hidden)
+        self.action_head = nn.Linear(hidden, N_ACTIONS)
+        self.gate_head = nn.Linear(hidden, 2)
+        self.value_head = nn.Linear(hidden, 1)
+
+    def initial_state(self, b: int, n: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return torch.zeros(b * n, self.hidden), torch.zeros(b * n, self.hidden)
+
+    def forward(
+        self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
+        hc: tuple[torch.Tensor, torch.Tensor],
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        """One step. obs (B, N, F), mask (B, N, 5), links (B, N, N), alive (B,), hc ((B N, H) x2)
+        -> action logits (B, N, 5), gate logits (B, N, 2), values (B, N), new hc."""
+        b, n, _ = obs.shape
+        x = self.encoder(obs)  # (B, N, H)
+        h, c = hc
+        for comm in self.comm:
+            heard = average_comm(h.view(b, n, self.hidden), links, alive)
+            h, c = self.lstm((x + comm(heard)).view(b * n, self.hidden), (h, c))
+        hh = h.view(b, n, self.hidden)
+        logits = masked_logits(self.action_head(hh), mask)
+        return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
+
+
+@dataclass
+class IC3NetState:
+    patch: PatchExtractor
+    loss: LossProcess
+    buffer: RolloutBuffer | None
+    hc: tuple[torch.Tensor, torch.Tensor]
+    gate: np.ndarray  # (B, N) bool, talk at the next step (sampled at this one)
+    collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
+    running: np.ndarray  # (B,)
+    greedy: bool
+    gen: torch.Generator
+
+
+class IC3NetMethod(Method):
+    name = "ic3net"
+    Params = IC3NetParams
+    params: IC3NetParams
+
+    def __init__(self, env, params=None, seed: int = 0) -> None:
+        super().__init__(env, params, seed)
+        p = self.params
+        self.n_obs = own_feature_size(p.patch_radius) + HISTORY_SIZE
+        self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes)
+        self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
+                                             alpha=p.rms_alpha, eps=p.rms_eps)
+
+    def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
+        return {"policy": self.policy, "optimizer": self.optimizer}
+
+    # ------------------------------------------------------------- controller
+    def begin(self, batch: EpisodeBatch, greedy: bool) -> IC3NetState:
+        core, env, p = batch.core, self.env, self.params
+        b, n = core.pos.shape
+        loss = LossProcess((b, n, n), env.loss_p, batch.rng, env.loss_model, env.burst_length)
+        buffer = None
+        if not greedy:
+            buffer = RolloutBuffer(env.horizon, b, {
+                "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
+                "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
+                "actions": ((n,), np.int64), "gates": ((n,), np.int64),
+            })
+        return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
+                           self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
+                           np.zeros((b, n), dtype=bool), ~core.ended,
+                           *action_stream(batch, greedy, p.eval_sampling, self.torch_gen))
+
+    def links(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
+        """(B, N_send, N_recv) bool: L_t = g^j g^i a^j a^i A_t[j, i], j != i (see module)."""
+        delivered = state.loss.step()  # drawn every step, so the loss stream never shifts
+        if not self.params.communicate:
+            return np.zeros_like(delivered)
+        talk = state.gate & alive  # (B, N)
+        n = talk.shape[1]
+        return talk[:, :, None] & talk[:, None, :] & delivered & ~np.eye(n, dtype=bool)
+
+    def payload(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
+        """(B,) scalars sent: H per pass on each link with both gates open and both alive."""
+        if not self.params.communicate:
+            return np.zeros(alive.shape[0])
+        k = (state.gate & alive).sum(axis=1).astype(np.float64)
+        return k * (k - 1) * self.params.hidden * self.params.comm_passes
+
+    def decide(self, batch: EpisodeBatch, state: IC3NetState, greedy: bool) -> Decision:
+        core, p = batch.core, self.params
+        alive = ~core.done  # (B, N)
+        links = self.links(state, alive)
+        payload = self.payload(state, alive)
+        alive_n = alive.sum(axis=1)
+        obs = np.concatenate([own_features(core, state.patch), own_history(core, state.collided)],
+                             axis=-1)
+        mask = action_mask(core)
+        logits, gate_logits, _, state.hc = self.policy(
+            torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links),
+            torch.from_numpy(alive_n), state.hc)
+        actions = sample_categorical(logits, state.greedy, state.gen).numpy()
+        gates = sample_categorical(gate_logits, state.greedy, state.gen).numpy()
+        if p.gate != "learned":
+            gates = np.full_like(gates, int(p.gate == "open"))
+        state.gate = gates.astype(bool)
+        state.running = ~core.ended
+        if state.buffer is not None:
+            state.buffer.add(obs=obs, mask=mask, links=links, alive=alive_n, actions=actions,
+                             gates=gates, active=alive & state.running[:, None])
+        return Decision(actions=actions, payload=payload)
+
+    def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
+        state.collided = result.collision
+        if state.buffer is not None:
+            state.buffer.reward(result.reward, state.running)
+
+    # ---------------------------------------------------------------- update
+    def update(self, state: IC3NetState) -> dict[str, float]:
+        """One RMSprop step: replay the batch with gradients, chunked over time (see module)."""
+        buf, p = state.buffer, self.params
+        assert buf is not None, "update() needs a training rollout"
+        t_used = buf.t
+        returns = mc_returns(buf.rewards[:t_used])  # (T, B) team return G_t
+        n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
+        data = {k: buf.tensor(k) for k in buf.data}
+        b, n = data["actions"].shape[1:]
+        hc = self.policy.initial_state(b, n)
+        learn_gate = p.gate == "learned" and p.communicate
+        self.optimizer.zero_grad()
+        totals = dict(action_loss=0.0, value_loss=0.0, entropy=0.0)
+        for lo in range(0, t_used, p.detach_gap):
+            action_loss = value_loss = entropy = torch.zeros(())
+            for t in range(lo, min(lo + p.detach_gap, t_used)):
+                logits, gate_logits, values, hc = self.policy(
+                    data["obs"][t], data["mask"][t], data["links"][t], data["alive"][t], hc)
+                logp_all = torch.log_softmax(logits, dim=-1)
+                logp = logp_all.gather(-1, data["actions"][t][..., None]).squeeze(-1)
+                if learn_gate:
+                    logp_g = torch.log_softmax(gate_logits, dim=-1)
+                    logp = logp + logp_g.gather(-1, data["gates"][t][..., None]).squeeze(-1)
+                m = data["active"][t].float()  # (B, N) alive robots of running episodes
+                g = returns[t][:, None]
+                adv = (g - values).detach()
+                action_loss = action_loss - (adv * logp * m).sum()
+                value_loss = value_loss + (((values - g) ** 2) * m).sum()
+                entropy = entropy - ((logp_all.exp() * logp_all).sum(-1) * m).sum()
+            loss = (action_loss + p.value_coef * value_loss - p.entropy_coef * entropy) / n_steps
+            loss.backward()
+            hc = (hc[0].detach(), hc[1].detach())
+            totals["action_loss"] += float(action_loss.detach()) / n_steps
+            totals["value_loss"] += float(value_loss.detach()) / n_steps
+            totals["entropy"] += float(entropy.detach())
+        self.optimizer.step()
+        n_active = float(max(buf.data["active"][:t_used].sum(), 1))
+        gate_open = float(buf.data["gates"][:t_used][buf.data["active"][:t_used]].mean()) \
+            if n_active else 0.0
+        return {"actor_loss": totals["action_loss"], "critic_loss": totals["value_loss"],
+                "entropy": totals["entropy"] / n_active, "gate_open_rate": gate_open,
+                "return_mean": float(returns[0].mean())}
