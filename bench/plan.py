@@ -1,0 +1,168 @@
+"""Where each cell of a run stands, read from the store (resume planning; writes nothing).
+
+A cell is *done* when its eval file exists (written once, after every chunk). Otherwise
+its checkpoint (if any) says how far training got; train parts beyond it are stale and
+are discarded by the runner before the cell continues. Every file consulted is
+validated here, before anything is written, so a corrupt or foreign store is refused
+with a BenchError and left untouched.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from bench.cells import Cell
+from bench.costs import cell_seconds
+from bench.grids import Grid
+from bench.schema import SCHEMA_VERSION
+from bench.store import RunStore, read_meta
+from envs.errors import BenchError
+
+
+def cell_spec(cell: Cell) -> dict[str, Any]:
+    """What a worker needs to build the cell's method: plain data only."""
+    return {
+        "cell_id": cell.cell_id,
+        "method_path": cell.method_path(),
+        "env": cell.to_env_config().model_dump(mode="json"),
+        "params": cell.method_params().model_dump(mode="json"),
+        "seed": cell.seed,
+        "episodes": cell.episodes,
+        "eval_episodes": cell.eval_episodes,
+    }
+
+
+@dataclass
+class CellState:
+    """Driver-side state of one cell during a run."""
+
+    cell: Cell
+    spec: dict[str, Any]
+    config: dict[str, Any]  # config columns of cells.parquet
+    n_chunks: int
+    phase: str = "pending"  # pending | training | evaluating | done | failed
+    iterations: int = 0  # training updates covered by the last checkpoint
+    episodes_done: int = 0  # training episodes covered by the last checkpoint
+    trained: bool = False  # training finished; evaluation next
+    has_checkpoint: bool = False
+    state_ref: Any = None  # ObjectRef of the last checkpoint state (set by the runner)
+    eval_todo: list[int] = field(default_factory=list)
+    eval_rows: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
+    wall_s: float = 0.0
+    peak_mem_mb: float = float("nan")
+    attempts: int = 0
+    retries: int = 0  # worker deaths in this run
+    error: str = ""
+    versions_json: str = "{}"
+    weight: float = 1.0  # estimated cost, for the ETA
+
+    @property
+    def cell_id(self) -> str:
+        return self.cell.cell_id
+
+    @property
+    def finished(self) -> bool:
+        return self.phase in ("done", "failed")
+
+    def progress(self) -> float:
+        """Fraction 0..1 of this cell's estimated work that is finished."""
+        if self.finished:
+            return 1.0
+        c = self.cell
+        train_w = c.episodes / max(c.episodes + c.eval_episodes, 1)
+        train_f = 1.0 if self.trained or c.episodes == 0 else min(self.episodes_done / c.episodes, 1.0)
+        eval_f = len(self.eval_rows) / max(self.n_chunks, 1)
+        return train_w * train_f + (1.0 - train_w) * eval_f
+
+    def status(self) -> str:
+        return {"training": "running", "evaluating": "running"}.get(self.phase, self.phase)
+
+    def row(self, grid: str) -> dict[str, Any]:
+        """This cell's row of cells.parquet."""
+        return {
+            **self.config, "grid": grid, "status": self.status(), "error": self.error,
+            "train_episodes_done": self.episodes_done, "wall_s": self.wall_s,
+            "peak_mem_mb": self.peak_mem_mb, "attempts": self.attempts,
+            "versions_json": self.versions_json, "schema_version": SCHEMA_VERSION,
+        }
+
+    def label(self) -> str:
+        c = self.cell
+        return f"{self.cell_id} ({c.method} N={c.n_robots} p={c.loss_p} seed={c.seed})"
+
+
+def plan_run(store: RunStore, grid: Grid, fresh: bool) -> tuple[list[CellState], list[dict[str, Any]]]:
+    """(states of the grid's cells, rows of other cells already in cells.parquet)."""
+    old: dict[str, dict[str, Any]] = {}
+    if not fresh and store.exists():
+        store.read_manifest()
+        df = store.read_cells()
+        if df is not None:
+            old = {str(r["cell_id"]): r for r in df.to_dict("records")}
+    states = []
+    for cell in grid.cells:
+        params = cell.method_params()
+        st = CellState(cell=cell, spec=cell_spec(cell), config=cell.config_columns(),
+                       n_chunks=math.ceil(cell.eval_episodes / params.eval_chunk),
+                       weight=max(cell_seconds(cell), 1e-6))
+        prev = old.get(cell.cell_id)
+        if prev is not None:
+            st.attempts = int(prev.get("attempts") or 0)
+            st.versions_json = str(prev.get("versions_json") or "{}")
+            st.wall_s = float(prev.get("wall_s") or 0.0)
+        if not fresh:
+            _resume_state(store, st)
+        states.append(st)
+    ids = {s.cell_id for s in states}
+    others = [r for cid, r in old.items() if cid not in ids]
+    return states, others
+
+
+def _resume_state(store: RunStore, st: CellState) -> None:
+    meta = store.eval_meta(st.cell_id)
+    if meta is not None:
+        st.phase, st.trained = "done", True
+        st.wall_s = float(meta.get("wall_s", st.wall_s))
+        st.peak_mem_mb = float(meta.get("peak_mem_mb", st.peak_mem_mb))
+        st.attempts = int(meta.get("attempts", st.attempts))
+        st.episodes_done = int(meta.get("train_episodes_done", st.episodes_done))
+        st.eval_rows = {k: [] for k in range(st.n_chunks)}
+        return
+    ckpt = store.read_checkpoint(st.cell_id)
+    if ckpt is not None:
+        if ckpt.get("cell") != st.cell.canonical_json():
+            raise BenchError(f"checkpoint {str(store.ckpt_path(st.cell_id))!r} belongs to another cell config")
+        st.has_checkpoint = True
+        st.iterations = int(ckpt["iterations"])
+        st.episodes_done = int(ckpt["episodes_done"])
+        st.trained = bool(ckpt["finished"])
+        st.wall_s = float(ckpt.get("wall_s", 0.0))
+        st.peak_mem_mb = float(ckpt.get("peak_mem_mb", float("nan")))
+        st.attempts = max(st.attempts, int(ckpt.get("attempts", 0)))
+    for _, path in store.train_parts(st.cell_id):
+        read_meta(path)  # a corrupt committed part is refused before anything is written
+
+
+def versions() -> dict[str, str]:
+    """Package, git and library versions recorded with every cell and in the manifest."""
+    import platform
+
+    import numpy
+    import pandas
+    import pyarrow
+    import ray
+    import torch
+
+    from bench.about import git_commit, package_version
+
+    return {
+        "package": package_version(), "git": git_commit(), "python": platform.python_version(),
+        "numpy": numpy.__version__, "torch": torch.__version__, "ray": ray.__version__,
+        "pandas": pandas.__version__, "pyarrow": pyarrow.__version__,
+    }
+
+
+def versions_json() -> str:
+    return json.dumps(versions(), sort_keys=True)

@@ -1,0 +1,71 @@
+"""``bench eval``: evaluate one method in this process, from a checkpoint or untrained.
+
+Runs the same ``Method.evaluate`` chunks as the runner's evaluator workers (so the rows
+equal the eval table's rows for the same cell), without Ray and without writing files.
+"""
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+import torch
+
+from algorithms.common.episodes import EVAL_METRICS
+from algorithms.registry import method_class
+from bench.cells import Cell
+from bench.store import load_checkpoint
+from envs.errors import BenchError
+from envs.layouts import preset_for
+
+EVAL_COLUMNS = EVAL_METRICS  # the eval table's metric columns (bench/schema.py EVAL_SCHEMA)
+
+
+def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robots: int | None = None,
+               loss_p: float | None = None, layout: str | None = None, episodes: int = 10,
+               seed: int | None = None, horizon: int | None = None, groups: int | None = None,
+               ) -> tuple[Cell, list[dict[str, Any]]]:
+    """(the evaluated cell, one row per episode). CLI values override the checkpoint's cell."""
+    torch.set_num_threads(1)
+    base: dict[str, Any] = {}
+    state = None
+    if checkpoint is not None:
+        ckpt = load_checkpoint(checkpoint)
+        base = json.loads(ckpt["cell"])
+        state = ckpt["state"]
+        if method is not None and method != base["method"]:
+            raise BenchError(f"--method {method!r} does not match the checkpoint's method {base['method']!r}")
+    elif method is None:
+        raise BenchError("give --method (untrained initialization) or --checkpoint")
+    overrides = dict(method=method, n_robots=n_robots, loss_p=loss_p, layout=layout, seed=seed,
+                     horizon=horizon, groups=groups)
+    spec = {**base, **{k: v for k, v in overrides.items() if v is not None}}
+    spec.setdefault("n_robots", 20)
+    spec.setdefault("loss_p", 0.2)
+    if layout is None and n_robots is not None:
+        spec["layout"] = preset_for(n_robots)  # a new team size gets its own preset
+    spec.update(episodes=0, eval_episodes=episodes)
+    cell = Cell.make(**spec)
+    cls = method_class(cell.method)
+    params = cell.method_params()
+    m = cls(cell.to_env_config(), params.model_dump(), seed=cell.seed)
+    if state is not None:
+        try:
+            m.load_state_dict(state)
+        except (KeyError, RuntimeError, ValueError) as exc:
+            raise BenchError(f"checkpoint {checkpoint!r} does not fit {cell.method} with these settings: "
+                             f"{' '.join(str(exc).split())[:200]}") from None
+    rows: list[dict[str, Any]] = []
+    for chunk in range(math.ceil(episodes / params.eval_chunk)):
+        rows.extend(m.evaluate(chunk, cell.seed))
+    return cell, [r for r in rows if int(r["episode"]) < episodes]
+
+
+def summarize(rows: list[dict[str, Any]]) -> dict[str, float]:
+    """Mean over episodes of every eval column (NaN-aware: NaN only if every episode is NaN)."""
+    out = {}
+    for col in EVAL_COLUMNS:
+        vals = np.array([float(r.get(col, math.nan)) for r in rows], dtype=np.float64)
+        out[col] = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
+    return out

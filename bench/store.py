@@ -1,0 +1,314 @@
+"""The crash-safe Parquet store of one run directory (layout: docs/results-schema.md).
+
+    <run>/manifest.json            versions, grid, command line, times
+    <run>/cells.parquet            one row per cell (written only by the driver)
+    <run>/train/<cell_id>/part-<first_episode>.parquet
+    <run>/eval/<cell_id>.parquet   written once, after every evaluation chunk
+    <run>/checkpoints/<cell_id>.pt
+
+Every write is atomic: a temporary file in the same directory (its name starts with '.',
+which pyarrow's dataset reader ignores), flush + fsync, ``os.replace``, fsync of the
+directory. Crash consistency of training rows: a part covering episodes [a, b) is written
+*before* the checkpoint at episode b; on resume, parts starting at or beyond the
+checkpoint's episode counter are deleted, so rows are never duplicated or lost.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from bench.schema import (
+    CELLS_SCHEMA,
+    EVAL_SCHEMA,
+    SCHEMA_VERSION,
+    TRAIN_SCHEMA,
+    file_version,
+    rows_to_table,
+)
+from envs.errors import BenchError
+
+CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
+PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
+
+
+@contextmanager
+def atomic_file(path: Path) -> Iterator[IO[bytes]]:
+    """Write ``path`` atomically: temp file in the same dir, fsync, os.replace, dir fsync."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with _suppress_oserror():
+            os.unlink(tmp)
+        raise
+    _fsync_dir(path.parent)
+
+
+@contextmanager
+def _suppress_oserror() -> Iterator[None]:
+    try:
+        yield
+    except OSError:
+        pass
+
+
+def _fsync_dir(path: Path) -> None:
+    with _suppress_oserror():
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def write_table(path: Path, table: pa.Table) -> None:
+    with atomic_file(path) as fh:
+        pq.write_table(table, fh)
+
+
+def read_table(path: Path, expected: pa.Schema) -> pa.Table:
+    """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError."""
+    try:
+        table = pq.read_table(path)
+    except (OSError, pa.ArrowException) as exc:
+        raise BenchError(f"corrupt Parquet file {str(path)!r}: {_short(exc)}") from None
+    _check_version(path, table.schema.metadata)
+    missing = [n for n in expected.names if n not in table.schema.names]
+    if missing:
+        raise BenchError(f"Parquet file {str(path)!r} lacks column {missing[0]!r}")
+    return table
+
+
+def read_meta(path: Path) -> dict[str, str]:
+    """Key-value metadata of a Parquet file (footer only); BenchError when corrupt."""
+    try:
+        meta = pq.read_schema(path).metadata or {}
+    except (OSError, pa.ArrowException) as exc:
+        raise BenchError(f"corrupt Parquet file {str(path)!r}: {_short(exc)}") from None
+    _check_version(path, meta)
+    return {k.decode(): v.decode() for k, v in meta.items() if k != b"ARROW:schema"}
+
+
+def _check_version(path: Path, meta: Mapping[bytes, bytes] | None) -> None:
+    version = file_version(meta)
+    if version != SCHEMA_VERSION:
+        raise BenchError(
+            f"{str(path)!r} was written with results schema version {version}, this bench "
+            f"reads version {SCHEMA_VERSION}; use another --out or --fresh"
+        )
+
+
+def _short(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200]
+
+
+def load_checkpoint(path: str | Path) -> dict[str, Any]:
+    """A bench checkpoint, loaded with ``weights_only=True`` (no pickle is executed).
+
+    Keys: format, schema_version, cell (canonical cell JSON), method, episodes_done,
+    wall_s, peak_mem_mb, attempts, state (the method's state_dict).
+    """
+    import torch
+
+    path = Path(path)
+    try:
+        data = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise BenchError(f"checkpoint {str(path)!r} does not exist") from None
+    except Exception as exc:  # torch raises many types for truncated or foreign files
+        raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None
+    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
+        raise BenchError(f"{str(path)!r} is not a bench checkpoint")
+    if data.get("schema_version") != SCHEMA_VERSION:
+        raise BenchError(
+            f"checkpoint {str(path)!r} has schema version {data.get('schema_version')}, "
+            f"this bench reads version {SCHEMA_VERSION}"
+        )
+    return data
+
+
+class RunStore:
+    """Reads and writes one run directory; see the module docstring for the layout."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        self.manifest_path = self.root / "manifest.json"
+        self.cells_path = self.root / "cells.parquet"
+        self.train_dir = self.root / "train"
+        self.eval_dir = self.root / "eval"
+        self.ckpt_dir = self.root / "checkpoints"
+
+    # ----------------------------------------------------------- validation
+    def check_writable(self) -> None:
+        """BenchError unless ``root`` is (or can become) a writable directory. Writes nothing."""
+        p = self.root
+        while not p.exists():
+            if p.parent == p:
+                break
+            p = p.parent
+        if not p.is_dir():
+            raise BenchError(f"--out {str(self.root)!r}: {str(p)!r} exists and is not a directory")
+        if not os.access(p, os.W_OK | os.X_OK):
+            raise BenchError(f"--out {str(self.root)!r}: directory {str(p)!r} is not writable")
+        if self.root.exists():
+            for sub in (self.train_dir, self.eval_dir, self.ckpt_dir):
+                if sub.exists() and not sub.is_dir():
+                    raise BenchError(f"--out {str(self.root)!r}: {str(sub)!r} is not a directory")
+
+    def exists(self) -> bool:
+        return self.manifest_path.exists() or self.cells_path.exists()
+
+    def read_manifest(self) -> dict[str, Any] | None:
+        if not self.manifest_path.exists():
+            return None
+        try:
+            data = json.loads(self.manifest_path.read_text())
+        except (OSError, ValueError) as exc:
+            raise BenchError(f"corrupt manifest {str(self.manifest_path)!r}: {_short(exc)}") from None
+        if not isinstance(data, dict) or data.get("schema_version") != SCHEMA_VERSION:
+            found = data.get("schema_version") if isinstance(data, dict) else None
+            raise BenchError(
+                f"{str(self.root)!r} was written with results schema version {found}, this bench "
+                f"reads version {SCHEMA_VERSION}; use another --out or --fresh"
+            )
+        return data
+
+    def require_run(self) -> dict[str, Any]:
+        """The manifest of an existing run directory (for report/replay), else BenchError."""
+        manifest = self.read_manifest()
+        if manifest is None:
+            raise BenchError(f"{str(self.root)!r} is not a bench run directory (no manifest.json)")
+        return manifest
+
+    # ----------------------------------------------------------------- cells
+    def read_cells(self) -> pd.DataFrame | None:
+        if not self.cells_path.exists():
+            return None
+        return read_table(self.cells_path, CELLS_SCHEMA).to_pandas()
+
+    def write_cells(self, rows: Sequence[Mapping[str, Any]]) -> None:
+        write_table(self.cells_path, rows_to_table(rows, CELLS_SCHEMA))
+
+    def write_manifest(self, data: Mapping[str, Any]) -> None:
+        with atomic_file(self.manifest_path) as fh:
+            fh.write(json.dumps(dict(data), indent=2, sort_keys=True).encode() + b"\n")
+
+    # ------------------------------------------------------------ train rows
+    def _part_path(self, cell_id: str, first_episode: int) -> Path:
+        return self.train_dir / cell_id / f"{PART_PREFIX}{first_episode:09d}{PART_SUFFIX}"
+
+    def train_parts(self, cell_id: str) -> list[tuple[int, Path]]:
+        """(first_episode, path) of a cell's committed train parts, sorted."""
+        d = self.train_dir / cell_id
+        if not d.is_dir():
+            return []
+        out = []
+        for p in d.iterdir():
+            if p.name.startswith(PART_PREFIX) and p.name.endswith(PART_SUFFIX):
+                try:
+                    out.append((int(p.name[len(PART_PREFIX):-len(PART_SUFFIX)]), p))
+                except ValueError:
+                    continue
+        return sorted(out)
+
+    def write_train_part(self, cell_id: str, first_episode: int, rows: Sequence[Mapping[str, Any]]) -> None:
+        rows = [{**r, "cell_id": cell_id} for r in rows]
+        write_table(self._part_path(cell_id, first_episode), rows_to_table(rows, TRAIN_SCHEMA))
+
+    def discard_parts_from(self, cell_id: str, episode: int) -> int:
+        """Delete parts starting at or after ``episode`` (not covered by the checkpoint)."""
+        n = 0
+        for first, path in self.train_parts(cell_id):
+            if first >= episode:
+                path.unlink()
+                n += 1
+        return n
+
+    def read_train(self) -> pd.DataFrame:
+        return self._read_dataset(self.train_dir, TRAIN_SCHEMA)
+
+    # ------------------------------------------------------------- eval rows
+    def eval_path(self, cell_id: str) -> Path:
+        return self.eval_dir / f"{cell_id}.parquet"
+
+    def write_eval(self, cell_id: str, rows: Sequence[Mapping[str, Any]], meta: Mapping[str, Any]) -> None:
+        rows = [{**r, "cell_id": cell_id} for r in rows]
+        extra = {k: json.dumps(v) for k, v in meta.items()}
+        write_table(self.eval_path(cell_id), rows_to_table(rows, EVAL_SCHEMA, extra))
+
+    def eval_meta(self, cell_id: str) -> dict[str, Any] | None:
+        """Metadata (wall_s, peak_mem_mb, attempts) of a finished cell's eval file, or None."""
+        path = self.eval_path(cell_id)
+        if not path.exists():
+            return None
+        out = {}
+        for k, v in read_meta(path).items():
+            if k == "schema_version":
+                continue
+            try:
+                out[k] = json.loads(v)
+            except ValueError:
+                out[k] = v
+        return out
+
+    def read_eval(self) -> pd.DataFrame:
+        return self._read_dataset(self.eval_dir, EVAL_SCHEMA)
+
+    def _read_dataset(self, root: Path, schema: pa.Schema) -> pd.DataFrame:
+        files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith("."))
+        if not files:
+            return schema.empty_table().to_pandas()
+        return pa.concat_tables([read_table(p, schema).select(schema.names).cast(schema)
+                                 for p in files]).to_pandas()
+
+    # ----------------------------------------------------------- checkpoints
+    def ckpt_path(self, cell_id: str) -> Path:
+        return self.ckpt_dir / f"{cell_id}.pt"
+
+    def write_checkpoint(self, cell_id: str, payload: Mapping[str, Any]) -> None:
+        """Atomically save ``payload`` (tensors and plain data) to checkpoints/<cell_id>.pt."""
+        import torch
+
+        with atomic_file(self.ckpt_path(cell_id)) as fh:
+            torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, fh)
+
+    def read_checkpoint(self, cell_id: str) -> dict[str, Any] | None:
+        path = self.ckpt_path(cell_id)
+        return load_checkpoint(path) if path.exists() else None
+
+    # ------------------------------------------------------------- cleanup
+    def remove_temp_files(self) -> int:
+        """Delete leftovers of interrupted atomic writes ('.<name>.*.tmp')."""
+        n = 0
+        for d in (self.root, self.train_dir, self.eval_dir, self.ckpt_dir):
+            if not d.is_dir():
+                continue
+            for p in d.rglob(".*.tmp"):
+                with _suppress_oserror():
+                    p.unlink()
+                    n += 1
+        return n
+
+    def wipe(self) -> None:
+        """Delete everything the bench wrote in this run directory (for --fresh)."""
+        for sub in (self.train_dir, self.eval_dir, self.ckpt_dir):
+            if sub.is_dir():
+                shutil.rmtree(sub)
+        for f in (self.cells_path, self.manifest_path):
+            if f.exists():
+                f.unlink()
