@@ -271,6 +271,16 @@ def _print_frame(df: Any, title: str) -> None:
     Console().print(table)
 
 
+# -------------------------------------------------------------------- tune
+def _register_tune() -> None:
+    from studies.cli import tune  # light: optuna, ray and torch load inside the command
+
+    app.command("tune")(tune)
+
+
+_register_tune()
+
+
 # -------------------------------------------------------------------- main
 def _error(msg: str) -> None:
     text = " ".join(str(msg).split()).replace("Value error, ", "")

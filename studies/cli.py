@@ -1,0 +1,192 @@
+"""``bench tune``: run or resume an Optuna study, or print its best configuration.
+
+``tune`` is a typer command function; bench/cli.py registers it as ``bench tune``.
+``tune_study`` is the same thing as a Python call (used by the tests). Options left out
+on a rerun come from the stored study, so ``bench tune --study demo --trials 16`` resumes
+``demo`` with its original N, p, layout, space and seed; repeating a different value is
+an error. User mistakes raise ``BenchError``, which ``bench``'s entry point prints as one
+line on stderr with exit status 2; Ctrl-C leaves a resumable study.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from envs.errors import BenchError
+from studies import DEFAULT_ROOT
+
+if TYPE_CHECKING:
+    from studies.runner import RunSummary
+
+# CLI option name -> TrialSettings field
+SETTING_OPTIONS = ("method", "n_robots", "loss_p", "layout", "groups", "episodes", "horizon",
+                   "eval_episodes", "objectives")
+
+
+@dataclass
+class TuneResult:
+    summary: RunSummary
+    directory: Path
+    files: list[Path]
+    best: dict[str, Any] | None  # params and values of the best trial, if any
+
+
+def tune_study(name: str, n_trials: int, options: dict[str, Any], *, storage: str | None = None,
+               root: Path | str = DEFAULT_ROOT, workers: int | None = None,
+               address: str | None = None, inline: bool = False,
+               log: Callable[[str], None] = lambda _m: None) -> TuneResult:
+    """Run study ``name`` until it holds ``n_trials`` finished trials, then export + report.
+
+    ``options`` holds what the user set explicitly: any ``TrialSettings`` field plus
+    ``seed``, ``c_max`` (bool: search C_max), ``param`` (list of ``NAME=VALUES``) and
+    ``pruner``. For a resumed study the stored values fill in the rest.
+    """
+    import optuna
+
+    from studies.export import write_trials
+    from studies.objective import TrialSettings
+    from studies.report import build_study_report
+    from studies.runner import make_pruner, preflight, run_study
+    from studies.space import space_size
+    from studies.storage import (
+        CONFIG_ATTR,
+        merge_config,
+        open_storage,
+        open_study,
+        stored_config,
+        study_dir,
+    )
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    if n_trials < 1:
+        raise BenchError(f"--trials must be >= 1, got {n_trials}")
+    directory = study_dir(name, root)
+    given = _config(options)  # bad options fail before anything is written
+    store = open_storage(storage, directory)
+    explicit = set(options) - {"c_max", "param"} | ({"space"} if {"c_max", "param"} & set(options) else set())
+    stored = stored_config(store, name)
+    config = merge_config(name, stored, given, explicit)
+    settings = TrialSettings.make(**{k: v for k, v in config.items() if k in TrialSettings.model_fields})
+    space = {k: tuple(v) for k, v in config["space"].items()}
+    preflight(settings, space)
+    pruner = make_pruner(config["pruner"], settings.multi_objective)
+    study = open_study(name, store, settings.directions, config["seed"], pruner)
+    if not stored:
+        study.set_user_attr(CONFIG_ATTR, config)
+    log(f"study {name}: {space_size(space)} configurations "
+        f"({', '.join(f'{k} in {list(v)}' for k, v in space.items())}); "
+        f"N={settings.n_robots}, p={settings.loss_p}, layout={settings.layout}, "
+        f"{settings.episodes} episodes x horizon {settings.horizon}")
+    if inline:
+        from studies.executors import SequentialExecutor
+
+        executor: Any = SequentialExecutor(workers or 1)
+    else:
+        from studies.executors import RayExecutor
+
+        executor = RayExecutor(workers, address=address)
+    summary = run_study(study, settings, space, config["seed"], n_trials, executor,
+                        pruning=config["pruner"] != "none", log=log)
+    files = [write_trials(study, directory)]
+    files += build_study_report(directory)
+    best = None
+    if summary.complete:
+        from studies.export import best_trial
+
+        trial = best_trial(study)
+        best = {"number": trial.number, "params": dict(trial.params), "values": list(trial.values)}
+    return TuneResult(summary, directory, files, best)
+
+
+def _config(options: dict[str, Any]) -> dict[str, Any]:
+    """The full config for a new study: defaults overridden by ``options``."""
+    from studies.objective import TrialSettings
+    from studies.space import parse_overrides, search_space
+
+    settings = TrialSettings.make(**{k: v for k, v in options.items() if k in TrialSettings.model_fields})
+    overrides = parse_overrides(options.get("param") or [])
+    space = search_space(c_max=bool(options.get("c_max")), overrides=overrides)
+    return {**settings.model_dump(mode="json"), "space": {k: list(v) for k, v in space.items()},
+            "seed": int(options.get("seed", 0)), "pruner": options.get("pruner", "median")}
+
+
+def print_best(name: str, storage: str | None = None, root: Path | str = DEFAULT_ROOT) -> str:
+    """The best configuration of study ``name`` as a grid-file snippet."""
+    import optuna
+
+    from studies.export import best_grid_snippet
+    from studies.storage import open_storage, study_dir
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    directory = study_dir(name, root)
+    if storage is None and not directory.exists():
+        raise BenchError(f"no study {name!r} under {str(Path(root))!r}; run `bench tune --study {name}` first")
+    store = open_storage(storage, directory)
+    if name not in optuna.study.get_all_study_names(store):
+        raise BenchError(f"no study {name!r} in the storage")
+    return best_grid_snippet(optuna.load_study(study_name=name, storage=store))
+
+
+def tune(
+    study: str | None = typer.Option(None, "--study", help="study name (resumes if it exists)"),
+    best: str | None = typer.Option(None, "--best", metavar="STUDY",
+                                       help="print the best configuration of STUDY as a grid file and exit"),
+    trials: int = typer.Option(20, "--trials", help="finished (complete + pruned) trials the study should hold"),
+    n_robots: int | None = typer.Option(None, "--n-robots", help="team size N (default: 8)"),
+    loss_p: float | None = typer.Option(None, "--loss-p", help="message loss probability p (default: 0.2)"),
+    layout: str | None = typer.Option(None, "--layout", help="layout preset or .map path (default: tiny)"),
+    groups: int | None = typer.Option(None, "--groups", help="number of groups Z (default: 4)"),
+    episodes: int | None = typer.Option(None, "--episodes", help="training episodes per trial (default: 48)"),
+    horizon: int | None = typer.Option(None, "--horizon", help="episode length T (default: 48)"),
+    eval_episodes: int | None = typer.Option(None, "--eval-episodes", help="final evaluation episodes (default: 20)"),
+    objectives: str | None = typer.Option(None, "--objectives",
+                                             help="'success' (return breaks ties) or 'success,return' (multi-objective, no pruning)"),
+    c_max: bool | None = typer.Option(None, "--c-max/--no-c-max", help="also search C_max (default: no)"),
+    param: list[str] | None = typer.Option(None, "--param", metavar="NAME=VALUES",
+                                              help="restrict a parameter, e.g. ref_size=4,8 or search_radius=1..3 (repeatable)"),
+    pruner: str | None = typer.Option(None, "--pruner", help="median or none (default: median)"),
+    seed: int | None = typer.Option(None, "--seed", help="study seed (trial seeds derive from it) (default: 0)"),
+    storage: str | None = typer.Option(None, "--storage", metavar="URL",
+                                          help="RDB URL of a shared study database (default: journal file under results/studies/)"),
+    workers: int | None = typer.Option(None, "--workers", help="trials run in parallel (default: CPU count)"),
+    address: str | None = typer.Option(None, "--address", help="join this Ray cluster (else RAY_ADDRESS, else embedded)"),
+    out: Path = typer.Option(DEFAULT_ROOT, "--out", help="root folder of the studies"),
+    inline: bool = typer.Option(False, "--inline", help="run trials in this process, without Ray (debugging)"),
+    method: str | None = typer.Option(None, "--method", hidden=True),
+) -> None:
+    """Tune |R_z| (ref_size) and L (search_radius) of the hierarchical method with Optuna."""
+    if best is not None:
+        typer.echo(print_best(best, storage, out), nl=False)
+        return
+    if study is None:
+        raise BenchError("give --study NAME (or --best STUDY)")
+    local = {"method": method, "n_robots": n_robots, "loss_p": loss_p, "layout": layout,
+             "groups": groups, "episodes": episodes, "horizon": horizon,
+             "eval_episodes": eval_episodes, "objectives": objectives, "c_max": c_max,
+             "param": param or None, "pruner": pruner, "seed": seed}
+    options = {k: v for k, v in local.items() if v is not None}
+    if workers is not None and workers < 1:
+        raise BenchError(f"--workers must be >= 1, got {workers}")
+    t0 = time.perf_counter()
+    res = tune_study(study, trials, options, storage=storage, root=out, workers=workers,
+                     address=address, inline=inline, log=lambda m: typer.echo(m, err=True))
+    s = res.summary
+    typer.echo(f"study {study}: {s.finished}/{s.requested} finished trials "
+               f"({s.complete} complete, {s.pruned} pruned, {s.failed} failed"
+               + (f", {s.running_elsewhere} running elsewhere" if s.running_elsewhere else "")
+               + f"); {s.started} run now in {time.perf_counter() - t0:.1f} s")
+    typer.echo(f"reason: {s.reason()}")
+    if res.best:
+        params = ", ".join(f"{k}={v}" for k, v in res.best["params"].items())
+        typer.echo(f"best: trial {res.best['number']} {params} "
+                   f"(objective {', '.join(f'{v:.4f}' for v in res.best['values'])})")
+    typer.echo(f"trials: {res.files[0]}\nreport: {res.directory / 'report'}")
+    typer.echo(f"best configuration as a grid file: bench tune --best {study}"
+               + (f" --out {out}" if Path(out) != DEFAULT_ROOT else ""))
+    sys.stdout.flush()

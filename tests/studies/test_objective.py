@@ -1,0 +1,54 @@
+"""Trial seeds, the objective's tie-break and a worker's segments (runtime ~1 s)."""
+from __future__ import annotations
+
+import pytest
+
+from envs.errors import BenchError
+from studies.objective import (
+    TrialSettings,
+    TrialWorker,
+    eval_seed,
+    objective_values,
+    squash_return,
+    trial_seed,
+)
+
+
+def test_trial_seed__derives_from_study_seed_and_number() -> None:
+    seeds = {trial_seed(0, n) for n in range(100)}
+    assert len(seeds) == 100
+    assert trial_seed(0, 5) == trial_seed(0, 5)
+    assert trial_seed(1, 5) != trial_seed(0, 5)
+    assert eval_seed(0) not in seeds
+
+
+def test_objective__return_only_breaks_ties() -> None:
+    n = 8
+    # one more robot out of 8 x 20 episodes beats any return difference
+    low_success_high_return = objective_values(0.5, 1e6, "success", n)[0]
+    high_success_low_return = objective_values(0.5 + 1 / 160, -1e6, "success", n)[0]
+    assert high_success_low_return > low_success_high_return
+    assert objective_values(0.5, 10.0, "success", n)[0] > objective_values(0.5, 5.0, "success", n)[0]
+    assert 0.0 < squash_return(-500.0, n) < squash_return(0.0, n) < squash_return(500.0, n) < 1.0
+
+
+def test_objective__multi_objective_is_success_and_return() -> None:
+    assert objective_values(0.25, -3.0, "success,return", 8) == [0.25, -3.0]
+
+
+def test_worker__streams_one_segment_per_eval_every_and_ends_done(settings: TrialSettings) -> None:
+    spec = settings.spec({"ref_size": 8, "search_radius": 2}, seed=3, eval_seed=eval_seed(0))
+    worker = TrialWorker(spec)
+    segs = [worker.step() for _ in range(settings.iterations)]
+    assert [s.step for s in segs] == [1, 2, 3]
+    assert [s.done for s in segs] == [False, False, True]
+    assert [s.eval_episodes for s in segs] == [5, 5, 10]  # report_chunks=1 chunk, then all
+    assert segs[-1].episodes == 12
+    assert all(0.0 <= s.success_rate <= 1.0 for s in segs)
+
+
+def test_settings__a_bad_value_is_named() -> None:
+    with pytest.raises(BenchError, match="loss_p"):
+        TrialSettings.make(loss_p=1.5)
+    with pytest.raises(BenchError, match="n_robots"):
+        TrialSettings.make(method="fake_hier", n_robots=500).cell({"ref_size": 2}, seed=0)
