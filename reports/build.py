@@ -1,0 +1,104 @@
+"""``build_report``: rebuild every figure, table and page of the report from the store alone.
+
+The only function of ``reports`` that writes files. It reads the run's Parquet store
+(``reports.store``), calls the pure builders (figures, Table I, summary, claims, index)
+and writes their outputs into ``<run>/report/``, each atomically (temp file + rename), so
+an interrupted rebuild never leaves a half-written file. Deterministic: bootstrap
+generators are seeded, so the same store gives the same numbers.
+
+Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
+.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.md, index.md, index.html.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+from matplotlib.figure import Figure
+
+from reports.claims import all_claims, claims_markdown
+from reports.fig1_training import fig1_training
+from reports.fig2_success import fig2_success
+from reports.fig3_payload import fig3_payload
+from reports.index import Entry, IndexData, index_html, index_markdown
+from reports.plotting import DPI
+from reports.store import load_store
+from reports.summary import summary_frame, summary_markdown
+from reports.table1_safety import table1_frame, table1_latex, table1_markdown
+
+REPORT_DIR = "report"
+FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
+
+
+def _atomic(path: Path, write: Callable[[str], None]) -> Path:
+    """Call ``write(tmp)`` on a temp file next to ``path``, then rename it into place."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_text(path: Path, text: str) -> Path:
+    return _atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+
+
+def save_figure(fig: Figure, stem: Path) -> list[Path]:
+    """``stem``.png (200 dpi) and ``stem``.pdf."""
+    return [_atomic(stem.with_suffix(f".{fmt}"),
+                    lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=DPI))
+            for fmt in ("png", "pdf")]
+
+
+def build_report(run_dir: Path | str) -> Path:
+    """Rebuild ``<run_dir>/report/`` from the store; returns that directory (holding
+    ``index.html``). Missing or failed cells are listed, never fatal; a run directory
+    without ``cells.parquet`` is a ``BenchError``."""
+    store = load_store(run_dir)
+    out = Path(run_dir) / REPORT_DIR
+    train, evals = store.train, store.eval
+    entries: list[Entry] = []
+
+    titles = {
+        "fig1_training": "Fig. 1: training convergence",
+        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net",
+        "fig3_comm_payload": "Fig. 3: communication payload and ratio",
+    }
+    builders = {"fig1_training": lambda: fig1_training(train),
+                "fig2_success_percentiles": lambda: fig2_success(evals),
+                "fig3_comm_payload": lambda: fig3_payload(evals)}
+    for stem in FIGURES:
+        built = builders[stem]()
+        save_figure(built.fig, out / stem)
+        entries.append(Entry(titles[stem], (f"{stem}.png", f"{stem}.pdf"), tuple(built.notes),
+                             image=f"{stem}.png"))
+
+    table, t_notes = table1_frame(evals)
+    write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
+    write_text(out / "table1_safety.tex", table1_latex(table))
+    write_text(out / "table1_safety.csv", table.to_csv(index=False))
+    entries.append(Entry("Table I: safety filter",
+                         ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes)))
+
+    summary = summary_frame(evals, store.cells)
+    write_text(out / "summary.md", summary_markdown(summary))
+    write_text(out / "summary.csv", summary.to_csv(index=False))
+    entries.append(Entry("Summary of every configuration (method x N x p)", ("summary.md", "summary.csv")))
+
+    claims = all_claims(train, evals)
+    write_text(out / "claims.md", claims_markdown(claims))
+    entries.append(Entry("Claims of Sec. IV", ("claims.md",)))
+
+    replays = sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
+    data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
+                     store.problems, replays)
+    write_text(out / "index.md", index_markdown(data))
+    write_text(out / "index.html", index_html(data))
+    return out

@@ -1,0 +1,123 @@
+"""Fig. 3: communication payload per step, and the measured ratio against (Z-1)/(N-1).
+
+(a) scalars transmitted per step vs N for the hierarchical method and the decentralized
+all-to-all baseline, with the analytical N (Z-1) d_m and N (N-1) d_m as dashed lines;
+(b) measured C_hier / C_dec vs the analytical bound (Z-1)/(N-1) of Sec. III-A
+(the inequality after eq:gru_pred_loss, "C_hier <= N(Z-1)d_m"). Measured payloads are
+means over evaluation episodes (all seeds) at p = 0.2 when the run has it, else over
+every p. C_dec is the decentralized method's measured payload at the same N when the run
+has it, else the all-to-all reference the channel reports (``payload_dec_per_step``).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
+
+from reports.plotting import Built, method_color, method_label, new_figure, paper_style, placeholder
+from reports.store import fmt_p, select
+
+PAPER_P = 0.2
+
+
+def payload_points(evals: pd.DataFrame) -> pd.DataFrame:
+    """One row per hierarchical (N, Z): measured C_hier, C_dec, ratio and bound.
+
+    Columns: n_robots, groups, d_m, c_hier, c_dec, c_dec_source ("decentralized" or
+    "reference"), ratio, ratio_max (largest per-episode C_hier / reference C_dec), bound
+    ((Z-1)/(N-1)), c_hier_bound (N (Z-1) d_m), episodes, p_used.
+    """
+    cols = ["n_robots", "groups", "d_m", "c_hier", "c_dec", "c_dec_source", "ratio", "ratio_max",
+            "bound", "c_hier_bound", "episodes", "p_used"]
+    ev = evals
+    if any(np.isclose(PAPER_P, q) for q in ev["loss_p"].dropna().astype(float)):
+        ev = select(ev, loss_p=PAPER_P)
+        p_used = fmt_p(PAPER_P)
+    else:
+        p_used = "all"
+    hier = select(ev, "hierarchical")
+    dec = select(ev, "decentralized")
+    out = []
+    for (n, z), g in hier.groupby(["n_robots", "groups"], sort=True):
+        n, z = int(n), int(z)
+        ref = g["payload_dec_per_step"].to_numpy(dtype=np.float64)
+        c_hier = float(g["payload_scalars_per_step"].mean())
+        d = dec[dec["n_robots"] == n]["payload_scalars_per_step"]
+        c_dec, source = (float(d.mean()), "decentralized") if len(d) else (float(np.mean(ref)), "reference")
+        d_m = float(np.mean(ref)) / (n * (n - 1)) if n > 1 else float("nan")
+        with np.errstate(divide="ignore", invalid="ignore"):
+            per_ep = g["payload_scalars_per_step"].to_numpy(dtype=np.float64) / ref
+        out.append({
+            "n_robots": n, "groups": z, "d_m": d_m, "c_hier": c_hier, "c_dec": c_dec,
+            "c_dec_source": source, "ratio": c_hier / c_dec if c_dec > 0 else float("nan"),
+            "ratio_max": float(np.nanmax(per_ep)) if np.isfinite(per_ep).any() else float("nan"),
+            "bound": (z - 1) / (n - 1) if n > 1 else float("nan"),
+            "c_hier_bound": n * (z - 1) * d_m, "episodes": len(g), "p_used": p_used,
+        })
+    return pd.DataFrame(out, columns=cols)
+
+
+def fig3_payload(evals: pd.DataFrame) -> Built:
+    """Build Fig. 3 from evaluation rows joined with their cell config."""
+    notes: list[str] = []
+    pts = payload_points(evals)
+    ev = select(evals, loss_p=PAPER_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
+    dec = select(ev, "decentralized").groupby("n_robots")["payload_scalars_per_step"].mean()
+    if pts.empty:
+        notes.append("the run has no hierarchical evaluation rows: nothing to plot")
+    elif pts["p_used"].iloc[0] == "all":
+        notes.append(f"no p = {fmt_p(PAPER_P)} in the run; payloads pooled over every p")
+    if dec.empty:
+        notes.append("no decentralized evaluation rows: C_dec is the all-to-all reference N(N-1)d_m")
+    with paper_style():
+        fig = new_figure(2.3)
+        ax_a, ax_b = fig.subplots(1, 2)
+        if pts.empty:
+            placeholder(ax_a, "no hierarchical\nevaluation data")
+            placeholder(ax_b, "no hierarchical\nevaluation data")
+            return Built(fig, notes)
+        ns = np.concatenate([pts["n_robots"].to_numpy(dtype=np.float64), dec.index.to_numpy(dtype=np.float64)])
+        lo_n, hi_n = max(ns.min(), 2.0), ns.max()
+        if hi_n - lo_n < 2:
+            lo_n, hi_n = max(2.0, lo_n - 2), hi_n + 2
+        grid = np.linspace(lo_n, hi_n, 60)
+        d_m = float(np.nanmean(pts["d_m"]))
+        ax_a.plot(pts["n_robots"], pts["c_hier"], "o-", color=method_color("hierarchical"),
+                  label=method_label("hierarchical").replace(" (ours)", ""))
+        if not dec.empty:
+            ax_a.plot(dec.index, dec.to_numpy(), "s-", color=method_color("decentralized"),
+                      label=method_label("decentralized"))
+        for z in sorted(set(pts["groups"])):
+            ax_a.plot(grid, grid * (z - 1) * d_m, ":", color=method_color("hierarchical"),
+                      lw=0.8, label=f"N(Z-1)d$_m$, Z={z}")
+        ax_a.plot(grid, grid * (grid - 1) * d_m, ":", color=method_color("decentralized"), lw=0.8,
+                  label="N(N-1)d$_m$")
+        ax_a.set_yscale("log")
+        y_lo, y_hi = ax_a.get_ylim()
+        subs = (1.0, 2.0, 5.0) if np.log10(y_hi / y_lo) < 2 else (1.0,)
+        ax_a.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
+        ax_a.yaxis.set_major_formatter(FuncFormatter(lambda v, _p: f"{v:g}"))
+        ax_a.yaxis.set_minor_formatter(NullFormatter())
+        for ax in (ax_a, ax_b):
+            ax.xaxis.set_major_locator(MaxNLocator(4, integer=True))
+        ax_a.set_xlabel("team size N (robots)")
+        ax_a.set_ylabel("payload (scalars / step)")
+        ax_a.set_title("(a) payload per step", loc="left")
+
+        for z in sorted(set(pts["groups"])):
+            ax_b.plot(grid, (z - 1) / (grid - 1), "--", color="0.3", lw=0.8,
+                      label="(Z-1)/(N-1)" + (f", Z={z}" if pts["groups"].nunique() > 1 else ""))
+        ax_b.plot(pts["n_robots"], pts["ratio"], "o", color=method_color("hierarchical"),
+                  label="measured ratio")
+        ax_b.set_xlabel("team size N (robots)")
+        ax_b.set_ylabel("C$_{hier}$ / C$_{dec}$")
+        ax_b.set_ylim(bottom=0)
+        handles, labels = [], []
+        for ax in (ax_a, ax_b):
+            h, lab = ax.get_legend_handles_labels()
+            handles += h
+            labels += lab
+        fig.legend(handles, labels, loc="outside lower center", ncol=3, frameon=False,
+                   handlelength=1.6, columnspacing=1.0)
+        ax_b.set_title("(b) payload ratio", loc="left")
+    return Built(fig, notes)

@@ -1,0 +1,108 @@
+"""Shared look of the report figures: paper-column size, fonts, colours, placeholders.
+
+Figures are built as ``matplotlib.figure.Figure`` objects without pyplot (no global
+state, no GUI backend; rendering uses Agg), styled with seaborn, sized for a paper column
+(3.5 in wide) with 7 pt text. Builders return a ``Built`` (the figure plus notes that the
+index prints under it, e.g. which of the paper's configurations the run lacks).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import matplotlib
+import numpy as np
+import seaborn as sns
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+COLUMN_IN = 3.5  # paper column width, inches
+FONT_PT = 7
+DPI = 200
+RC = {
+    "font.size": FONT_PT, "axes.labelsize": FONT_PT, "axes.titlesize": FONT_PT,
+    "xtick.labelsize": FONT_PT, "ytick.labelsize": FONT_PT, "legend.fontsize": FONT_PT,
+    "legend.title_fontsize": FONT_PT, "lines.linewidth": 1.0, "lines.markersize": 3.5,
+    "axes.linewidth": 0.6, "grid.linewidth": 0.4, "xtick.major.pad": 1.5,
+    "ytick.major.pad": 1.5, "axes.labelpad": 2.0, "axes.titlepad": 3.0,
+    "pdf.fonttype": 42, "svg.fonttype": "none",
+}
+_PAL = sns.color_palette("colorblind")
+METHOD_COLORS = {"hierarchical": _PAL[0], "decentralized": _PAL[1], "ic3net": _PAL[2],
+                 "pibt": _PAL[7]}
+METHOD_LABELS = {"hierarchical": "Hierarchical (ours)", "decentralized": "Decentralized",
+                 "ic3net": "IC3Net", "pibt": "PIBT"}
+
+
+@dataclass
+class Built:
+    """A built figure and the notes printed with it in the index."""
+
+    fig: Figure
+    notes: list[str] = field(default_factory=list)
+
+
+@contextmanager
+def paper_style() -> Iterator[None]:
+    """Seaborn ``whitegrid`` with the paper-column font sizes, for building one figure."""
+    with sns.axes_style("whitegrid"), matplotlib.rc_context(RC):
+        yield
+
+
+def new_figure(height_in: float, width_in: float = COLUMN_IN) -> Figure:
+    return Figure(figsize=(width_in, height_in), layout="constrained", dpi=DPI)
+
+
+def method_color(method: str) -> tuple[float, float, float]:
+    return METHOD_COLORS.get(method, (0.3, 0.3, 0.3))
+
+
+def method_label(method: str) -> str:
+    return METHOD_LABELS.get(method, method)
+
+
+def label_order(label: str) -> int:
+    """Legend position of a method label: the paper's method first, then the baselines."""
+    labels = list(METHOD_LABELS.values())
+    return labels.index(label) if label in labels else len(labels)
+
+
+def n_palette(ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
+    """One colour per team size, dark to light."""
+    cmap = matplotlib.colormaps["viridis"]
+    pos = np.linspace(0.0, 0.8, len(ns)) if len(ns) > 1 else [0.4]
+    return {int(n): tuple(cmap(x)[:3]) for x, n in zip(pos, sorted(ns), strict=True)}
+
+
+def placeholder(ax: Axes, text: str) -> None:
+    """Mark a panel that has no data, so it is never silently empty."""
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes,
+            fontsize=FONT_PT, color="0.35", wrap=True)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
+def choose(paper: Iterable[float], present: Iterable[float], k: int,
+           largest: bool = False) -> tuple[list[float], list[float]]:
+    """Values to plot and the paper's values missing from the run.
+
+    The paper's values present in the run; if none is, up to ``k`` of the run's own values
+    (smallest, or largest with ``largest``), so a smoke run still gives a figure.
+    """
+    pres = sorted({float(v) for v in present})
+    pap = [float(v) for v in paper]
+    chosen = [v for v in pap if any(np.isclose(v, q) for q in pres)]
+    missing = [v for v in pap if not any(np.isclose(v, q) for q in pres)]
+    if not chosen:
+        chosen = pres[-k:] if largest else pres[:k]
+    return chosen, missing
+
+
+def fmt_list(values: Iterable[float]) -> str:
+    return ", ".join(f"{v:g}" for v in values)
+
+
+def thousands(x: float, _pos: int | None = None) -> str:
+    """Tick formatter: 1500 -> '1.5k'."""
+    return f"{x / 1000:g}k" if abs(x) >= 1000 else f"{x:g}"

@@ -1,0 +1,116 @@
+"""Read a run's Parquet store (docs/results-schema.md) into the frames the builders use.
+
+The report is rebuilt from the store alone: ``cells.parquet`` (one row per cell),
+``train/`` and ``eval/`` (Parquet datasets, one row per cell and episode) and
+``manifest.json``, read with the bench's own file reader (``bench.store.read_table``:
+schema version checked per file). Per-episode rows are joined with the configuration columns of their
+cell (method, n_robots, loss_p, seed, groups, ...). Only cells whose status is ``done``
+feed figures, tables and claims; the others are listed as missing (docs/decisions.md).
+A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+
+from bench.schema import EVAL_SCHEMA, TRAIN_SCHEMA
+from bench.store import RunStore, read_table
+from envs.errors import BenchError
+
+CONFIG_COLUMNS = ("method", "n_robots", "loss_p", "seed", "groups", "safety_filter")
+
+
+@dataclass
+class Store:
+    """A run's data: ``cells`` (all cells), ``train``/``eval`` (rows of done cells, with
+    their cell's config columns), the manifest, and what the store lacks."""
+
+    run_dir: Path
+    cells: pd.DataFrame
+    train: pd.DataFrame
+    eval: pd.DataFrame
+    manifest: dict[str, Any] = field(default_factory=dict)
+    problems: list[str] = field(default_factory=list)  # unreadable or absent parts
+
+    @property
+    def done(self) -> pd.DataFrame:
+        return self.cells[self.cells["status"] == "done"]
+
+    @property
+    def not_done(self) -> pd.DataFrame:
+        return self.cells[self.cells["status"] != "done"]
+
+
+def _read_dataset(root: Path, schema: pa.Schema, problems: list[str]) -> pd.DataFrame:
+    """Every Parquet file under ``root`` (bench/store.py layout); unreadable ones are listed
+    in ``problems`` and skipped, so one bad file does not hide the rest of the run."""
+    files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
+    if not files:
+        problems.append(f"{root.name}/ holds no Parquet file")
+    tables = []
+    for path in files:
+        try:
+            tables.append(read_table(path, schema).select(schema.names).cast(schema))
+        except BenchError as exc:
+            problems.append(f"skipped {path.relative_to(root.parent)}: {exc}")
+    if not tables:
+        return schema.empty_table().to_pandas()
+    return pa.concat_tables(tables).to_pandas()
+
+
+def _with_config(rows: pd.DataFrame, done: pd.DataFrame) -> pd.DataFrame:
+    cfg = done[["cell_id", *CONFIG_COLUMNS]]
+    out = rows.merge(cfg, on="cell_id", how="inner")
+    return out.drop_duplicates(["cell_id", "episode"], keep="last").sort_values(
+        ["cell_id", "episode"], kind="stable").reset_index(drop=True)
+
+
+def load_store(run_dir: Path | str) -> Store:
+    """Read the store under ``run_dir``. No ``cells.parquet``, or a store of another schema
+    version, is a ``BenchError``; anything else missing is listed in ``Store.problems``."""
+    run = Path(run_dir)
+    rs = RunStore(run)
+    cells = rs.read_cells()
+    if cells is None:
+        raise BenchError(f"no results store at {str(run)!r}: cells.parquet not found "
+                         "(run `bench run` first, or pass --run DIR)")
+    cells["status"] = cells["status"].fillna("pending").astype(str)
+    cells["error"] = cells["error"].fillna("").astype(str)
+    cells["safety_filter"] = cells["safety_filter"].fillna(False).astype(bool)
+    problems: list[str] = []
+    done = cells[cells["status"] == "done"]
+    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems), done)
+    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems), done)
+    manifest: dict[str, Any] = {}
+    try:
+        manifest = rs.read_manifest() or {}
+        if not manifest:
+            problems.append("manifest.json is absent")
+    except BenchError as exc:
+        problems.append(str(exc))
+    for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
+        problems.append(f"cell {cid} is done but has no evaluation rows")
+    return Store(run, cells.reset_index(drop=True), train, evals, manifest, problems)
+
+
+def select(df: pd.DataFrame, method: str | None = None, n_robots: int | None = None,
+           loss_p: float | None = None) -> pd.DataFrame:
+    """Rows of ``df`` matching the given method, team size and loss probability."""
+    m = np.ones(len(df), dtype=bool)
+    if method is not None:
+        m &= (df["method"] == method).to_numpy()
+    if n_robots is not None:
+        m &= (df["n_robots"] == n_robots).to_numpy()
+    if loss_p is not None:
+        m &= np.isclose(df["loss_p"].to_numpy(dtype=np.float64), loss_p)
+    return df[m]
+
+
+def fmt_p(p: float) -> str:
+    """Loss probability as written in the paper (0.2, 0.4, ...)."""
+    return f"{float(p):g}"

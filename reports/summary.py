@@ -1,0 +1,100 @@
+"""Summary of every configuration group (method x N x p) with confidence intervals.
+
+For each group: number of cells (all statuses) and of done seeds, evaluation episodes,
+and for success rate, team return, collision rate, correction rate and payload the mean
+over seeds of per-seed evaluation means with a 95% bootstrap CI over seeds (over
+evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
+Success rate and team return also get the interquartile mean over pooled evaluation
+episodes (robust to a few degenerate episodes, as rliable recommends).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from reports.stats import bootstrap_ci, iqm
+
+SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
+                   "payload_scalars_per_step")
+IQM_METRICS = ("success_rate", "team_return")
+KEYS = ["method", "n_robots", "loss_p"]
+
+
+def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[float, float, float, str]:
+    """(mean, lo, hi, unit) of ``metric`` over evaluation rows of one configuration.
+
+    Mean over seeds (cells) of per-seed means with a bootstrap CI over seeds; with a single
+    seed, the mean and CI over its evaluation episodes (unit "episodes"). NaNs are ignored.
+    """
+    per_seed = rows.groupby("cell_id")[metric].mean().dropna()
+    if len(per_seed) >= 2:
+        lo, hi = bootstrap_ci(per_seed.to_numpy(), seed=seed)
+        return float(per_seed.mean()), lo, hi, "seeds"
+    vals = rows[metric].to_numpy(dtype=np.float64)
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return float("nan"), float("nan"), float("nan"), "-"
+    lo, hi = bootstrap_ci(vals, seed=seed)
+    return float(vals.mean()), lo, hi, "episodes"
+
+
+def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
+    """One row per (method, n_robots, loss_p) group present in ``cells``."""
+    out = []
+    for key, group_cells in cells.groupby(KEYS, sort=True):
+        method, n, p = key
+        rows = evals[(evals["method"] == method) & (evals["n_robots"] == n)
+                     & np.isclose(evals["loss_p"].astype(float), float(p))]
+        status = group_cells["status"]
+        rec: dict[str, object] = {
+            "method": method, "n_robots": int(n), "loss_p": float(p),
+            "cells": len(group_cells), "cells_done": int((status == "done").sum()),
+            "cells_failed": int((status == "failed").sum()), "seeds": rows["cell_id"].nunique(),
+            "eval_episodes": len(rows),
+        }
+        unit = "-"
+        for m in SUMMARY_METRICS:
+            mean, lo, hi, u = metric_estimate(rows, m) if len(rows) else (np.nan,) * 3 + ("-",)
+            rec[m], rec[f"{m}_lo"], rec[f"{m}_hi"] = mean, lo, hi
+            unit = u if u != "-" else unit
+        for m in IQM_METRICS:
+            rec[f"{m}_iqm"] = iqm(rows[m].to_numpy()) if len(rows) else np.nan
+        rec["ci_over"] = unit
+        out.append(rec)
+    return pd.DataFrame(out)
+
+
+def _fmt(v: float, lo: float, hi: float, pct: bool) -> str:
+    if not np.isfinite(v):
+        return "—"
+    f = (lambda x: f"{100 * x:.1f}%") if pct else (lambda x: f"{x:.3g}")
+    return f"{f(v)} [{f(lo)}, {f(hi)}]" if np.isfinite(lo) else f(v)
+
+
+def summary_markdown(frame: pd.DataFrame) -> str:
+    head = ["method", "N", "p", "seeds (done/cells)", "eval episodes", "success rate",
+            "success IQM", "team return", "return IQM", "collision rate", "correction rate",
+            "payload (scalars/step)", "CI over"]
+    lines = ["# Summary of every configuration", "",
+             "Mean over seeds [95% bootstrap CI]; the CI is over seeds when a configuration has "
+             "two or more done seeds, else over the evaluation episodes of its single seed "
+             "(column \"CI over\"). IQM: interquartile mean over pooled evaluation episodes.", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in frame.iterrows():
+        cells = [str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}",
+                 f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
+                 + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
+                 str(r["eval_episodes"]),
+                 _fmt(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], True),
+                 _fmt(r["success_rate_iqm"], np.nan, np.nan, True),
+                 _fmt(r["team_return"], r["team_return_lo"], r["team_return_hi"], False),
+                 _fmt(r["team_return_iqm"], np.nan, np.nan, False),
+                 _fmt(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], True),
+                 _fmt(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], True),
+                 _fmt(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
+                      r["payload_scalars_per_step_hi"], False),
+                 str(r["ci_over"])]
+        lines.append("| " + " | ".join(cells) + " |")
+    if frame.empty:
+        lines.append("\n(no cells in the store)")
+    return "\n".join(lines) + "\n"

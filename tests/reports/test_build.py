@@ -1,0 +1,127 @@
+"""build_report on synthetic stores written with the bench's own writer: every file, a
+store with failed/pending/missing cells, a smoke-sized store, and user errors.
+Runtime: about 10 s (each build renders three figures to PNG and PDF)."""
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+from PIL import Image
+
+from envs.errors import BenchError
+from reports.build import build_report
+from tests.reports.synthetic import frames, smoke_specs, write_store
+
+EXPECTED = [
+    "fig1_training.png", "fig1_training.pdf", "fig2_success_percentiles.png",
+    "fig2_success_percentiles.pdf", "fig3_comm_payload.png", "fig3_comm_payload.pdf",
+    "table1_safety.md", "table1_safety.tex", "table1_safety.csv", "summary.md", "summary.csv",
+    "claims.md", "index.html", "index.md",
+]
+
+
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory):
+    run = tmp_path_factory.mktemp("paper_run")
+    write_store(run, *frames(seeds=2, episodes=60, eval_eps=10))
+    return run, build_report(run)
+
+
+def test_build_report__writes_every_file_into_run_report(paper_run):
+    run, out = paper_run
+    assert out == run / "report"
+    for name in EXPECTED:
+        assert (out / name).stat().st_size > 0, name
+    assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporaries
+    for name in EXPECTED[:6:2]:
+        w, h = Image.open(out / name).size
+        assert w == 700 and 300 < h < 900  # 3.5 in at 200 dpi
+    assert (out / "fig1_training.pdf").read_bytes().startswith(b"%PDF")
+
+
+def test_build_report__tables_hold_the_paper_layout_and_values(paper_run):
+    _, out = paper_run
+    t1 = pd.read_csv(out / "table1_safety.csv")
+    assert list(t1["n_robots"]) == [20, 40, 60, 80, 90, 100]  # the paper's five + N = 20 of the run
+    assert t1["paper_correction_rate"].isna().tolist() == [True] + [False] * 5
+    assert set(t1["status"]) == {"ok"} and (t1["seeds"] == 2).all()
+    assert t1.loc[t1["n_robots"] == 60, "paper_mean_candidates"].item() == 16.44
+    assert (t1["collision_rate"] == 0).all() and t1["correction_rate"].between(0.03, 0.036).all()
+    md = (out / "table1_safety.md").read_text()
+    assert "| 90 | 0.00% [0.00, 0.00] | 0.00% |" in md and "6.54%" in md
+    assert "\\begin{tabular}" in (out / "table1_safety.tex").read_text()
+    s = pd.read_csv(out / "summary.csv")
+    assert len(s) == 18 + 3 + 6 and (s["seeds"] == 2).all() and (s["ci_over"] == "seeds").all()
+    hier20 = s[(s["method"] == "hierarchical") & (s["n_robots"] == 20) & (s["loss_p"] == 0.2)]
+    assert hier20["payload_scalars_per_step"].item() == 20 * 3 * 3
+
+
+def test_build_report__index_links_everything_with_the_manifest(paper_run):
+    _, out = paper_run
+    md, html = (out / "index.md").read_text(), (out / "index.html").read_text()
+    for name in EXPECTED[:-2]:
+        assert f"({name})" in md and f"href='{name}'" in html, name
+    assert "deadbeef" in md and "deadbeef" in html  # git sha of the manifest
+    assert "bench run --grid synthetic" in html
+    assert "Every cell of the store is done." in md
+    assert md.count("**holds**") == 6
+
+
+def test_build_report__is_deterministic(paper_run):
+    run, out = paper_run
+    before = {n: (out / n).read_text() for n in ("summary.csv", "claims.md", "table1_safety.csv")}
+    build_report(run)
+    assert {n: (out / n).read_text() for n in before} == before
+
+
+def test_build_report__missing_and_failed_cells_still_build_and_are_listed(tmp_path):
+    cells, train, evals = frames(seeds=1, episodes=30, eval_eps=6)
+    fail = (cells["method"] == "hierarchical") & (cells["n_robots"] == 80) & (cells["loss_p"] == 0.2)
+    cells.loc[fail, ["status", "error"]] = ["failed", "Traceback ...\nMemoryError: out of memory"]
+    pend = (cells["method"] == "ic3net") & (cells["n_robots"] == 60)
+    cells.loc[pend, "status"] = "pending"
+    drop = cells["method"] == "decentralized"  # never in the store at all
+    train = train[~train["cell_id"].isin(cells.loc[fail | pend | drop, "cell_id"])]
+    evals = evals[~evals["cell_id"].isin(cells.loc[fail | pend | drop, "cell_id"])]
+    write_store(tmp_path, cells[~drop], train, evals)
+    out = build_report(tmp_path)
+    for name in EXPECTED:
+        assert (out / name).exists(), name
+    md = (out / "index.md").read_text()
+    assert "1 failed" in md and "3 pending" in md
+    assert "MemoryError: out of memory" in md
+    assert "the run has no training data" not in md  # hierarchical N=20..60 are there
+    assert "N = 20: no decentralized training data" in md
+    t1 = (out / "table1_safety.md").read_text()
+    assert "| 80 | not run |" in t1 and "lacks: 80" in t1
+    claims = (out / "claims.md").read_text()
+    assert "| [hier_above_dec](#hier_above_dec) | **not enough data** |" in claims
+    assert "| N = 80, p = 0.2 | not enough data | configuration missing |" in claims
+
+
+def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
+    write_store(tmp_path, *frames(episodes=8, eval_eps=4, specs=smoke_specs()))
+    out = build_report(tmp_path)
+    md = (out / "index.md").read_text()
+    assert "(a) the run has no training data for N = 20, 40, 60 at p = 0.2" in md
+    assert "the run has no hierarchical or IC3Net evaluation for N = 40, 60" in md
+    claims = (out / "claims.md").read_text()
+    assert "| [payload_ratio](#payload_ratio) | **holds** |" in claims
+    assert claims.count("**not enough data**") >= 5
+    s = pd.read_csv(out / "summary.csv")
+    assert set(s["method"]) == {"hierarchical", "decentralized", "ic3net", "pibt"}
+    assert (s["ci_over"] == "episodes").all()
+
+
+def test_build_report__corrupt_file_is_skipped_and_reported(tmp_path):
+    cells, train, evals = frames(episodes=8, eval_eps=4, specs=smoke_specs())
+    write_store(tmp_path, cells, train, evals)
+    victim = sorted((tmp_path / "eval").glob("*.parquet"))[0]
+    victim.write_bytes(b"not parquet")
+    md = (build_report(tmp_path) / "index.md").read_text()
+    assert f"skipped eval/{victim.name}" in md
+    assert f"cell {victim.stem} is done but has no evaluation rows" in md
+
+
+def test_build_report__not_a_run_directory_is_a_user_error(tmp_path):
+    with pytest.raises(BenchError, match="cells.parquet not found"):
+        build_report(tmp_path / "nowhere")
