@@ -39,6 +39,7 @@ def _atomic(path: Path, write: Callable[[str], None]) -> Path:
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a report is meant to be shared/served
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -96,7 +97,9 @@ def build_report(run_dir: Path | str) -> Path:
     write_text(out / "claims.md", claims_markdown(claims))
     entries.append(Entry("Claims of Sec. IV", ("claims.md",)))
 
-    replays = sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
+    # GIFs written by `bench replay` (default RUN/replays/) or into the report folder.
+    replays = sorted(f"../replays/{p.name}" for p in (Path(run_dir) / "replays").glob("*.gif"))
+    replays += sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
     data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
                      store.problems, replays)
     write_text(out / "index.md", index_markdown(data))

@@ -139,12 +139,13 @@ def fig1_training(train: pd.DataFrame) -> Built:
                 _draw(ax_b, c, colors[int(n)], f"N = {int(n)}")
                 drawn_b = True
         if drawn_b:
-            ax_b.legend(loc="lower right", frameon=True, framealpha=0.85, title=method_label("hierarchical"))
+            ax_b.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(b_ns), frameon=False,
+                        borderaxespad=0.1, handlelength=1.5, columnspacing=1.0)
             ax_b.xaxis.set_major_formatter(FuncFormatter(thousands))
+            ax_b.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 5, 10], integer=True))
         else:
             placeholder(ax_b, f"no hierarchical training data at p = {ptxt}")
         ax_b.set_xlabel("training episode")
         ax_b.set_ylabel("episode reward")
-        ax_b.annotate("(b)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
-                      textcoords="offset points", fontweight="bold", va="bottom")
+        ax_b.set_title(f"(b) {method_label('hierarchical')}", loc="left", fontweight="bold")
     return Built(fig, notes)

@@ -29,6 +29,7 @@ from reports.store import fmt_p, select
 PAPER_N = (40, 60)
 PAPER_P = (0.2, 0.4, 0.6)
 METHODS = ("hierarchical", "ic3net")
+STYLES = {"hierarchical": "-", "ic3net": "--"}  # dashed on top of solid: ties stay visible
 GRID = np.linspace(0.0, 100.0, 101)  # percentiles at which seed curves are compared
 
 
@@ -69,7 +70,7 @@ def fig2_success(evals: pd.DataFrame) -> Built:
                     pct, val = percentile_curve(rows["success_rate"].to_numpy())
                     color = method_color(method)
                     (line,) = ax.plot(pct, 100 * val, color=color, label=method_label(method),
-                                      drawstyle="steps-mid")
+                                      drawstyle="steps-mid", ls=STYLES[method], zorder=2 + METHODS.index(method))
                     handles.setdefault(method_label(method), line)
                     if rows["cell_id"].nunique() > 1:
                         _, lo, hi = bootstrap_band(seed_quantile_curves(rows))

@@ -39,6 +39,11 @@ def _manifest_rows(manifest: dict[str, Any]) -> list[tuple[str, str]]:
     for k, v in manifest.items():
         if isinstance(v, dict):
             rows += [(f"{k}.{kk}", vv if isinstance(vv, str) else json.dumps(vv)) for kk, vv in v.items()]
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            for i, item in enumerate(v):  # e.g. one entry per (resumed) invocation
+                for kk, vv in item.items():
+                    text = " ".join(map(str, vv)) if isinstance(vv, list) else str(vv)
+                    rows.append((f"{k}[{i}].{kk}", text))
         elif isinstance(v, list):
             rows.append((k, " ".join(map(str, v))))
         else:

@@ -32,6 +32,7 @@ def test_build_report__writes_every_file_into_run_report(paper_run):
     for name in EXPECTED:
         assert (out / name).stat().st_size > 0, name
     assert not list(out.glob(".*.tmp"))  # atomic writes leave no temporaries
+    assert (out / "index.html").stat().st_mode & 0o777 == 0o644  # readable when served
     for name in EXPECTED[:6:2]:
         w, h = Image.open(out / name).size
         assert w == 700 and 300 < h < 900  # 3.5 in at 200 dpi
@@ -100,8 +101,11 @@ def test_build_report__missing_and_failed_cells_still_build_and_are_listed(tmp_p
 
 def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
     write_store(tmp_path, *frames(episodes=8, eval_eps=4, specs=smoke_specs()))
+    (tmp_path / "replays").mkdir()
+    (tmp_path / "replays" / "abc-ep0.gif").write_bytes(b"GIF89a")  # as `bench replay` writes
     out = build_report(tmp_path)
     md = (out / "index.md").read_text()
+    assert "[../replays/abc-ep0.gif](../replays/abc-ep0.gif)" in md
     assert "(a) the run has no training data for N = 20, 40, 60 at p = 0.2" in md
     assert "the run has no hierarchical or IC3Net evaluation for N = 40, 60" in md
     claims = (out / "claims.md").read_text()
