@@ -41,6 +41,7 @@ MAX_RETRIES = 3  # worker deaths tolerated per cell and run
 MAX_RESTARTS = 4  # Ray restarts of one worker actor
 STALL_TIMEOUT_S = 600.0  # no live worker for this long: remaining cells fail
 WAIT_S = 1.0
+PING_RETRY_S = 0.5  # probe interval of a restarting worker
 
 
 @dataclass
@@ -49,7 +50,10 @@ class Slot:
 
     actor: Any
     busy: bool = False
-    healthy: bool = True
+    healthy: bool = False  # True once a ping came back; work goes only to healthy workers
+    pinging: bool = False
+    suspect: bool = False  # a call failed and no ping has come back since
+    next_ping: float = 0.0  # monotonic time of the next health probe
     sticky: CellState | None = None  # the cell this worker is training
 
 
@@ -98,6 +102,7 @@ class _Run:
         self.start_progress = sum(s.progress() * s.weight for s in states)
         self.total_weight = sum(s.weight for s in states) or 1.0
         self.last_event = ""
+        self.last_error = ""
 
     # ------------------------------------------------------------------ setup
     def _prepare_store(self) -> None:
@@ -129,16 +134,19 @@ class _Run:
         import ray
 
         self._prepare_store()
-        remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
-        self.remote = remote
-        slots = [Slot(remote.remote()) for _ in range(self.n_workers)]
+        self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
+        slots = [Slot(actor) for actor in _take_workers(self.remote, self.n_workers)]
         self._emit("start", None)
         stalled_since: float | None = None
         try:
             while not all(s.finished for s in self.states):
+                now = time.monotonic()
                 for slot in slots:
                     if slot.healthy and not slot.busy:
                         self._dispatch(slot)
+                    elif not slot.healthy and not slot.pinging and now >= slot.next_ping:
+                        slot.pinging = True
+                        self._submit(slot.actor.ping.remote(), "ping", slot, None, 0)
                 if any(s.healthy for s in slots):
                     stalled_since = None
                 else:
@@ -156,8 +164,7 @@ class _Run:
                     time.sleep(0.05)
                 self._emit("tick", None)
         finally:
-            for slot in slots:
-                ray.kill(slot.actor, no_restart=True)
+            _release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
             self.progress.close()
         failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
@@ -228,7 +235,7 @@ class _Run:
             self._worker_lost(kind, slot, st, chunk, exc, slots)
             return
         if kind == "ping":
-            slot.healthy = True
+            slot.healthy, slot.pinging, slot.suspect = True, False, False
             return
         slot.busy = False
         if st is None or st.finished:
@@ -294,12 +301,19 @@ class _Run:
         """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
         import ray
 
-        slot.busy, slot.healthy = False, False
-        if kind == "ping" and isinstance(exc, ray.exceptions.ActorDiedError):
-            ray.kill(slot.actor, no_restart=True)  # restarts exhausted or node gone: a new worker
-            slot.actor = self.remote.remote()
-        if kind != "ping" and st is not None and not st.finished:
+        if kind == "ping":
+            slot.pinging = False
+            slot.suspect = True
+            if isinstance(exc, ray.exceptions.ActorDiedError):
+                ray.kill(slot.actor, no_restart=True)  # restarts exhausted or node gone: a new worker
+                slot.actor = self.remote.remote()
+            else:  # restarting (ActorUnavailableError): probe again shortly
+                slot.next_ping = time.monotonic() + PING_RETRY_S
+            return
+        slot.busy, slot.healthy, slot.suspect, slot.next_ping = False, False, True, time.monotonic()
+        if st is not None and not st.finished:
             st.retries += 1
+            self.last_error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
             if st.retries > MAX_RETRIES:
                 self._fail(st, f"worker died {st.retries} times: {type(exc).__name__}")
             elif kind == "train":
@@ -309,12 +323,11 @@ class _Run:
             else:
                 st.eval_todo.insert(0, chunk)
                 self._emit("retry", st)
-        self._submit(slot.actor.ping.remote(), "ping", slot, None, 0)
 
     # --------------------------------------------------------------- progress
     def _emit(self, kind: str, st: CellState | None) -> None:
         if st is not None and kind in ("started", "done", "failed", "retry"):
-            detail = f": {st.error}" if kind == "failed" else ""
+            detail = {"failed": f": {st.error}", "retry": f" after {self.last_error[:80]}"}.get(kind, "")
             self.last_event = f"{kind} {st.label()}{detail}"
         if self.on_event is not None and st is not None:
             self.on_event(kind, st)
@@ -333,3 +346,37 @@ def _nanmax(a: float, b: float) -> float:
     if a != a:  # NaN: nothing measured yet
         return b
     return a if b != b else max(a, b)
+
+
+# Worker actors outlive a run only in a Ray session the runner did not start (tests,
+# notebooks): the next run reuses them instead of paying process start-up and imports again.
+_IDLE: dict[str, list[Any]] = {}
+
+
+def _session() -> str:
+    import ray
+
+    return str(ray.get_runtime_context().get_job_id())
+
+
+def _take_workers(remote: Any, n: int) -> list[Any]:
+    idle = _IDLE.pop(_session(), [])
+    _IDLE.clear()  # actors of an earlier Ray session are gone with it
+    taken, rest = idle[:n], idle[n:]
+    _kill(rest)
+    return taken + [remote.remote() for _ in range(n - len(taken))]
+
+
+def _release_workers(slots: list[Slot], keep: bool) -> None:
+    """Keep workers for the next run (if Ray outlives this run) unless a call to them failed."""
+    kept = [s.actor for s in slots if keep and not s.suspect]
+    _kill([s.actor for s in slots if s.actor not in kept])
+    if kept:
+        _IDLE[_session()] = kept
+
+
+def _kill(actors: list[Any]) -> None:
+    import ray
+
+    for actor in actors:
+        ray.kill(actor, no_restart=True)

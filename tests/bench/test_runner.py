@@ -1,0 +1,113 @@
+"""The runner on an embedded 2-CPU Ray: worker-count independence, retries after a worker
+dies, failing cells, resume after an interruption. Runtime: ~40 s on 2 shared cores."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from bench.cells import Cell
+from bench.grids import Grid
+from bench.runner import run_grid
+from bench.store import RunStore
+from tests.bench.conftest import snapshot, toy_spec
+
+pytestmark = pytest.mark.usefixtures("ray_local")
+METRICS = ["cell_id", "episode", "team_return", "success_rate", "collision_rate", "invalid_rate", "steps"]
+
+
+def _grid(*specs: dict) -> Grid:
+    return Grid("toygrid", "test", tuple(Cell.make(**s) for s in specs))
+
+
+def _frames(out: Path) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    store = RunStore(out)
+    key = ["cell_id", "episode"]
+    train = store.read_train()
+    evals = store.read_eval()
+    return (store.read_cells().set_index("cell_id").sort_index(),
+            train[METRICS + ["actor_loss"]].sort_values(key).reset_index(drop=True),
+            evals[METRICS].sort_values(key).reset_index(drop=True))
+
+
+def _four_cells() -> Grid:
+    return _grid(*(toy_spec(seed=s, n_robots=n) for s in (0, 1) for n in (4, 6)))
+
+
+def test_run__one_and_two_workers_give_identical_metrics_and_rerun_changes_nothing(toy: str, tmp_path: Path) -> None:
+    grid = _four_cells()
+    s1 = run_grid(grid, tmp_path / "w1", workers=1, checkpoint_every=1)
+    s2 = run_grid(grid, tmp_path / "w2", workers=2, checkpoint_every=1)
+    assert (s1.done, s1.failed, s2.done, s2.failed) == (4, 0, 4, 0)
+    c1, t1, e1 = _frames(tmp_path / "w1")
+    c2, t2, e2 = _frames(tmp_path / "w2")
+    assert (c1["status"] == "done").all() and (c1["attempts"] == 1).all()
+    assert len(t1) == 4 * 8 and len(e1) == 4 * 5
+    pd.testing.assert_frame_equal(t1, t2)
+    pd.testing.assert_frame_equal(e1, e2)
+    assert (c1["peak_mem_mb"] > 50).all() and (c1["wall_s"] > 0).all()
+    # a rerun of a finished run skips every cell: result files byte-identical
+    data = {k: v for k, v in snapshot(tmp_path / "w1").items() if k.startswith(("train", "eval", "checkpoints"))}
+    again = run_grid(grid, tmp_path / "w1", workers=2, checkpoint_every=1)
+    assert again.done == 4
+    after = {k: v for k, v in snapshot(tmp_path / "w1").items() if k.startswith(("train", "eval", "checkpoints"))}
+    assert after == data
+
+
+def test_run__interrupted_then_resumed_equals_an_uninterrupted_run(toy: str, tmp_path: Path) -> None:
+    grid = _four_cells()
+    seen = []
+
+    def interrupt(kind: str, st: object) -> None:
+        seen.append(kind)
+        if seen.count("train_chunk") == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_grid(grid, tmp_path / "a", workers=2, checkpoint_every=1, on_event=interrupt)
+    cells = RunStore(tmp_path / "a").read_cells()
+    assert (cells["status"] != "done").any()
+    run_grid(grid, tmp_path / "a", workers=2, checkpoint_every=1)
+    run_grid(grid, tmp_path / "b", workers=2, checkpoint_every=3)
+    ca, ta, ea = _frames(tmp_path / "a")
+    _, tb, eb = _frames(tmp_path / "b")
+    assert (ca["status"] == "done").all()
+    assert not ta.duplicated(["cell_id", "episode"]).any()
+    pd.testing.assert_frame_equal(ta, tb)
+    pd.testing.assert_frame_equal(ea, eb)
+
+
+def test_run__worker_killed_mid_cell_is_retried_and_the_run_completes(toy: str, tmp_path: Path) -> None:
+    marker = tmp_path / "killed"
+    crash = toy_spec(params={"die_at_iteration": 2, "marker": str(marker)})
+    grid = _grid(crash, toy_spec())
+    summary = run_grid(grid, tmp_path / "run", workers=2, checkpoint_every=1)
+    assert marker.exists(), "the worker process was not killed"
+    assert (summary.done, summary.failed) == (2, 0)
+    cells, train, evals = _frames(tmp_path / "run")
+    crashed, ref = (c.cell_id for c in grid.cells)
+    assert cells.loc[crashed, "attempts"] == 2 and cells.loc[ref, "attempts"] == 1
+    rows = train[train.cell_id == crashed]
+    assert rows["episode"].tolist() == list(range(8))  # none lost, none duplicated
+    # the fault parameters do not change the numbers: the retried cell equals the reference
+    cols = METRICS[1:] + ["actor_loss"]
+    pd.testing.assert_frame_equal(rows[cols].reset_index(drop=True),
+                                  train[train.cell_id == ref][cols].reset_index(drop=True))
+
+
+def test_run__failing_cell_is_recorded_and_the_others_finish(toy: str, tmp_path: Path) -> None:
+    grid = _grid(toy_spec(params={"raise_at_iteration": 1}), toy_spec(seed=5))
+    bad, good = (c.cell_id for c in grid.cells)
+    summary = run_grid(grid, tmp_path / "run", workers=2, checkpoint_every=1)
+    assert (summary.done, summary.failed) == (1, 1)
+    cells = RunStore(tmp_path / "run").read_cells().set_index("cell_id")
+    assert cells.loc[bad, "status"] == "failed" and cells.loc[good, "status"] == "done"
+    assert cells.loc[bad, "error"] == "RuntimeError: toy failure at iteration 1"
+    assert cells.loc[good, "error"] == ""
+    good_eval = RunStore(tmp_path / "run").eval_path(good).read_bytes()
+    again = run_grid(grid, tmp_path / "run", workers=2, checkpoint_every=1)  # a rerun retries failures
+    assert (again.done, again.failed) == (1, 1)
+    cells = RunStore(tmp_path / "run").read_cells().set_index("cell_id")
+    assert cells.loc[bad, "attempts"] == 2 and cells.loc[good, "attempts"] == 1
+    assert RunStore(tmp_path / "run").eval_path(good).read_bytes() == good_eval
