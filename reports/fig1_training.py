@@ -16,6 +16,7 @@ from matplotlib.axes import Axes
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from reports.plotting import (
+    FONT_PT,
     Built,
     choose,
     fmt_list,
@@ -95,10 +96,9 @@ def fig1_training(train: pd.DataFrame) -> Built:
     with paper_style():
         fig = new_figure(3.7)
         ncol = max(len(a_ns), 1)
-        gs = fig.add_gridspec(2, ncol, height_ratios=[1.0, 1.15])
-        axes_a = [fig.add_subplot(gs[0, 0])]
-        axes_a += [fig.add_subplot(gs[0, k], sharey=axes_a[0]) for k in range(1, ncol)]
-        ax_b = fig.add_subplot(gs[1, :])
+        top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.1])
+        axes_a = list(top.subplots(1, ncol, sharey=True, squeeze=False)[0])
+        ax_b = bottom.subplots()
         handles: dict[str, object] = {}
         for k, ax in enumerate(axes_a):
             if k >= len(a_ns):
@@ -116,7 +116,6 @@ def fig1_training(train: pd.DataFrame) -> Built:
             if not drawn:
                 placeholder(ax, "no data")
             ax.set_title(f"N = {n}")
-            ax.set_xlabel("training episode")
             ax.xaxis.set_major_locator(MaxNLocator(nbins=3, steps=[1, 2, 5, 10], integer=True))
             ax.xaxis.set_major_formatter(FuncFormatter(thousands))
             if k > 0:
@@ -124,9 +123,10 @@ def fig1_training(train: pd.DataFrame) -> Built:
             for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
                 handles.setdefault(lab, h)
         axes_a[0].set_ylabel("episode reward")
+        top.supxlabel("training episode", fontsize=FONT_PT)
         if handles:
             order = sorted(handles, key=label_order)
-            fig.legend([handles[k] for k in order], order, loc="outside upper center",
+            top.legend([handles[k] for k in order], order, loc="outside upper center",
                        ncol=len(handles), frameon=False, handlelength=1.5, columnspacing=1.0)
         axes_a[0].annotate("(a)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
                            textcoords="offset points", fontweight="bold", va="bottom")
@@ -139,13 +139,14 @@ def fig1_training(train: pd.DataFrame) -> Built:
                 _draw(ax_b, c, colors[int(n)], f"N = {int(n)}")
                 drawn_b = True
         if drawn_b:
-            ax_b.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=len(b_ns), frameon=False,
-                        borderaxespad=0.1, handlelength=1.5, columnspacing=1.0)
+            ax_b.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False,
+                        title="Hierarchical\n(ours)", handlelength=1.2, borderaxespad=0.2)
             ax_b.xaxis.set_major_formatter(FuncFormatter(thousands))
             ax_b.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 5, 10], integer=True))
         else:
             placeholder(ax_b, f"no hierarchical training data at p = {ptxt}")
         ax_b.set_xlabel("training episode")
         ax_b.set_ylabel("episode reward")
-        ax_b.set_title(f"(b) {method_label('hierarchical')}", loc="left", fontweight="bold")
+        ax_b.annotate("(b)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
+                      textcoords="offset points", fontweight="bold", va="bottom")
     return Built(fig, notes)

@@ -71,7 +71,7 @@ def label_order(label: str) -> int:
 def n_palette(ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
     """One colour per team size, dark to light."""
     cmap = matplotlib.colormaps["viridis"]
-    pos = np.linspace(0.0, 0.8, len(ns)) if len(ns) > 1 else [0.4]
+    pos = np.linspace(0.0, 0.8, len(ns)) if len(ns) != 1 else [0.4]
     return {int(n): tuple(cmap(x)[:3]) for x, n in zip(pos, sorted(ns), strict=True)}
 
 

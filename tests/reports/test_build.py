@@ -116,6 +116,19 @@ def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
     assert (s["ci_over"] == "episodes").all()
 
 
+def test_build_report__every_cell_failed_still_builds_with_placeholders(tmp_path):
+    cells, train, evals = frames(episodes=8, eval_eps=4, specs=smoke_specs())
+    cells[["status", "error"]] = ["failed", "RuntimeError: boom"]
+    write_store(tmp_path, cells, train.iloc[0:0], evals.iloc[0:0])
+    out = build_report(tmp_path)
+    for name in EXPECTED:
+        assert (out / name).exists(), name
+    md = (out / "index.md").read_text()
+    assert "8 cells: 8 failed" in md and md.count("RuntimeError: boom") == 8
+    assert "train/ holds no Parquet file" in md
+    assert "nothing to plot" in md  # Fig. 3 note
+
+
 def test_build_report__corrupt_file_is_skipped_and_reported(tmp_path):
     cells, train, evals = frames(episodes=8, eval_eps=4, specs=smoke_specs())
     write_store(tmp_path, cells, train, evals)
