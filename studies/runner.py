@@ -148,8 +148,10 @@ def run_study(study: optuna.Study, settings: TrialSettings, space: Mapping[str, 
                 for trial in running.values():
                     trial.set_user_attr(LEASE_BEAT, last_beat)
     except KeyboardInterrupt:
+        n_running = len(running)
         _abandon(study, running, executor, "interrupted by the user; re-queued")
-        log(f"interrupted: {len(running)} running trial(s) marked FAIL and re-queued")
+        log(f"interrupted: {n_running} running trial(s) marked FAIL and re-queued; "
+            "rerun the same command to resume")
         raise
     except BaseException:
         _abandon(study, running, executor, "driver stopped on an error; re-queued")
