@@ -1,0 +1,85 @@
+"""Layers with one set of weights per group, applied to all groups in one batched matmul.
+
+The paper gives every group its own parameters (psi_z, theta_z, eta_z; Sec. II, Alg. 2).
+Instead of Z separate modules run in a Python loop, each layer here stores its weights
+stacked along a leading group axis, shaped (G, in, out), and consumes tensors whose first
+axis is the group axis, shaped (Z, ..., in). With ``G == 1`` (parameter sharing) the single
+weight set serves every group. Padding of sets (groups of different sizes) is handled by
+the callers with masks; ``masked_mean`` pools over a set axis.
+"""
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+
+class GroupLinear(nn.Module):
+    """y[z] = x[z] @ W[z] + b[z]; x (Z, ..., in) -> (Z, ..., out)."""
+
+    def __init__(self, n_param_groups: int, n_groups: int, d_in: int, d_out: int) -> None:
+        super().__init__()
+        if n_param_groups not in (1, n_groups):
+            raise ValueError(f"n_param_groups must be 1 or {n_groups}, got {n_param_groups}")
+        self.n_groups = n_groups
+        bound = 1.0 / math.sqrt(d_in)  # the default init of nn.Linear, per group
+        self.weight = nn.Parameter(torch.empty(n_param_groups, d_in, d_out).uniform_(-bound, bound))
+        self.bias = nn.Parameter(torch.empty(n_param_groups, 1, d_out).uniform_(-bound, bound))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        z = x.shape[0]
+        flat = x.reshape(z, -1, x.shape[-1])
+        w, b = self.weight, self.bias
+        if w.shape[0] != z:  # shared parameters
+            w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
+        out = torch.baddbmm(b, flat, w)
+        return out.reshape(*x.shape[:-1], out.shape[-1])
+
+
+class GroupMLP(nn.Module):
+    """Per-group MLP with ReLU between layers (none after the last); (Z, ..., in) -> (Z, ..., out)."""
+
+    def __init__(self, n_param_groups: int, n_groups: int, sizes: list[int],
+                 final_activation: bool = False) -> None:
+        super().__init__()
+        self.layers = nn.ModuleList(
+            GroupLinear(n_param_groups, n_groups, a, b) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+        )
+        self.final_activation = final_activation
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for k, layer in enumerate(self.layers):
+            x = layer(x)
+            if k < len(self.layers) - 1 or self.final_activation:
+                x = torch.relu(x)
+        return x
+
+
+class GroupGRUCell(nn.Module):
+    """A GRU cell per group (same gate equations as ``torch.nn.GRUCell``).
+
+    x (Z, ..., in), h (Z, ..., H) -> h' (Z, ..., H).
+    """
+
+    def __init__(self, n_param_groups: int, n_groups: int, d_in: int, hidden: int) -> None:
+        super().__init__()
+        self.hidden = hidden
+        self.ih = GroupLinear(n_param_groups, n_groups, d_in, 3 * hidden)
+        self.hh = GroupLinear(n_param_groups, n_groups, hidden, 3 * hidden)
+
+    def forward(self, x: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        gi, gh = self.ih(x), self.hh(h)
+        i_r, i_z, i_n = gi.chunk(3, dim=-1)
+        h_r, h_z, h_n = gh.chunk(3, dim=-1)
+        r = torch.sigmoid(i_r + h_r)
+        u = torch.sigmoid(i_z + h_z)
+        n = torch.tanh(i_n + r * h_n)
+        return (1.0 - u) * n + u * h
+
+
+def masked_mean(x: torch.Tensor, mask: torch.Tensor, dim: int) -> torch.Tensor:
+    """Mean of ``x`` over set axis ``dim`` where ``mask`` (x.shape without the feature axis)
+    is True; an empty set gives zeros."""
+    m = mask.to(x.dtype).unsqueeze(-1)
+    return (x * m).sum(dim=dim) / m.sum(dim=dim).clamp_min(1.0)

@@ -1,0 +1,120 @@
+"""Reference policy mu_psi_z and local policy pi_theta_z with their encoders (Sec. III-B, III-C).
+
+Per-robot inputs come from ``envs.observations`` (one definition for every method):
+normalized position, goal offset, distance, done flag, per-action shortest-path progress
+and a local patch of shelves and same-group robots (``robot_features`` with the group
+mask). These depend on X^z and G^z (and the static map) only.
+
+* Enc_r + mu (eq:reference_policy): each robot's features plus ``neighbor_patches``, a
+  patch of the completed inter-group information S-hat^z (neighbour robots at their
+  received-or-predicted cells, and the cells their last controls lead to), embedded per
+  robot, mean-pooled over the group's robots -> o_t^z -> logits over |R_z| references.
+* Enc_u + pi (eq:local_policy): each robot's features embedded, a group encoding
+  mean-pooled over the group's robots, and the reference embedding -> per-robot logits;
+  the joint control is a product of these per-robot categoricals. ``LocalPolicy.forward``
+  takes no S-hat argument: inter-group information reaches it only through r
+  (Proposition 1), by construction.
+
+Both pool over sets with masks, so any group size uses the same weights. All tensors are
+group-major (Z, M, n, ...), M = batch rows; weights are per group (see ``group_layers``).
+Shelf moves are masked in pi (they are invalid and never admissible; docs/decisions.md).
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from algorithms.hierarchical.group_layers import GroupMLP, masked_mean
+from algorithms.hierarchical.messages import GroupStructure
+from envs.actions import DELTAS, N_ACTIONS
+from envs.observations import PatchExtractor
+
+
+def neighbor_patch_size(radius: int) -> int:
+    return 2 * (2 * radius + 1) ** 2
+
+
+def neighbor_patches(patch: PatchExtractor, gs: GroupStructure, cells: np.ndarray,
+                     present: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """(B, N, 2 (2k+1)^2) uint8 windows of S-hat around every robot, seen by its group.
+
+    cells, present, heading: (B, Z, K, n) neighbour robots as group z sees them on each
+    link k: received-or-predicted cell, present flag, and the cell their last control
+    leads to. Channel 0 counts neighbour robots, channel 1 their headings.
+    """
+    b, z = cells.shape[:2]
+    size = patch.pad_obs.size
+    rows = (np.arange(b)[:, None] * z + np.arange(z)[None, :])[:, :, None, None]  # (B, Z, 1, 1)
+    grids = []
+    for where in (cells, heading):
+        flat = (rows * size + patch.center[where])[present]
+        grids.append(np.bincount(flat, minlength=b * z * size).reshape(b * z, size))
+    core = patch.core
+    row = np.arange(b)[:, None] * z + gs.groups[None, :]  # (B, N)
+    idx = patch.center[core.pos][..., None] + patch.offsets  # (B, N, P)
+    out = [np.minimum(g[row[..., None], idx], 255).astype(np.uint8) for g in grids]
+    return np.concatenate(out, axis=-1)
+
+
+class ReferencePolicy(nn.Module):
+    """mu_psi_z(r | o_t^z), o_t^z = Enc_r(X^z, G^z, S-hat^z)."""
+
+    def __init__(self, n_param_groups: int, n_groups: int, d_robot: int, hidden: int, n_refs: int) -> None:
+        super().__init__()
+        self.enc = GroupMLP(n_param_groups, n_groups, [d_robot, hidden, hidden], final_activation=True)
+        self.head = GroupMLP(n_param_groups, n_groups, [hidden, hidden, n_refs])
+
+    def forward(self, robots: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """robots (Z, M, n, d_robot) own features + S-hat patches, mask (Z, M, n) ->
+        logits (Z, M, |R|)."""
+        o = masked_mean(self.enc(robots), mask, dim=-2)
+        return self.head(o)
+
+
+ACTION_GAIN = 10.0  # the action-aligned weights move ACTION_GAIN x faster under Adam
+
+
+def action_feature_index(obs_radius: int) -> np.ndarray:
+    """(2, 5) column indices into ``robot_features`` of the action-aligned features:
+    shortest-path progress of each action, and the same-group robot channel of the patch
+    at the cell each action leads to (0 for Wait: the robot itself is blanked)."""
+    side = 2 * obs_radius + 1
+    robots = 11 + side * side  # start of the robot channel of the patch
+    cells = [(obs_radius + dr) * side + (obs_radius + dc) for dr, dc in DELTAS.tolist()]
+    return np.array([list(range(6, 6 + N_ACTIONS)), [robots + c for c in cells]])
+
+
+class LocalPolicy(nn.Module):
+    """pi_theta_z(U | w_t^z), w_t^z = Enc_u(X^z, G^z, r): per-robot categoricals.
+
+    logit(i, a) = head(h_i, group encoding, reference embedding)[a] + v_z . phi(i, a),
+    where phi(i, a) are action-aligned features of robot i (``action_feature_index``) and
+    v_z a per-group weight vector initialized at zero and scaled by ``ACTION_GAIN`` (a
+    linear, action-aligned path the policy gradient can move quickly; docs/decisions.md).
+    """
+
+    def __init__(self, n_param_groups: int, n_groups: int, d_robot: int, hidden: int, n_refs: int,
+                 obs_radius: int) -> None:
+        super().__init__()
+        p = n_param_groups
+        self.enc = GroupMLP(p, n_groups, [d_robot, hidden, hidden], final_activation=True)
+        self.ref_embed = nn.Parameter(torch.randn(p, n_refs, hidden) * 0.5)
+        self.head = GroupMLP(p, n_groups, [3 * hidden, hidden, N_ACTIONS])
+        self.register_buffer("action_idx", torch.from_numpy(action_feature_index(obs_radius)))
+        self.action_w = nn.Parameter(torch.zeros(p, 1, 1, 1, self.action_idx.shape[0]))
+
+    def forward(self, robots: torch.Tensor, mask: torch.Tensor, ref: torch.Tensor,
+                action_mask: torch.Tensor) -> torch.Tensor:
+        """robots (Z, M, n, d_robot) features of X^z and G^z only, mask (Z, M, n), ref
+        (Z, M) int64, action_mask (Z, M, n, 5) bool -> log-probs (Z, M, n, 5)."""
+        z, m, n, _ = robots.shape
+        h = self.enc(robots)
+        pooled = masked_mean(h, mask, dim=-2)  # shared group encoding
+        table = self.ref_embed.expand(z, -1, -1) if self.ref_embed.shape[0] != z else self.ref_embed
+        e = torch.gather(table, 1, ref.reshape(z, m, 1).expand(z, m, table.shape[-1]))  # (Z, M, H)
+        ctx = torch.cat([pooled, e], dim=-1).unsqueeze(2).expand(z, m, n, -1)
+        logits = self.head(torch.cat([h, ctx], dim=-1))
+        phi = robots[..., self.action_idx].transpose(-1, -2)  # (Z, M, n, 5, 2)
+        logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
+        return torch.log_softmax(logits.masked_fill(~action_mask, -1e9), dim=-1)

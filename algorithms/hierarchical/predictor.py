@@ -1,0 +1,162 @@
+"""The recurrent interaction-state predictor f_eta_z (eq:predictor_input..eq:interaction_state_collection).
+
+Every receiver group z keeps, for each neighbour z' in C^z, a predictor state made of
+* a GRU hidden vector h_t^{z',z} (one per link, eq:recurrent_predictor), and
+* the last message received on the link with its age (steps since it was sent).
+
+Each step the GRU reads the null-or-message input M-bar (eq:predictor_input: the true
+message when A=1, zeros of message size when A=0), the availability flag A, the age and an
+encoding of the receiver's own state X^z. Messages and X^z enter through a per-robot
+embedding pooled over present robots (any group size; a null input pools to zeros). The
+decoder predicts, for every robot slot of z', a message row from the hidden state and the
+last received row: position = last position + predicted displacement (cells), previous
+control as probabilities, present as a probability. The completed message M-hat is the
+received one when A=1 and the prediction otherwise (eq:interaction_state_estimate).
+
+Training is supervised by the true messages on lost steps only (eq:gru_pred_loss),
+separately from the policy gradient. Predicted positions are snapped to the nearest free
+cell (``SnapToFree``) before the reference encoder and the safety filter use them.
+Parameters are per receiver group (eta_z) or shared, see ``group_layers``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import ndimage
+from torch import nn
+
+from algorithms.hierarchical.group_layers import GroupGRUCell, GroupMLP, masked_mean
+from algorithms.hierarchical.messages import CTRL, MSG_DIM, POS, PRESENT
+from envs.layouts import Layout
+
+AGE_SCALE = 8.0  # age feature = min(age, 4 * AGE_SCALE) / AGE_SCALE
+
+
+class GroupPredictor(nn.Module):
+    """f_eta_z for all receiver groups at once; tensors are group-major (Z, M, K, ...)."""
+
+    def __init__(self, n_param_groups: int, n_groups: int, grid_shape: tuple[int, int],
+                 hidden: int = 64, embed: int = 32) -> None:
+        super().__init__()
+        self.hidden = hidden
+        self.register_buffer("scale", torch.tensor([float(grid_shape[0]), float(grid_shape[1])]))
+        p, z = n_param_groups, n_groups
+        self.msg_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
+        self.own_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
+        self.gru = GroupGRUCell(p, z, 2 * embed + 2, hidden)
+        self.decoder = GroupMLP(p, z, [hidden + MSG_DIM + 1, embed, MSG_DIM])
+
+    def _norm(self, msg: torch.Tensor) -> torch.Tensor:
+        return torch.cat([msg[..., POS] / self.scale, msg[..., POS.stop:]], dim=-1)
+
+    @staticmethod
+    def age_feature(age: torch.Tensor) -> torch.Tensor:
+        return age.to(torch.float32).clamp_max(4 * AGE_SCALE) / AGE_SCALE
+
+    def encode(self, msg_bar: torch.Tensor, avail: torch.Tensor, age: torch.Tensor,
+               own: torch.Tensor) -> torch.Tensor:
+        """GRU input (Z, M, K, 2E+2) from M-bar (Z, M, K, n, D), A (Z, M, K), age (Z, M, K)
+        and the receiver's own message rows X^z (Z, M, n, D)."""
+        e = masked_mean(self.msg_embed(self._norm(msg_bar)), msg_bar[..., PRESENT] > 0, dim=-2)
+        o = masked_mean(self.own_embed(self._norm(own)), own[..., PRESENT] > 0, dim=-2)
+        o = o.unsqueeze(2).expand(-1, -1, e.shape[2], -1)
+        a = avail.to(torch.float32).unsqueeze(-1)
+        return torch.cat([e, o, a, self.age_feature(age).unsqueeze(-1)], dim=-1)
+
+    def step(self, x: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        """eq:recurrent_predictor: h_t = GRU(h_{t-1}, x_t); (Z, M, K, .) tensors."""
+        return self.gru(x, h)
+
+    def decode(self, h: torch.Tensor, mem: torch.Tensor, age: torch.Tensor) -> torch.Tensor:
+        """Predicted messages M~ (..., n, D) in message units from h (..., H), the last
+        received rows mem (..., n, D) and their age (...); the leading axis is the group."""
+        n = mem.shape[-2]
+        inp = torch.cat([
+            h.unsqueeze(-2).expand(*h.shape[:-1], n, h.shape[-1]),
+            self._norm(mem),
+            self.age_feature(age)[..., None, None].expand(*age.shape, n, 1),
+        ], dim=-1)
+        out = self.decoder(inp)
+        pos = mem[..., POS] + out[..., POS]
+        ctrl = torch.softmax(out[..., CTRL], dim=-1)
+        pres = torch.sigmoid(out[..., PRESENT:])
+        return torch.cat([pos, ctrl, pres], dim=-1)
+
+
+def prediction_error(pred: torch.Tensor, target: torch.Tensor, slot_valid: torch.Tensor) -> torch.Tensor:
+    """||M~ - M||^2 summed over the robot slots of each message (eq:gru_pred_loss).
+
+    pred, target (..., n, D); slot_valid (..., n) bool (padding slots of the sender are
+    ignored). Position and control errors count only for robots present in the true
+    message (an absent robot has no position); the present flag always counts.
+    """
+    present = target[..., PRESENT]
+    sq = (pred - target) ** 2
+    per_robot = present * sq[..., :PRESENT].sum(-1) + sq[..., PRESENT]
+    return (per_robot * slot_valid.to(per_robot.dtype)).sum(-1)
+
+
+def predictor_loss(pred: torch.Tensor, target: torch.Tensor, lost: torch.Tensor,
+                   slot_valid: torch.Tensor, n_group_steps: torch.Tensor | float) -> torch.Tensor:
+    """L_c (eq:gru_pred_loss): sum over lost links (1 - A = 1) of the message error, averaged
+    over the running group-steps (the empirical expectation). Delivered links contribute
+    nothing whatever the prediction. pred, target (..., n, D); lost (...) bool."""
+    err = prediction_error(pred, target, slot_valid)
+    return (err * lost.to(err.dtype)).sum() / n_group_steps
+
+
+@dataclass
+class PredictorState:
+    """Rollout state of every link of B episodes (the GRU hidden and the last received rows)."""
+
+    h: torch.Tensor  # (Z, B, K, H)
+    mem: np.ndarray  # (B, Z, K, n, D) last received message per link
+    age: np.ndarray  # (B, Z, K) int64 steps since ``mem`` was sent
+
+
+def initial_state(model: GroupPredictor, link_msgs: np.ndarray) -> PredictorState:
+    """Reset at an episode start: h = 0; the start configuration (part of the task
+    assignment) is known to every coordinator, so the memory holds M_0 with age 0."""
+    b, z, k = link_msgs.shape[:3]
+    return PredictorState(torch.zeros(z, b, k, model.hidden), link_msgs.copy(),
+                          np.zeros((b, z, k), dtype=np.int64))
+
+
+def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.ndarray,
+                 avail: np.ndarray, own_msgs: np.ndarray) -> np.ndarray:
+    """One predictor step for B episodes (no grad); updates ``state`` in place.
+
+    link_msgs (B, Z, K, n, D) true messages on each link, avail (B, Z, K) bool, own_msgs
+    (B, Z, n, D) -> completed messages M-hat (B, Z, K, n, D) (eq:interaction_state_estimate).
+    """
+    state.age = np.where(avail, 0, state.age + 1)
+    state.mem = np.where(avail[..., None, None], link_msgs, state.mem)
+    msg_bar = link_msgs * avail[..., None, None]  # eq:predictor_input (null = zeros)
+    to_t = _group_major
+    x = model.encode(to_t(msg_bar), to_t(avail), to_t(state.age), to_t(own_msgs))
+    state.h = model.step(x, state.h)
+    pred = model.decode(state.h, to_t(state.mem), to_t(state.age))
+    pred_np = pred.numpy().transpose(1, 0, *range(2, pred.ndim))
+    return np.where(avail[..., None, None], link_msgs, pred_np)
+
+
+def _group_major(a: np.ndarray) -> torch.Tensor:
+    """(B, Z, ...) numpy -> (Z, B, ...) torch."""
+    return torch.from_numpy(np.ascontiguousarray(np.swapaxes(a, 0, 1)))
+
+
+class SnapToFree:
+    """Rounds predicted (row, col) to the grid and moves it to the nearest free cell."""
+
+    def __init__(self, layout: Layout) -> None:
+        _, idx = ndimage.distance_transform_edt(layout.obstacles, return_indices=True)
+        self.nearest = layout.cell_index[idx[0], idx[1]]  # (H, W) free-cell index
+        self.shape = layout.shape
+
+    def __call__(self, rc: np.ndarray) -> np.ndarray:
+        """(..., 2) float (row, col) -> (...) int64 free-cell index."""
+        r = np.clip(np.rint(rc[..., 0]), 0, self.shape[0] - 1).astype(np.int64)
+        c = np.clip(np.rint(rc[..., 1]), 0, self.shape[1] - 1).astype(np.int64)
+        return self.nearest[r, c]

@@ -1,0 +1,171 @@
+"""The updates of the hierarchical method from one finished rollout batch.
+
+* ``policy_update`` (eq:training_return, eq:advantage, eq:losses): the centralized critic
+  V_omega(X_t) gives the team advantage A_t = G_t - V(X_t) (shared trainer,
+  ``team_advantage``); the same A_t weighs log mu(r_t^z | o_t^z) + log pi(U~_t^z | w_t^z)
+  of every group (the policy gradient is on the sampled policy outputs, the filter is part
+  of the transition). Rows are the running (t, b) steps, processed in time chunks, each
+  with its own backward pass (the losses are sums, so the gradient is the full-batch one).
+  An entropy bonus on both levels is optional (``entropy_coef``; not in the paper).
+* ``predictor_update`` (eq:gru_pred_loss): the GRU predictors are unrolled over the whole
+  episode from the stored true messages and availabilities; the squared error of the
+  predicted messages on lost links only is minimized with its own Adam optimizer.
+  Memory stays bounded with activation checkpointing over time chunks.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+from torch.utils.checkpoint import checkpoint
+
+from algorithms.common.trainer import RolloutBuffer, team_advantage
+from algorithms.hierarchical.predictor import predictor_loss
+from envs.actions import WAIT
+
+if TYPE_CHECKING:
+    from algorithms.hierarchical.method import HierarchicalMethod
+
+
+def _entropy(logp: torch.Tensor) -> torch.Tensor:
+    return -(logp.exp() * logp).sum(-1)
+
+
+def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, float]:
+    """One Adam step of mu, pi (team advantage) and V_omega (squared return error)."""
+    p = method.params
+    t_used = buf.t
+    d = {k: v[:t_used] for k, v in buf.data.items()}
+    running, rewards = buf.running[:t_used], buf.rewards[:t_used]
+    t_frac = torch.from_numpy(
+        np.broadcast_to((np.arange(t_used, dtype=np.float32) / method.env.horizon)[:, None], running.shape).copy())
+    crit = torch.from_numpy(d["critic"])
+    with torch.no_grad():
+        values = method.critic(crit, t_frac)
+    adv, ret, _, n = team_advantage(values, rewards, running, p.normalize_advantage)
+    tt, bb = np.nonzero(running)
+    n_group = torch.tensor(float(max(1, method.group_major(d["controlled"][tt, bb], False).any(-1).sum())))
+    n_robot = torch.tensor(float(max(1, d["controlled"][tt, bb].sum())))
+
+    method.opt_policy.zero_grad(set_to_none=True)
+    method.opt_critic.zero_grad(set_to_none=True)
+    sums = {"actor_loss": 0.0, "critic_loss": 0.0, "entropy_ref": 0.0, "entropy_local": 0.0}
+    rows = p.update_chunk * running.shape[1]
+    for s in range(0, len(tt), rows):
+        r_t, r_b = tt[s : s + rows], bb[s : s + rows]
+        ctl = d["controlled"][r_t, r_b]
+        ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))  # (Z, M)
+        _, ref_logp, logp = method.policy_forward(
+            d["own"][r_t, r_b], d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref=ref)
+        mask = method.group_major(ctl, fill=False)  # (Z, M, n)
+        active = mask.any(-1)  # groups with a robot to steer
+        u = method.group_major(d["proposed"][r_t, r_b], fill=WAIT)
+        lp_u = (logp.gather(-1, u.unsqueeze(-1)).squeeze(-1) * mask).sum(-1)  # log pi(U~ | w)
+        lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * active  # log mu(r | o)
+        logp_row = (lp_r + lp_u).sum(0)  # (M,) every group's levels, same team advantage
+        actor = -(adv[r_t, r_b] * logp_row).sum() / n  # eq:losses (L_r + L_l)
+        ent_r = (_entropy(ref_logp) * active).sum() / n_group
+        ent_u = (_entropy(logp) * mask).sum() / n_robot
+        v = method.critic(crit[r_t, r_b], t_frac[r_t, r_b])
+        critic = ((v - ret[r_t, r_b]) ** 2).sum() / n  # eq:losses (L_V)
+        (actor - p.entropy_coef * (ent_r + ent_u) + critic).backward()
+        for key, val in zip(sums, (actor, critic, ent_r, ent_u), strict=True):
+            sums[key] += float(val.detach())
+    params = [q for g in method.opt_policy.param_groups for q in g["params"]]
+    torch.nn.utils.clip_grad_norm_(params, p.max_grad_norm)
+    torch.nn.utils.clip_grad_norm_(method.critic.parameters(), p.max_grad_norm)
+    method.opt_policy.step()
+    method.opt_critic.step()
+    sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
+    return sums
+
+
+def predictor_targets(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, torch.Tensor]:
+    """Group-major (Z, T, B, ...) training tensors of the predictor from a rollout buffer."""
+    gs = method.gs
+    t_used = buf.t
+    msgs = buf.data["msgs"][:t_used]  # (T, B, Z, n, D)
+    avail = buf.data["avail"][:t_used]  # (T, B, Z, K)
+    age = buf.data["age"][:t_used]
+    nb = np.maximum(gs.neighbors, 0)  # (Z, K)
+    t_idx = np.arange(t_used)[:, None, None, None] - age
+    b_idx = np.arange(msgs.shape[1])[None, :, None, None]
+    link = msgs[:, :, nb]  # (T, B, Z, K, n, D)
+    mem = msgs[t_idx, b_idx, nb[None, None]]  # last received rows, (T, B, Z, K, n, D)
+    lost = ~avail & gs.link_valid[None, None] & buf.running[:t_used, :, None, None]
+
+    def gm(a: np.ndarray) -> torch.Tensor:  # (T, B, Z, ...) -> (Z, T, B, ...)
+        return torch.from_numpy(np.ascontiguousarray(np.moveaxis(a, 2, 0)))
+
+    sender_slots = gs.slot_valid[nb] & gs.link_valid[..., None]  # (Z, K, n)
+    return {
+        "link": gm(link), "mem": gm(mem), "avail": gm(avail), "age": gm(age), "lost": gm(lost),
+        "own": gm(msgs), "slots": torch.from_numpy(sender_slots),
+        "n_group_steps": torch.tensor(float(max(1, buf.running[:t_used].sum() * gs.n_groups))),
+    }
+
+
+def predictor_loss_on(method: HierarchicalMethod, data: dict[str, torch.Tensor], chunk: int) -> torch.Tensor:
+    """L_c (eq:gru_pred_loss) of the current predictor on ``predictor_targets`` data,
+    unrolled from the episode start (h = 0); differentiable, memory bounded by ``chunk``."""
+    model = method.predictor
+    z, t_used, b, k = data["avail"].shape
+    avail_f = data["avail"].unsqueeze(-1).unsqueeze(-1).to(torch.float32)
+    def rows(a: torch.Tensor, sl: slice) -> torch.Tensor:  # (Z, T, B, ...) -> (Z, t*B, ...)
+        return a[:, sl].reshape(z, -1, *a.shape[3:])
+
+    xs = []
+    for s in range(0, t_used, chunk):
+        sl = slice(s, s + chunk)
+        x = checkpoint(model.encode, rows(data["link"] * avail_f, sl), rows(data["avail"], sl),
+                       rows(data["age"], sl), rows(data["own"], sl), use_reentrant=False)
+        xs.append(x.reshape(z, -1, b, k, x.shape[-1]))
+    x = torch.cat(xs, dim=1)
+    h = torch.zeros(z, b, k, model.hidden)
+    hs = []
+    for t in range(t_used):
+        h = model.step(x[:, t], h)
+        hs.append(h)
+    hid = torch.stack(hs, dim=1)  # (Z, T, B, K, H)
+    # Decode only the lost links (the loss ignores the others), padded per group.
+    lost = data["lost"].reshape(z, -1)
+    idx = [torch.nonzero(lost[g]).squeeze(-1) for g in range(z)]
+    width = max(1, max(len(i) for i in idx))
+    sel = torch.zeros(z, width, dtype=torch.int64)
+    valid = torch.zeros(z, width, dtype=torch.bool)
+    for g, i in enumerate(idx):
+        sel[g, : len(i)], valid[g, : len(i)] = i, True
+    k_of = sel % k
+    slots = data["slots"][torch.arange(z)[:, None], k_of]  # (Z, W, n)
+
+    def pick(a: torch.Tensor) -> torch.Tensor:
+        flat = a.reshape(z, t_used * b * k, *a.shape[4:])
+        return flat[torch.arange(z)[:, None], sel]
+
+    h_sel, mem, age, target = pick(hid), pick(data["mem"]), pick(data["age"]), pick(data["link"])
+    total = torch.zeros(())
+    rows = max(1, chunk * b * k)
+    for s in range(0, width, rows):
+        sl = slice(s, s + rows)
+
+        def chunk_loss(h_c, mem_c, age_c, tgt_c, valid_c, slots_c):
+            pred = model.decode(h_c, mem_c, age_c)
+            return predictor_loss(pred, tgt_c, valid_c, slots_c, data["n_group_steps"])
+
+        total = total + checkpoint(chunk_loss, h_sel[:, sl], mem[:, sl], age[:, sl], target[:, sl],
+                                   valid[:, sl], slots[:, sl], use_reentrant=False)
+    return total
+
+
+def predictor_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, float]:
+    """One Adam step of the GRU predictors on L_c; nothing to learn without lost messages."""
+    data = predictor_targets(method, buf)
+    if not bool(data["lost"].any()):
+        return {"predictor_loss": float("nan")}
+    method.opt_predictor.zero_grad(set_to_none=True)
+    loss = predictor_loss_on(method, data, method.params.update_chunk)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(method.predictor.parameters(), method.params.max_grad_norm)
+    method.opt_predictor.step()
+    return {"predictor_loss": float(loss.detach())}

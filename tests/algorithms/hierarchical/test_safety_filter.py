@@ -1,0 +1,189 @@
+"""The vectorized safety filter agrees with a slow, obviously-correct enumerator (Algorithm 1).
+
+The reference below builds every candidate with itertools, orders each deviation level by
+the policy's probability (stable, so ties keep the lexicographic order), examines them one
+by one against eq:safety_conditions written out literally, and stops at the first
+admissible one or at the budget. Random cases: small layouts with shelves, 1..6 robot
+slots (padding, finished robots that stay on the floor), neighbour robots anywhere
+(predictions may be wrong), radius 0..3, budgets from 1 to unlimited, log-probabilities
+with and without exact ties. Runtime: about 3 s.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from algorithms.hierarchical.safety_filter import SafetyFilter, lemma1_count
+from envs.actions import N_ACTIONS, WAIT
+from envs.layouts import Layout, from_ascii
+
+LAYOUT = from_ascii(
+    """
+.......
+.@@.@@.
+.......
+.@@.@@.
+.......
+""",
+    name="filter-test",
+)
+
+
+def reference_filter(layout: Layout, pos, occupies, controlled, proposal, logp, nbr_pos,
+                     nbr_present, radius: int, c_max: int):
+    """One group, literally: returns (actions, examined, fallback, n_candidates_within_L)."""
+    nxt, valid = layout.next_cell, layout.move_valid
+    n = len(pos)
+    omega = {int(nxt[nbr_pos[j], a]) for j in range(len(nbr_pos)) if nbr_present[j] for a in range(N_ACTIONS)}
+    ctl = [i for i in range(n) if controlled[i] and occupies[i]]
+    occ = [i for i in range(n) if occupies[i]]
+    prop = [int(proposal[i]) if i in ctl else WAIT for i in range(n)]
+
+    def admissible(u):
+        new = {i: int(nxt[pos[i], u[i]]) for i in occ}
+        for i in ctl:
+            if not valid[pos[i], u[i]] or new[i] in omega:  # conditions 1 and 4
+                return False
+        for i, j in itertools.combinations(occ, 2):
+            if new[i] == new[j]:  # condition 2
+                return False
+            if new[i] == pos[j] and new[j] == pos[i]:  # condition 3
+                return False
+        return True
+
+    if not ctl:
+        return np.array(prop), 0, False, 0
+    levels = []
+    for d in range(radius + 1):
+        level = []
+        for s in itertools.combinations(ctl, d):
+            alts = [[b for b in range(N_ACTIONS) if b != prop[i]] for i in s]
+            for acts in itertools.product(*alts):
+                u = list(prop)
+                score = 0.0
+                for i, a in zip(s, acts, strict=True):
+                    u[i] = a
+                    score += float(logp[i, a]) - float(logp[i, prop[i]])
+                level.append((score, u))
+        level.sort(key=lambda c: -c[0])  # stable: ties stay lexicographic
+        levels.append(level)
+    total = sum(len(level) for level in levels)
+    examined = 0
+    for _, u in itertools.chain.from_iterable(levels):
+        if examined == c_max:
+            break
+        examined += 1
+        if admissible(u):
+            return np.array(u), examined, False, total
+    return np.full(n, WAIT), examined, True, total
+
+
+def random_case(rng: np.random.Generator, n: int):
+    f = LAYOUT.n_free
+    cells = rng.choice(f, size=n, replace=False)
+    occupies = rng.random(n) < 0.85
+    controlled = occupies & (rng.random(n) < 0.85)
+    pos = np.where(occupies, cells, -1)
+    proposal = rng.integers(0, N_ACTIONS, size=n)
+    if rng.random() < 0.3:  # exact ties everywhere (e.g. an untrained, uniform policy)
+        logp = np.full((n, N_ACTIONS), -math.log(N_ACTIONS))
+    else:
+        logp = np.log(rng.dirichlet(np.ones(N_ACTIONS) * 0.7, size=n))
+        if rng.random() < 0.3:
+            logp[rng.random((n, N_ACTIONS)) < 0.3] = -1e9  # masked moves
+    r = int(rng.integers(0, 6))
+    nbr_pos = rng.integers(0, f, size=r)
+    nbr_present = rng.random(r) < 0.8
+    return pos, occupies, controlled, proposal, logp, nbr_pos, nbr_present
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_safety_filter__vectorized_matches_reference_enumerator(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    for radius in range(4):
+        for c_max in (1, 3, 12, 60, 10**6):
+            cases = [random_case(rng, int(rng.integers(1, 7))) for _ in range(12)]
+            n = max(len(c[0]) for c in cases)
+            g, r = len(cases), max(len(c[5]) for c in cases)
+            pos = np.full((g, n), -1)
+            occ = np.zeros((g, n), bool)
+            ctl = np.zeros((g, n), bool)
+            prop = np.full((g, n), WAIT)
+            logp = np.zeros((g, n, N_ACTIONS))
+            nbr = np.zeros((g, r), np.int64)
+            nbr_on = np.zeros((g, r), bool)
+            for k, (p, o, c, u, lp, npos, non) in enumerate(cases):
+                m = len(p)
+                pos[k, :m], occ[k, :m], ctl[k, :m], prop[k, :m], logp[k, :m] = p, o, c, u, lp
+                nbr[k, : len(npos)], nbr_on[k, : len(npos)] = npos, non
+            filt = SafetyFilter(LAYOUT, radius, c_max)
+            out = filt(pos, occ, ctl, prop, logp, filt.blocked_cells(nbr, nbr_on))
+            for k, (p, o, c, u, lp, npos, non) in enumerate(cases):
+                m = len(p)
+                want, examined, fallback, _ = reference_filter(
+                    LAYOUT, np.maximum(p, 0), o, c, u, lp, npos, non, radius, c_max)
+                ctx = f"case {k} radius {radius} c_max {c_max}"
+                assert out.examined[k] == examined, ctx
+                assert bool(out.fallback[k]) == fallback, ctx
+                sel = o  # robots on the floor: absent and padding slots are irrelevant
+                assert (out.actions[k, :m][sel] == want[sel]).all(), ctx
+                assert bool(out.called[k]) == bool((c & o).any()), ctx
+
+
+@pytest.mark.parametrize("n_z,radius", [(1, 1), (3, 2), (4, 2), (5, 3), (6, 2)])
+def test_safety_filter__lemma1_count_and_guarantee(n_z: int, radius: int) -> None:
+    """With nothing admissible the filter examines exactly sum_{d<=L} C(n,d)(m-1)^d
+    candidates (the enumerator's count); with C_max equal to that count, an admissible
+    candidate within radius L is always found when one exists."""
+    rng = np.random.default_rng(100 + n_z)
+    bound = lemma1_count(n_z, radius)
+    filt = SafetyFilter(LAYOUT, radius, bound)
+    found_some = 0
+    for _ in range(40):
+        cells = rng.choice(LAYOUT.n_free, size=n_z, replace=False)
+        on = np.ones(n_z, bool)
+        prop = rng.integers(0, N_ACTIONS, size=n_z)
+        logp = np.log(rng.dirichlet(np.ones(N_ACTIONS), size=n_z))
+        nbr = rng.integers(0, LAYOUT.n_free, size=4)
+        nbr_on = rng.random(4) < 0.7
+        # Everything blocked: nothing is admissible, every candidate is examined.
+        all_blocked = np.ones((1, LAYOUT.n_free), bool)
+        out = filt(cells[None], on[None], on[None], prop[None], logp[None], all_blocked)
+        _, _, _, total = reference_filter(LAYOUT, cells, on, on, prop, logp, [], [], radius, 10**9)
+        assert total == bound
+        assert out.examined[0] == bound and out.fallback[0]
+        # Real neighbours: found iff the reference with an unlimited budget finds one.
+        out = filt(cells[None], on[None], on[None], prop[None], logp[None],
+                   filt.blocked_cells(nbr[None], nbr_on[None]))
+        _, _, fb_unlimited, _ = reference_filter(LAYOUT, cells, on, on, prop, logp, nbr, nbr_on, radius, 10**9)
+        assert bool(out.fallback[0]) == fb_unlimited
+        found_some += not fb_unlimited
+    assert found_some > 0
+
+
+def test_safety_filter__fallback_is_joint_wait() -> None:
+    """Two robots of one group boxed in by a neighbour: nothing admissible -> all Wait."""
+    layout = from_ascii("@@@@@\n@...@\n@@@@@")
+    pos = np.array([[0, 2]])  # cells (1,1) and (1,3); the neighbour sits on (1,2)
+    filt = SafetyFilter(layout, radius=2, c_max=500)
+    blocked = filt.blocked_cells(np.array([[1]]), np.array([[True]]))
+    on = np.ones((1, 2), bool)
+    out = filt(pos, on, on, np.array([[3, 2]]), np.log(np.full((1, 2, 5), 0.2)), blocked)
+    assert out.fallback[0]
+    assert (out.actions == WAIT).all()
+    assert out.examined[0] == lemma1_count(2, 2)
+
+
+def test_safety_filter__admissible_proposal_is_kept_and_finished_robots_untouched() -> None:
+    layout = from_ascii(".....\n.....\n.....")
+    filt = SafetyFilter(layout, radius=2, c_max=500)
+    pos = np.array([[0, 7, 14]])
+    occ = np.array([[True, True, True]])
+    ctl = np.array([[True, True, False]])  # slot 2 finished but on the floor ("stay")
+    prop = np.array([[3, 1, 0]])
+    out = filt(pos, occ, ctl, prop, np.log(np.full((1, 3, 5), 0.2)), np.zeros((1, layout.n_free), bool))
+    assert out.examined[0] == 1 and not out.fallback[0]
+    assert out.actions[0].tolist() == [3, 1, WAIT]
