@@ -106,84 +106,165 @@ class SafetyFilter:
         controlled = controlled & occupies
         # Controlled slots first (stable), so level-d candidates enumerate only m columns.
         perm = np.argsort(~controlled, axis=1, kind="stable")
-        take = lambda a: np.take_along_axis(a, perm, axis=1)  # noqa: E731
-        p, occ, ctl = take(np.maximum(pos, 0)), take(occupies), take(controlled)
-        prop = np.where(ctl, take(proposal), WAIT)
-        lp = np.take_along_axis(logp, perm[..., None], axis=1).astype(np.float64)
+        p = np.take_along_axis(np.maximum(pos, 0), perm, axis=1)
+        occ = np.take_along_axis(occupies, perm, axis=1)
+        ctl = np.take_along_axis(controlled, perm, axis=1)
+        prop = np.where(ctl, np.take_along_axis(proposal, perm, axis=1), WAIT)
         gi = np.arange(g_all)
 
+        # Level 0 for every group: the proposal's violations (eq:safety_conditions).
         nxt = self.next[p]  # (G, n, 5)
-        unary = (self.valid[p] & ~blocked[gi[:, None, None], nxt]) | ~ctl[..., None]
+        unary = (self.valid[p] & ~blocked[gi[:, None, None], nxt]) | ~ctl[..., None]  # (1), (4)
         nprop = np.take_along_axis(nxt, prop[..., None], axis=2)[..., 0]  # (G, n)
-        pair = occ[:, :, None] & occ[:, None, :] & ~np.eye(n, dtype=bool)  # (G, n, n)
-        conf = (nxt[..., None] == nprop[:, None, None, :]) | (
-            (nxt[..., None] == p[:, None, None, :]) & (nprop[:, None, None, :] == p[:, :, None, None])
-        )
-        conf &= pair[:, :, None, :]  # (G, n, 5, n): (i, a) vs (j, U~_j)
-        p0 = np.take_along_axis(conf, prop[:, :, None, None], axis=2)[:, :, 0, :]  # (G, n, n)
-        deg = p0.sum(-1)
-        pairs_total = deg.sum(-1) // 2
+        pair = occ[:, :, None] & occ[:, None, :] & ~np.eye(n, dtype=bool)
+        p0 = ((nprop[:, :, None] == nprop[:, None, :])  # (2)
+              | ((nprop[:, :, None] == p[:, None, :]) & (nprop[:, None, :] == p[:, :, None]))) & pair  # (3)
         bad = ~np.take_along_axis(unary, prop[..., None], axis=2)[..., 0]
-        bad_total = bad.sum(-1)
-        conf_sum = conf.sum(-1)  # (G, n, 5)
-        alt_act = ALTERNATIVES[prop]  # (G, n, 4)
-        lp_prop = np.take_along_axis(lp, prop[..., None], axis=2)[..., 0]
-
         called = ctl.any(axis=1)
+        found = called & ~bad.any(axis=1) & ~p0.any(axis=(1, 2))
         actions = prop.copy()
-        found = called & (bad_total == 0) & (pairs_total == 0)  # level 0: the proposal
         examined = called.astype(np.int64)
-        budget = np.where(called, self.c_max - 1, 0)
-        n_ctl = ctl.sum(axis=1)
-        for d in range(1, self.radius + 1):
-            todo = np.flatnonzero(~found & (budget > 0) & (n_ctl >= d))
-            if todo.size == 0:
-                break
-            m = int(n_ctl[todo].max())
-            rob, alt = _level_tables(m, d)
-            k = rob.shape[0]
-            if k > MAX_LEVEL_CANDIDATES:
-                raise BenchError(
-                    f"safety filter: {k} candidates at deviation {d} for {m} robots; "
-                    "lower search_radius or c_max"
-                )
-            chunk = max(1, 4_000_000 // max(1, k * d * d))
-            for s in range(0, todo.size, chunk):
-                sel = todo[s : s + chunk]
-                gg = sel[:, None, None]
-                act = alt_act[gg, rob[None], alt[None]]  # (Gu, K, d)
-                exists = ctl[gg, rob[None]].all(-1)  # (Gu, K)
-                score = (lp[gg, rob[None], act] - lp_prop[gg, rob[None]]).sum(-1)
-                ok = exists & unary[gg, rob[None], act].all(-1)
-                ok &= bad_total[sel, None] - bad[gg, rob[None]].sum(-1) == 0
-                rest_pairs = pairs_total[sel, None] - deg[gg, rob[None]].sum(-1)
-                clash = np.zeros(ok.shape, dtype=bool)
-                new = nxt[gg, rob[None], act]  # (Gu, K, d)
-                for e in range(d):
-                    for f in range(e + 1, d):
-                        rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, :, f]]
-                        clash |= (new[..., e] == new[..., f]) | (
-                            (new[..., e] == p[sel[:, None], rob[None, :, f]])
-                            & (new[..., f] == p[sel[:, None], rob[None, :, e]])
-                        )
-                ok &= (rest_pairs == 0) & ~clash
-                vs_changed = conf[gg[..., None], rob[None, :, :, None], act[..., None], rob[None, :, None, :]]
-                ok &= (conf_sum[gg, rob[None], act] - vs_changed.sum(-1) == 0).all(-1)
-                # The best admissible candidate and its rank in the level's order.
-                best = np.where(ok, score, -np.inf).max(-1)
-                kstar = np.argmax(ok & (score == best[:, None]), axis=-1)
-                ahead = (score > best[:, None]) | ((score == best[:, None]) & (np.arange(k) < kstar[:, None]))
-                rank = (exists & ahead).sum(-1)
-                hit = ok.any(-1) & (rank < budget[sel])
-                n_level = exists.sum(-1)
-                examined[sel] += np.where(hit, rank + 1, np.minimum(n_level, budget[sel]))
-                budget[sel] = np.where(hit, 0, np.maximum(budget[sel] - n_level, 0))
-                hs = sel[hit]
-                if hs.size:
-                    actions[hs[:, None], rob[kstar[hit]]] = act[np.flatnonzero(hit), kstar[hit]]
-                    found[hs] = True
         fallback = called & ~found
+
+        todo = np.flatnonzero(fallback) if self.radius > 0 and self.c_max > 1 else np.zeros(0, np.int64)
+        if todo.size:
+            level_actions, level_examined, level_found = self._search(
+                p[todo], occ[todo], ctl[todo], prop[todo], nxt[todo], unary[todo], p0[todo],
+                bad[todo], pair[todo], np.take_along_axis(logp[todo], perm[todo, :, None], axis=1))
+            actions[todo] = level_actions
+            examined[todo] += level_examined
+            fallback[todo] = ~level_found
         actions[fallback] = WAIT
         out = np.empty_like(actions)
         np.put_along_axis(out, perm, actions, axis=1)
         return FilterResult(out, examined, fallback, called)
+
+    def _search(self, p: np.ndarray, occ: np.ndarray, ctl: np.ndarray, prop: np.ndarray, nxt: np.ndarray,
+                unary: np.ndarray, p0: np.ndarray, bad: np.ndarray, pair: np.ndarray, logp: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Deviation levels 1..L for U groups whose proposal is inadmissible.
+
+        Everything is indexed by alternative (robot slot i, k-th control other than U~_i):
+        new cell, unary admissibility, conflicts with every other robot's proposed control
+        (U, n, 4, n). Returns (actions (U, n), examined after the proposal (U,), found (U,)).
+        """
+        u_n = p.shape[0]
+        alt_act = ALTERNATIVES[prop]  # (U, n, 4)
+        new = np.take_along_axis(nxt, alt_act, axis=2)  # (U, n, 4)
+        u_alt = np.take_along_axis(unary, alt_act, axis=2)
+        nprop = np.take_along_axis(nxt, prop[..., None], axis=2)[..., 0]
+        conf = ((new[..., None] == nprop[:, None, None, :])
+                | ((new[..., None] == p[:, None, None, :]) & (nprop[:, None, None, :] == p[:, :, None, None])))
+        conf &= pair[:, :, None, :]  # (U, n, 4, n): (i, alt k) vs (j, U~_j)
+        c1 = conf.sum(-1)  # (U, n, 4)
+        deg = p0.sum(-1)  # (U, n)
+        bad_total, pairs_total = bad.sum(-1), deg.sum(-1) // 2
+        lp_prop = np.take_along_axis(logp, prop[..., None], axis=2)
+        delta = np.take_along_axis(logp, alt_act, axis=2) - lp_prop  # (U, n, 4) score terms
+        n_ctl = ctl.sum(-1)
+
+        actions = prop.copy()
+        examined = np.zeros(u_n, dtype=np.int64)
+        found = np.zeros(u_n, dtype=bool)
+        budget = np.full(u_n, self.c_max - 1, dtype=np.int64)
+        for d in range(1, self.radius + 1):
+            sel = np.flatnonzero(~found & (budget > 0) & (n_ctl >= d))
+            if sel.size == 0:
+                break
+            m = int(n_ctl[sel].max())
+            if d == 1:
+                k = m * 4
+                exists = np.broadcast_to(ctl[sel, :m, None], (sel.size, m, 4)).reshape(sel.size, k)
+                ok = (u_alt[sel, :m] & (c1[sel, :m] == 0)
+                      & ((bad_total[sel, None] - bad[sel, :m]) == 0)[..., None]
+                      & ((pairs_total[sel, None] - deg[sel, :m]) == 0)[..., None]).reshape(sel.size, k)
+                ok &= exists
+                score = delta[sel, :m].reshape(sel.size, k)
+                rob, alt = _level_tables_dense1(m)
+            elif d == 2:
+                ok, score, exists, rob, alt = self._level2(
+                    sel, m, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
+                k = score.shape[1]
+            else:
+                ok, score, exists, rob, alt = self._level_general(
+                    sel, m, d, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
+                k = score.shape[1]
+            # The best admissible candidate and its rank in the level's order.
+            best = np.where(ok, score, -np.inf).max(-1)
+            kstar = np.argmax(ok & (score == best[:, None]), axis=-1)
+            ahead = (score > best[:, None]) | ((score == best[:, None]) & (np.arange(k) < kstar[:, None]))
+            rank = (exists & ahead).sum(-1)
+            hit = ok.any(-1) & (rank < budget[sel])
+            n_level = exists.sum(-1)
+            examined[sel] += np.where(hit, rank + 1, np.minimum(n_level, budget[sel]))
+            budget[sel] = np.where(hit, 0, np.maximum(budget[sel] - n_level, 0))
+            hs = sel[hit]
+            if hs.size:
+                kh = kstar[hit]
+                actions[hs[:, None], rob[kh]] = alt_act[hs[:, None], rob[kh], alt[kh]]
+                found[hs] = True
+        return actions, examined, found
+
+    @staticmethod
+    def _level2(sel, m, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta):
+        """Deviation 2, dense over (i, j, a, b) with i < j: (U', K) ok, score, exists."""
+        s = sel.size
+        nw, ua, cf, c = new[sel, :m], u_alt[sel, :m], conf[sel, :m, :, :m], c1[sel, :m]
+        # Robot pair (i, j): the rest of the proposal is clean once i and j change.
+        base = ((bad_total[sel, None, None] - bad[sel, :m, None] - bad[sel, None, :m]) == 0) & (
+            (pairs_total[sel, None, None] - deg[sel, :m, None] - deg[sel, None, :m] + p0[sel, :m, :m]) == 0)
+        # (i, a) is clean against every unchanged robot but j: (U', i, a, j).
+        clean = (c[..., None] - cf) == 0
+        clean_i = clean.transpose(0, 1, 3, 2)[:, :, :, :, None]  # (U', i, j, a, 1)
+        clean_j = clean.transpose(0, 3, 1, 2)[:, :, :, None, :]  # (U', i, j, 1, b)
+        ni, nj = nw[:, :, None, :, None], nw[:, None, :, None, :]
+        clash = (ni == nj) | ((ni == p[sel, None, :m, None, None]) & (nj == p[sel, :m, None, None, None]))
+        ok = (base[..., None, None] & clean_i & clean_j & ~clash
+              & ua[:, :, None, :, None] & ua[:, None, :, None, :])
+        exists = (ctl[sel, :m, None] & ctl[sel, None, :m] & np.triu(np.ones((m, m), bool), 1))
+        exists = np.broadcast_to(exists[..., None, None], ok.shape)
+        score = delta[sel, :m, None, :, None] + delta[sel, None, :m, None, :]
+        rob, alt = _level_tables_dense2(m)
+        k = m * m * 16
+        return (ok & exists).reshape(s, k), score.reshape(s, k), exists.reshape(s, k), rob, alt
+
+    @staticmethod
+    def _level_general(sel, m, d, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta):
+        """Deviation d >= 3 by explicit enumeration of (slots, alternatives) tuples."""
+        rob, alt = _level_tables(m, d)
+        k = rob.shape[0]
+        if k * sel.size > MAX_LEVEL_CANDIDATES:
+            raise BenchError(
+                f"safety filter: {k} candidates at deviation {d} for {m} robots; lower search_radius or c_max")
+        gg = sel[:, None, None]
+        r, a = rob[None], alt[None]
+        exists = ctl[gg, r].all(-1)  # (U', K)
+        score = delta[gg, r, a].sum(-1)
+        ok = exists & u_alt[gg, r, a].all(-1)
+        ok &= bad_total[sel, None] - bad[gg, r].sum(-1) == 0
+        rest_pairs = pairs_total[sel, None] - deg[gg, r].sum(-1)
+        nw = new[gg, r, a]  # (U', K, d)
+        clash = np.zeros(ok.shape, dtype=bool)
+        for e in range(d):
+            for f in range(e + 1, d):
+                rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, :, f]]
+                clash |= (nw[..., e] == nw[..., f]) | (
+                    (nw[..., e] == p[sel[:, None], rob[None, :, f]]) & (nw[..., f] == p[sel[:, None], rob[None, :, e]]))
+        ok &= (rest_pairs == 0) & ~clash
+        vs_changed = conf[gg[..., None], r[..., None], a[..., None], rob[None, :, None, :]].sum(-1)
+        ok &= (c1[gg, r, a] - vs_changed == 0).all(-1)
+        return ok, score, exists, rob, alt
+
+
+@lru_cache(maxsize=64)
+def _level_tables_dense1(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(4m, 1) slots and alternatives of deviation-1 candidates, (i, a) order."""
+    return np.repeat(np.arange(m), 4)[:, None], np.tile(np.arange(4), m)[:, None]
+
+
+@lru_cache(maxsize=64)
+def _level_tables_dense2(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """(16 m^2, 2) slots and alternatives of the dense (i, j, a, b) layout of deviation 2."""
+    i, j, a, b = np.meshgrid(np.arange(m), np.arange(m), np.arange(4), np.arange(4), indexing="ij")
+    return (np.stack([i.reshape(-1), j.reshape(-1)], axis=1),
+            np.stack([a.reshape(-1), b.reshape(-1)], axis=1))

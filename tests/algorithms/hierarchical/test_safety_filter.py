@@ -187,3 +187,49 @@ def test_safety_filter__admissible_proposal_is_kept_and_finished_robots_untouche
     out = filt(pos, occ, ctl, prop, np.log(np.full((1, 3, 5), 0.2)), np.zeros((1, layout.n_free), bool))
     assert out.examined[0] == 1 and not out.fallback[0]
     assert out.actions[0].tolist() == [3, 1, WAIT]
+
+
+BIG = from_ascii(
+    """
+.............
+.@@@.@@@.@@@.
+.............
+.@@@.@@@.@@@.
+.............
+.@@@.@@@.@@@.
+.............
+""",
+    name="filter-test-big",
+)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_safety_filter__large_groups_match_reference(seed: int) -> None:
+    """Groups of 8..12 robots, mostly waiting proposals with a few violations: deviation-2
+    levels with hundreds of candidates, hits deep inside a level, budgets cutting a level."""
+    rng = np.random.default_rng(1000 + seed)
+    for c_max in (30, 200, 2000):
+        cases = []
+        for _ in range(8):
+            n = int(rng.integers(8, 13))
+            cells = rng.choice(BIG.n_free, size=n, replace=False)
+            prop = np.where(rng.random(n) < 0.6, WAIT, rng.integers(0, N_ACTIONS, size=n))
+            logp = np.log(rng.dirichlet(np.ones(N_ACTIONS), size=n))
+            nbr = rng.integers(0, BIG.n_free, size=int(rng.integers(0, 5)))
+            cases.append((cells, np.ones(n, bool), rng.random(n) < 0.9, prop, logp, nbr))
+        g, n_max, r = len(cases), max(len(c[0]) for c in cases), max(max(len(c[5]) for c in cases), 1)
+        pos = np.zeros((g, n_max), np.int64)
+        occ, ctl = np.zeros((g, n_max), bool), np.zeros((g, n_max), bool)
+        prop, logp = np.full((g, n_max), WAIT), np.zeros((g, n_max, N_ACTIONS))
+        nbr, nbr_on = np.zeros((g, r), np.int64), np.zeros((g, r), bool)
+        for k, (p, o, c, u, lp, npos) in enumerate(cases):
+            m = len(p)
+            pos[k, :m], occ[k, :m], ctl[k, :m], prop[k, :m], logp[k, :m] = p, o, c, u, lp
+            nbr[k, : len(npos)], nbr_on[k, : len(npos)] = npos, True
+        filt = SafetyFilter(BIG, 2, c_max)
+        out = filt(pos, occ, ctl, prop, logp, filt.blocked_cells(nbr, nbr_on))
+        for k, (p, o, c, u, lp, npos) in enumerate(cases):
+            want, examined, fallback, _ = reference_filter(
+                BIG, p, o, c, u, lp, npos, np.ones(len(npos), bool), 2, c_max)
+            assert out.examined[k] == examined and bool(out.fallback[k]) == fallback
+            assert (out.actions[k, : len(p)] == want).all()
