@@ -64,7 +64,7 @@ class DecentralizedParams(MethodParams):
     normalize_advantage: bool = Field(True, description="scale A_t by its batch RMS (docs/decisions.md)")
     entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
-    eval_sampling: bool = Field(False, description="evaluate with sampled instead of argmax actions")
+    eval_sampling: bool = Field(True, description="evaluate with sampled actions (False: argmax; docs/decisions.md)")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
     chunk_rows: int = Field(65536, ge=256, description="robot-steps per backward chunk (memory only)")
 

@@ -68,7 +68,7 @@ class IC3NetParams(MethodParams):
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
-    eval_sampling: bool = Field(False, description="evaluate with sampled actions (the reference always samples)")
+    eval_sampling: bool = Field(True, description="evaluate with sampled actions, as the reference code does (False: argmax)")
 
 
 def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:

@@ -109,6 +109,10 @@ def test_method__same_seed_gives_same_metrics(name: str) -> None:
     a, b = make(name, seed=5), make(name, seed=5)
     pd.testing.assert_frame_equal(rows_frame(a.train_iteration()), rows_frame(b.train_iteration()))
     pd.testing.assert_frame_equal(pd.DataFrame(a.evaluate(1)), pd.DataFrame(b.evaluate(1)))
+    # Evaluation chunks do not consume the training streams: any worker split gives these rows.
+    b.evaluate(0)
+    pd.testing.assert_frame_equal(pd.DataFrame(a.evaluate(1)), pd.DataFrame(b.evaluate(1)))
+    pd.testing.assert_frame_equal(rows_frame(a.train_iteration()), rows_frame(b.train_iteration()))
 
 
 def test_method__checkpoint_round_trip_continues_identically(name: str) -> None:

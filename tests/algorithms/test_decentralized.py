@@ -1,0 +1,111 @@
+"""Decentralized baseline: all-to-all payload, stale messages under loss, message maps, learning.
+
+Runtime: about 2 s for the unit tests; the learning test about 20-40 s on one core.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard
+from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.decentralized import DecentralizedMethod
+from envs.actions import Action
+from envs.channel import LossProcess
+from envs.config import EnvConfig
+from envs.core import WarehouseCore
+from envs.errors import BenchError
+from envs.layouts import from_ascii
+from envs.scenarios import validate_scenario
+
+ENV = EnvConfig(n_robots=6, layout="tiny", horizon=20, groups=2, loss_p=0.3)
+
+
+def test_payload_is_all_to_all_every_step() -> None:
+    rows = DecentralizedMethod(ENV, {"eval_chunk": 3}, seed=0).evaluate(0)
+    n, d_m = ENV.n_robots, ENV.d_m
+    assert [r["payload_scalars_per_step"] for r in rows] == [n * (n - 1) * d_m] * 3
+    assert all(r["payload_dec_per_step"] == r["payload_scalars_per_step"] for r in rows)
+
+
+def run_steps(loss_p: float, steps: int = 6):
+    env = EnvConfig(**{**ENV.model_dump(), "loss_p": loss_p})
+    m = DecentralizedMethod(env, {}, seed=0)
+    batch = EpisodeBatch(env, 2, batch_rng(0, 0, 0), m.layout)
+    starts = batch.core.pos.copy()
+    with torch.no_grad():
+        state = m.begin(batch, greedy=False)
+        for _ in range(steps):
+            m.observe(batch, state, batch.core.step(m.decide(batch, state, greedy=False).actions))
+    state.board.receive()  # the messages of the current step
+    return batch.core, state.board, starts
+
+
+def test_with_every_message_lost_receivers_hold_only_the_initial_messages() -> None:
+    core, board, starts = run_steps(loss_p=1.0)
+    n = ENV.n_robots
+    off = ~np.eye(n, dtype=bool)
+    assert not np.array_equal(core.pos, starts)  # robots did move
+    initial = np.broadcast_to(starts[:, None, :], board.pos.shape)
+    assert np.array_equal(board.pos[:, off], initial[:, off])  # start positions only
+    assert (board.ctl[:, off] == Action.WAIT).all()
+    assert (board.age[:, off] == 7).all()  # never refreshed since reset
+    # A robot always knows its own current state.
+    assert np.array_equal(np.diagonal(board.pos, axis1=1, axis2=2), core.pos)
+
+
+def test_without_loss_receivers_hold_the_current_messages() -> None:
+    core, board, _ = run_steps(loss_p=0.0)
+    assert np.array_equal(board.pos, np.broadcast_to(core.pos[:, None, :], board.pos.shape))
+    assert (board.age == 0).all()
+
+
+def make_board(floor: str, starts: list, goals: list, radius: int = 1) -> AllToAllBoard:
+    layout = from_ascii(floor)
+    core = WarehouseCore(EnvConfig.make(n_robots=len(starts), groups=1, loss_p=1.0), layout)
+    s, g = validate_scenario(layout, len(starts), starts, goals)
+    core.reset(s[None], g[None])
+    n = len(starts)
+    return AllToAllBoard(core, LossProcess((1, n, n), 1.0, np.random.default_rng(0)), radius)
+
+
+def test_message_maps__hand_example() -> None:
+    board = make_board(".....\n.....\n.....", [(1, 1), (1, 2), (0, 4)], [(2, 4), (2, 0), (0, 0)])
+    board.ctl[0, 0, 1] = int(Action.LEFT)  # robot 0 last heard robot 1 moving Left
+    board.age[0, 0, 1] = 5
+    maps = board.features().reshape(1, 3, 3, 3, 3)  # (B, N, channel, row, col)
+    here, projected, stale = maps[0, 0]
+    assert here.tolist() == [[0, 0, 0], [0, 0, 1], [0, 0, 0]]  # robot 2 is outside the window
+    assert projected.tolist() == [[0, 0, 0], [0, 1, 0], [0, 0, 0]]  # heading into robot 0
+    assert np.allclose(stale, here * 0.5)  # age 5 of a cap of 10
+    # Robot 1 at (1, 2) sees robot 0 to its left and robot 2 out of range (0, 4).
+    assert maps[0, 1, 0].tolist() == [[0, 0, 0], [1, 0, 0], [0, 0, 0]]
+
+
+def test_message_maps__drop_robots_that_left_the_floor() -> None:
+    board = make_board(".....\n.....\n.....", [(1, 1), (1, 2)], [(2, 4), (2, 0)])
+    board.ctl[0, 0, 1] = OFF_FLOOR
+    assert board.features()[0, 0].sum() == 0
+
+
+def test_safety_filter_option_is_a_clear_error_until_available() -> None:
+    try:
+        DecentralizedMethod(ENV, {"safety_filter": True}, seed=0)
+    except BenchError as exc:
+        assert "safety" in str(exc)
+
+
+@pytest.mark.slow
+def test_decentralized__learns_on_a_small_layout() -> None:
+    env = EnvConfig(n_robots=6, layout="tiny", horizon=40, groups=2, loss_p=0.2)
+    m = DecentralizedMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "eval_sampling": False}, seed=0)
+
+    def success() -> float:
+        return float(np.mean([r["success_rate"] for r in m.evaluate(0) + m.evaluate(1)]))
+
+    before = success()
+    for _ in range(150):
+        m.train_iteration()
+    after = success()
+    assert after >= before + 0.3, (before, after)
