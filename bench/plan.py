@@ -121,6 +121,8 @@ def plan_run(store: RunStore, grid: Grid, fresh: bool) -> tuple[list[CellState],
 
 
 def _resume_state(store: RunStore, st: CellState) -> None:
+    for _, path in store.train_parts(st.cell_id):
+        read_meta(path)  # a corrupt committed part is refused before anything is written
     meta = store.eval_meta(st.cell_id)
     if meta is not None:
         st.phase, st.trained = "done", True
@@ -141,8 +143,6 @@ def _resume_state(store: RunStore, st: CellState) -> None:
         st.wall_s = float(ckpt.get("wall_s", 0.0))
         st.peak_mem_mb = float(ckpt.get("peak_mem_mb", float("nan")))
         st.attempts = max(st.attempts, int(ckpt.get("attempts", 0)))
-    for _, path in store.train_parts(st.cell_id):
-        read_meta(path)  # a corrupt committed part is refused before anything is written
 
 
 def versions() -> dict[str, str]:

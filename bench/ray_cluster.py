@@ -73,8 +73,9 @@ def connect(address: str | None = None, workers: int | None = None) -> RayContex
             raise BenchError(f"cannot join Ray cluster at {address!r}: {msg}") from None
         return RayContext(True, address, _cluster_cpus())
     cpus = max(local_cores(), workers or 1)
-    ray.init(num_cpus=cpus, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
-             _node_ip_address="127.0.0.1", **quiet)
+    # address="local": always a new instance, never a cluster found in /tmp/ray by chance.
+    ray.init(address="local", num_cpus=cpus, object_store_memory=OBJECT_STORE_BYTES,
+             include_dashboard=False, _node_ip_address="127.0.0.1", **quiet)
     return RayContext(True, "embedded", cpus)
 
 

@@ -69,7 +69,39 @@ def ray_local() -> Iterator[None]:
 
     from bench.ray_cluster import OBJECT_STORE_BYTES
 
-    ray.init(num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
+    ray.init(address="local", num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
              log_to_driver=False, logging_level="ERROR", _node_ip_address="127.0.0.1")
     yield
     ray.shutdown()
+
+
+def write_finished_store(out: Path, grid: Any) -> None:
+    """A complete run directory for ``grid`` computed in this process (no Ray), written with
+    the same store calls and in the same order as the runner."""
+    from bench.plan import cell_spec, plan_run
+    from bench.schema import SCHEMA_VERSION
+    from bench.store import RunStore
+    from bench.worker import CellWorker
+
+    store = RunStore(out)
+    states, _ = plan_run(store, grid, fresh=True)
+    store.write_manifest({"schema_version": SCHEMA_VERSION, "grid": grid.name, "runs": []})
+    worker = CellWorker()
+    for st in states:
+        spec, state, first = cell_spec(st.cell), None, 0
+        while True:
+            res = worker.train_chunk(spec, [state] if state is not None else [], st.iterations, 2)
+            if res["rows"]:
+                store.write_train_part(st.cell_id, first, res["rows"])
+            state, st.iterations, first = res["state"], res["iterations"], res["episodes_done"]
+            store.write_checkpoint(st.cell_id, {
+                "cell": st.cell.canonical_json(), "method": st.cell.method, "iterations": st.iterations,
+                "episodes_done": first, "finished": res["finished"], "wall_s": 0.0,
+                "peak_mem_mb": 0.0, "attempts": 1, "state": state})
+            if res["finished"]:
+                break
+        rows = [r for c in range(st.n_chunks) for r in worker.eval_chunk(spec, [state], c)["rows"]]
+        store.write_eval(st.cell_id, [r for r in rows if r["episode"] < st.cell.eval_episodes],
+                         {"wall_s": 0.0, "attempts": 1, "train_episodes_done": first})
+        st.phase, st.attempts, st.episodes_done = "done", 1, first
+    store.write_cells([st.row(grid.name) for st in states])

@@ -1,0 +1,166 @@
+"""The `bench` CLI: every user mistake is one stderr line, exit status 2, store unchanged;
+`bench eval` prints the eval table's metrics. Runtime: ~25 s (two subprocesses)."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from algorithms.common.episodes import EVAL_METRICS
+from bench.cli import main
+from bench.grid_files import load_grid_file
+from bench.store import RunStore
+from tests.bench.conftest import (
+    REPO,
+    cli_argv,
+    snapshot,
+    toy_spec,
+    write_finished_store,
+    write_grid_file,
+)
+
+BENCH = str(Path(sys.executable).with_name("bench"))
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+@pytest.fixture
+def store_dir(toy: str, tmp_path: Path) -> tuple[Path, Path]:
+    """(grid file, finished run directory of that grid)."""
+    grid_file = write_grid_file(tmp_path / "good.toml", toy_spec(), {"seed": [0, 1]})
+    out = tmp_path / "run"
+    write_finished_store(out, load_grid_file(grid_file))
+    return grid_file, out
+
+
+def _broken_copy(src: Path, dst: Path, how: str) -> Path:
+    shutil.copytree(src, dst)
+    store = RunStore(dst)
+    if how == "version":
+        manifest = json.loads(store.manifest_path.read_text())
+        store.manifest_path.write_text(json.dumps({**manifest, "schema_version": 99}))
+    elif how == "cells":
+        store.cells_path.write_bytes(store.cells_path.read_bytes()[:300])
+    elif how == "eval":
+        path = next(store.eval_dir.glob("*.parquet"))
+        path.write_bytes(b"PAR1 not really parquet")
+    elif how == "part":
+        path = next(store.train_dir.rglob("part-*.parquet"))
+        path.write_bytes(path.read_bytes()[:-20])
+    return dst
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["run", "--grid", "nope"], "'nope' is not one of"),
+    (["run"], "give exactly one of --grid"),
+    (["run", "--grid-file", "{bad_method}"], "unknown method 'qmix'"),
+    (["run", "--grid-file", "{bad_value}"], "n_robots"),
+    (["run", "--grid-file", "{grid}", "--seeds", "0"], "--seeds"),
+    (["run", "--grid-file", "{grid}", "--workers", "0"], "--workers"),
+    (["run", "--grid-file", "{grid}", "--fresh"], "pass --yes to confirm"),
+    (["run", "--grid-file", "{grid}", "--out", "{file}/sub"], "is not a directory"),
+    (["run", "--grid-file", "{missing}"], "cannot read"),
+    (["eval", "--method", "qmix"], "unknown method 'qmix'"),
+    (["eval", "--method", "toy", "--loss-p", "2"], "--loss-p"),
+    (["eval", "--method", "toy", "--n-robots", "4", "--layout", "nowhere.map"], "nowhere.map"),
+    (["eval", "--checkpoint", "{out}/cells.parquet"], "corrupt checkpoint"),
+    (["eval"], "give --method"),
+    (["report", "--run", "{missing}"], "not a bench run directory"),
+    (["replay", "--run", "{out}", "--cell", "nope"], "cell 'nope' is not in"),
+])
+def test_cli__user_mistake_is_one_line_exit_2_and_the_store_is_unchanged(
+        capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path], tmp_path: Path,
+        args: list[str], message: str) -> None:
+    grid_file, out = store_dir
+    (tmp_path / "bad_method.toml").write_text('[base]\nmethod = "qmix"\nn_robots = 4\nloss_p = 0.2\n')
+    (tmp_path / "bad_value.toml").write_text('[base]\nmethod = "toy"\nloss_p = 0.2\n[axes]\nn_robots = [4, 0]\n')
+    (tmp_path / "file").write_text("not a directory")
+    subst = dict(grid=grid_file, out=out, bad_method=tmp_path / "bad_method.toml",
+                 bad_value=tmp_path / "bad_value.toml", file=tmp_path / "file", missing=tmp_path / "missing.toml")
+    argv = [a.format(**subst) for a in args]
+    if argv[0] == "run" and "--out" not in argv:
+        argv += ["--out", str(out)]
+    before = snapshot(tmp_path)
+    code, _, err = _cli(capsys, *argv)
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.startswith("bench: error: ") and message in err, err
+    assert "Traceback" not in err
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("how", ["version", "cells", "eval", "part"])
+def test_run__incompatible_or_corrupt_store_is_refused_unchanged(
+        capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path], tmp_path: Path, how: str) -> None:
+    grid_file, out = store_dir
+    broken = _broken_copy(out, tmp_path / f"broken-{how}", how)
+    before = snapshot(broken)
+    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(broken))
+    assert code == 2 and err.count("\n") == 1, err
+    assert {"version": "schema version 99", "cells": "corrupt Parquet", "eval": "corrupt Parquet",
+            "part": "corrupt Parquet"}[how] in err
+    assert snapshot(broken) == before
+
+
+@pytest.mark.slow
+def test_console_script__unreachable_address_exits_2_with_one_line(store_dir: tuple[Path, Path]) -> None:
+    grid_file, out = store_dir
+    before = snapshot(out)
+    proc = subprocess.run(cli_argv("run", "--grid-file", str(grid_file), "--out", str(out),
+                                   "--address", "127.0.0.1:1"),
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "cannot reach Ray cluster at '127.0.0.1:1'" in proc.stderr
+    assert snapshot(out) == before
+
+
+@pytest.mark.slow
+def test_console_script__unknown_grid_exits_2_and_version_names_the_commit() -> None:
+    proc = subprocess.run([BENCH, "run", "--grid", "nope"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2 and proc.stderr.startswith("bench: error: ") and proc.stderr.count("\n") == 1
+    ver = subprocess.run([BENCH, "--version"], capture_output=True, text=True, timeout=60)
+    assert ver.returncode == 0 and ver.stdout.startswith("warehouse-marl-bench 0.1.0 (git ")
+
+
+def test_eval__from_a_checkpoint_prints_the_metrics_the_eval_table_stores(
+        capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path]) -> None:
+    _, out = store_dir
+    store = RunStore(out)
+    cell_id = store.read_cells()["cell_id"].iloc[0]
+    code, stdout, err = _cli(capsys, "eval", "--checkpoint", str(store.ckpt_path(cell_id)), "--episodes", "5",
+                             "--json")
+    assert code == 0, err
+    printed = json.loads(stdout)
+    stored = store.read_eval()
+    stored = stored[stored.cell_id == cell_id]
+    assert list(printed["mean"]) == list(EVAL_METRICS)
+    assert printed["mean"]["team_return"] == pytest.approx(stored["team_return"].mean())
+    assert printed["mean"]["success_rate"] == pytest.approx(stored["success_rate"].mean())
+    episodes = pd.DataFrame(printed["episodes"])
+    assert episodes["team_return"].tolist() == pytest.approx(stored["team_return"].tolist())
+
+
+def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFixture[str], toy: str) -> None:
+    code, stdout, err = _cli(capsys, "eval", "--method", "toy", "--n-robots", "4", "--layout", "tiny",
+                             "--episodes", "3", "--horizon", "10")
+    assert code == 0, err
+    assert "untrained initialization" in stdout and "success_rate" in stdout and "payload_dec_per_step" in stdout
+
+
+def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -> None:
+    code, stdout, _ = _cli(capsys, "grids")
+    assert code == 0
+    rows = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
+    assert rows["smoke"].split("│")[2].strip() == "16"
+    assert rows["paper"].split("│")[2].strip() == "28"
+    assert rows["full"].split("│")[2].strip() == "216"
+    assert "estimate" in stdout
