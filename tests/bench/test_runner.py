@@ -111,3 +111,16 @@ def test_run__failing_cell_is_recorded_and_the_others_finish(toy: str, tmp_path:
     cells = RunStore(tmp_path / "run").read_cells().set_index("cell_id")
     assert cells.loc[bad, "attempts"] == 2 and cells.loc[good, "attempts"] == 1
     assert RunStore(tmp_path / "run").eval_path(good).read_bytes() == good_eval
+
+
+def test_run__fresh_starts_over_and_drops_cells_of_other_grids(toy: str, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    run_grid(_grid(toy_spec(seed=7)), out, workers=1, checkpoint_every=4)
+    other = _grid(toy_spec(seed=8))
+    run_grid(other, out, workers=1, checkpoint_every=4)
+    assert len(RunStore(out).read_cells()) == 2  # a second grid in the same folder adds its cells
+    summary = run_grid(other, out, workers=1, checkpoint_every=4, fresh=True)
+    cells = RunStore(out).read_cells()
+    assert summary.done == 1 and cells["cell_id"].tolist() == [other.cells[0].cell_id]
+    assert sorted(p.stem for p in (out / "checkpoints").iterdir()) == [other.cells[0].cell_id]
+    assert cells["attempts"].tolist() == [1]
