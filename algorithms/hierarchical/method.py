@@ -63,7 +63,7 @@ class HierarchicalParams(MethodParams):
     predictor_hidden: int = Field(64, ge=4, description="GRU hidden size per link")
     predictor_embed: int = Field(32, ge=4, description="message embedding width of the predictor")
     obs_radius: int = Field(2, ge=1, description="half-width k of the (2k+1)^2 local patches")
-    lr: float = Field(1e-3, gt=0, description="Adam learning rate of mu and pi")
+    lr: float = Field(3e-3, gt=0, description="Adam learning rate of mu and pi")
     critic_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the critic V_omega")
     predictor_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the GRU predictors")
     entropy_coef: float = Field(0.01, ge=0, description="entropy bonus on both policy levels")

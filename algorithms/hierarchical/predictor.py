@@ -8,8 +8,9 @@ Each step the GRU reads the null-or-message input M-bar (eq:predictor_input: the
 message when A=1, zeros of message size when A=0), the availability flag A, the age and an
 encoding of the receiver's own state X^z. Messages and X^z enter through a per-robot
 embedding pooled over present robots (any group size; a null input pools to zeros). The
-decoder predicts, for every robot slot of z', a message row from the hidden state and the
-last received row: position = last position + predicted displacement (cells), previous
+decoder predicts, for every robot slot of z', a message row from the hidden state, the
+last received row, its age and the dead-reckoning displacement (age x the move of the last
+received control): position = last position + predicted displacement (cells), previous
 control as probabilities, present as a probability. The completed message M-hat is the
 received one when A=1 and the prediction otherwise (eq:interaction_state_estimate).
 
@@ -29,6 +30,7 @@ from torch import nn
 
 from algorithms.hierarchical.group_layers import GroupGRUCell, GroupMLP, masked_mean
 from algorithms.hierarchical.messages import CTRL, MSG_DIM, POS, PRESENT
+from envs.actions import DELTAS
 from envs.layouts import Layout
 
 AGE_SCALE = 8.0  # age feature = min(age, 4 * AGE_SCALE) / AGE_SCALE
@@ -46,7 +48,8 @@ class GroupPredictor(nn.Module):
         self.msg_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
         self.own_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
         self.gru = GroupGRUCell(p, z, 2 * embed + 2, hidden)
-        self.decoder = GroupMLP(p, z, [hidden + MSG_DIM + 1, embed, MSG_DIM])
+        self.decoder = GroupMLP(p, z, [hidden + MSG_DIM + 3, embed, MSG_DIM])
+        self.register_buffer("deltas", torch.from_numpy(DELTAS.astype(np.float32)))
 
     def _norm(self, msg: torch.Tensor) -> torch.Tensor:
         return torch.cat([msg[..., POS] / self.scale, msg[..., POS.stop:]], dim=-1)
@@ -73,10 +76,12 @@ class GroupPredictor(nn.Module):
         """Predicted messages M~ (..., n, D) in message units from h (..., H), the last
         received rows mem (..., n, D) and their age (...); the leading axis is the group."""
         n = mem.shape[-2]
+        age_f = self.age_feature(age)[..., None, None].expand(*age.shape, n, 1)
         inp = torch.cat([
             h.unsqueeze(-2).expand(*h.shape[:-1], n, h.shape[-1]),
             self._norm(mem),
-            self.age_feature(age)[..., None, None].expand(*age.shape, n, 1),
+            age_f,
+            age_f * (mem[..., CTRL] @ self.deltas),  # dead reckoning with the last control
         ], dim=-1)
         out = self.decoder(inp)
         pos = mem[..., POS] + out[..., POS]
@@ -113,15 +118,16 @@ class PredictorState:
 
     h: torch.Tensor  # (Z, B, K, H)
     mem: np.ndarray  # (B, Z, K, n, D) last received message per link
-    age: np.ndarray  # (B, Z, K) int64 steps since ``mem`` was sent
+    age: np.ndarray  # (B, Z, K) int64 steps since ``mem`` was sent (-1 before step 0)
 
 
 def initial_state(model: GroupPredictor, link_msgs: np.ndarray) -> PredictorState:
     """Reset at an episode start: h = 0; the start configuration (part of the task
-    assignment) is known to every coordinator, so the memory holds M_0 with age 0."""
+    assignment) is known to every coordinator, so the memory holds M_0, aged 0 at step 0
+    whether or not M_0 itself arrives."""
     b, z, k = link_msgs.shape[:3]
     return PredictorState(torch.zeros(z, b, k, model.hidden), link_msgs.copy(),
-                          np.zeros((b, z, k), dtype=np.int64))
+                          np.full((b, z, k), -1, dtype=np.int64))
 
 
 def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.ndarray,

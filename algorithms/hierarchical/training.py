@@ -21,7 +21,7 @@ import torch
 from torch.utils.checkpoint import checkpoint
 
 from algorithms.common.trainer import RolloutBuffer, team_advantage
-from algorithms.hierarchical.predictor import predictor_loss
+from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
 if TYPE_CHECKING:
@@ -106,10 +106,9 @@ def predictor_targets(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[st
     }
 
 
-def predictor_loss_on(method: HierarchicalMethod, data: dict[str, torch.Tensor], chunk: int) -> torch.Tensor:
-    """L_c (eq:gru_pred_loss) of the current predictor on ``predictor_targets`` data,
-    unrolled from the episode start (h = 0); differentiable, memory bounded by ``chunk``."""
-    model = method.predictor
+def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chunk: int) -> torch.Tensor:
+    """L_c (eq:gru_pred_loss) of ``model`` on ``predictor_targets`` data, unrolled from the
+    episode start (h = 0); differentiable, memory bounded by ``chunk`` time steps."""
     z, t_used, b, k = data["avail"].shape
     avail_f = data["avail"].unsqueeze(-1).unsqueeze(-1).to(torch.float32)
     def rows(a: torch.Tensor, sl: slice) -> torch.Tensor:  # (Z, T, B, ...) -> (Z, t*B, ...)
@@ -164,7 +163,7 @@ def predictor_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str
     if not bool(data["lost"].any()):
         return {"predictor_loss": float("nan")}
     method.opt_predictor.zero_grad(set_to_none=True)
-    loss = predictor_loss_on(method, data, method.params.update_chunk)
+    loss = predictor_loss_on(method.predictor, data, method.params.update_chunk)
     loss.backward()
     torch.nn.utils.clip_grad_norm_(method.predictor.parameters(), method.params.max_grad_norm)
     method.opt_predictor.step()
