@@ -260,15 +260,9 @@ def perf(
 
 
 def _print_frame(df: Any, title: str) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=title)
-    for col in df.columns:
-        table.add_column(str(col))
-    for row in df.itertuples(index=False):
-        table.add_row(*(f"{v:.4g}" if isinstance(v, float) else str(v) for v in row))
-    Console().print(table)
+    """Plain aligned text (wide tables stay readable in logs and narrow terminals)."""
+    typer.echo(title)
+    typer.echo(df.to_string(index=False, float_format=lambda v: f"{v:.4g}") if len(df) else "(no rows)")
 
 
 # -------------------------------------------------------------------- tune
