@@ -17,12 +17,14 @@ if TYPE_CHECKING:
     from bench.cells import Cell
 
 # Agent-steps (robots x environment steps) per second on one core, for training (rollout
-# plus update, amortized) and greedy evaluation. Labelled estimates, not measurements.
+# plus update, amortized) and evaluation. ESTIMATES: one rough timing per method at N=20
+# and N=100 (batch 8, horizon 100, untrained policies) on a 2-core development box shared
+# with other jobs, rounded down; replace with ``bench perf`` numbers from a quiet machine.
 AGENT_STEPS_PER_S: dict[str, dict[str, float]] = {
-    "hierarchical": {"train": 20_000.0, "eval": 40_000.0},
-    "decentralized": {"train": 30_000.0, "eval": 60_000.0},
-    "ic3net": {"train": 15_000.0, "eval": 30_000.0},
-    "pibt": {"train": float("inf"), "eval": 200_000.0},
+    "hierarchical": {"train": 15_000.0, "eval": 15_000.0},
+    "decentralized": {"train": 25_000.0, "eval": 40_000.0},
+    "ic3net": {"train": 10_000.0, "eval": 30_000.0},
+    "pibt": {"train": float("inf"), "eval": 100_000.0},
 }
 DEFAULT_RATE = {"train": 20_000.0, "eval": 40_000.0}  # methods registered later (tests, plugins)
 MEASURED = False  # flip to True once the constants above come from ``bench perf``
