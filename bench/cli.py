@@ -127,7 +127,7 @@ def grids(
         ps = sorted({c.loss_p for c in g.cells})
         table.add_row(g.name, str(len(g)), ",".join(g.methods), ",".join(map(str, ns)),
                       ",".join(map(str, ps)), str(len({c.seed for c in g.cells})),
-                      f"{costs.grid_cell_hours(g.cells):.2f}")
+                      f"{costs.grid_cell_hours(g.cells):.3g}")
     console = Console(width=None if sys.stdout.isatty() else 140)  # logs: no truncated cells
     console.print(table)
     for g in listed:

@@ -1,5 +1,5 @@
 """A two-node Ray cluster (ray.cluster_utils.Cluster) runs a grid and survives losing a
-node midway. Runtime: ~30 s on 2 shared cores."""
+node midway; `bench run --address` joins an existing cluster. Runtime: ~45 s on 2 shared cores."""
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -59,3 +59,29 @@ def test_run__two_node_cluster_survives_removing_a_node_midway(toy: str, two_nod
     cells = store.read_cells()
     assert (cells["status"] == "done").all()
     assert (cells["attempts"] >= 2).any(), "no cell lost its worker with the node"
+
+
+@pytest.mark.slow
+def test_cli__address_joins_an_existing_cluster(tmp_path: Path) -> None:
+    import os
+    import subprocess
+    import sys
+
+    from ray.cluster_utils import Cluster
+
+    grid = tmp_path / "g.toml"
+    grid.write_text('[base]\nmethod = "pibt"\nlayout = "tiny"\nepisodes = 0\nhorizon = 20\n'
+                    'eval_episodes = 4\n[axes]\nn_robots = [4, 8]\nloss_p = [0.2]\n')
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    address = cluster.address
+    try:
+        proc = subprocess.run(
+            [str(Path(sys.executable).with_name("bench")), "run", "--grid-file", str(grid),
+             "--out", str(tmp_path / "run"), "--address", address],
+            capture_output=True, text=True, timeout=240, env={**os.environ, "CI": "true"})
+    finally:
+        cluster.shutdown()
+    assert proc.returncode == 0, proc.stderr
+    manifest = RunStore(tmp_path / "run").require_run()
+    assert manifest["ray"] == address and manifest["workers"] == 1
+    assert (RunStore(tmp_path / "run").read_cells()["status"] == "done").all()
