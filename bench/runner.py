@@ -21,6 +21,7 @@ numbers do not depend on the number of workers or on the order of execution.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -80,7 +81,10 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     store = RunStore(out)
     store.check_writable()
     states, others = plan_run(store, grid, fresh)
-    ctx = connect(address, workers)
+    if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
+        ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
+    else:
+        ctx = connect(address, workers)
     try:
         return _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
                     progress or NullProgress(), on_event, command or sys.argv).execute()
@@ -95,7 +99,7 @@ class _Run:
         self.grid, self.store, self.states, self.others = grid, store, states, others
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command = on_event, command
-        self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus, len(states) or 1))
+        self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
         self.inflight: dict[Any, tuple[str, Slot, CellState | None, int]] = {}
         self.versions = versions_json()
         self.t0 = time.monotonic()
@@ -134,8 +138,10 @@ class _Run:
         import ray
 
         self._prepare_store()
-        self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
-        slots = [Slot(actor) for actor in _take_workers(self.remote, self.n_workers)]
+        slots: list[Slot] = []
+        if not all(s.finished for s in self.states):
+            self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
+            slots = [Slot(actor) for actor in _take_workers(self.remote, self.n_workers)]
         self._emit("start", None)
         stalled_since: float | None = None
         try:
@@ -164,7 +170,8 @@ class _Run:
                     time.sleep(0.05)
                 self._emit("tick", None)
         finally:
-            _release_workers(slots, keep=not self.ctx.started_here)
+            if slots:
+                _release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
             self.progress.close()
         failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
@@ -332,7 +339,8 @@ class _Run:
         if self.on_event is not None and st is not None:
             self.on_event(kind, st)
         done_w = sum(s.progress() * s.weight for s in self.states)
-        frac = (done_w - self.start_progress) / max(self.total_weight - self.start_progress, 1e-9)
+        left = self.total_weight - self.start_progress
+        frac = (done_w - self.start_progress) / left if left > 1e-9 else 1.0
         snap = Snapshot(
             total=len(self.states), done=sum(s.phase == "done" for s in self.states),
             running=sum(s.phase in ("training", "evaluating") for s in self.states),
