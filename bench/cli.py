@@ -303,6 +303,8 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         _error("interrupted; rerun the same command to resume")
         sys.exit(130)
+    if code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
+        _error("interrupted; rerun the same command to resume")
     sys.exit(code if isinstance(code, int) else 0)
 
 

@@ -80,16 +80,25 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     """
     store = RunStore(out)
     store.check_writable()
-    states, others = plan_run(store, grid, fresh)
-    if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
-        ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
-    else:
-        ctx = connect(address, workers)
+    lock = store.lock()
     try:
-        return _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                    progress or NullProgress(), on_event, command or sys.argv).execute()
+        states, others = plan_run(store, grid, fresh)
+        if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
+            ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
+        else:
+            ctx = connect(address, workers)
+        try:
+            if lock is None:  # a new run directory: create and lock it now that all checks passed
+                store.root.mkdir(parents=True, exist_ok=True)
+                lock = store.lock()
+            run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
+                       progress or NullProgress(), on_event, command or sys.argv)
+            return run.execute()
+        finally:
+            ctx.shutdown()
     finally:
-        ctx.shutdown()
+        if lock is not None:
+            os.close(lock)
 
 
 class _Run:

@@ -170,6 +170,24 @@ class RunStore:
                 if sub.exists() and not sub.is_dir():
                     raise BenchError(f"--out {str(self.root)!r}: {str(sub)!r} is not a directory")
 
+    def lock(self) -> int | None:
+        """Exclusive lock on the run directory (flock on the directory itself: no file is
+        created); None if the directory does not exist yet. BenchError if another run holds it.
+        Release with ``os.close(fd)``."""
+        if not self.root.is_dir():
+            return None
+        try:
+            import fcntl
+        except ImportError:  # pragma: no cover - not POSIX
+            return None
+        fd = os.open(self.root, os.O_RDONLY)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise BenchError(f"another bench run is using {str(self.root)!r}; wait for it or use another --out") from None
+        return fd
+
     def exists(self) -> bool:
         return self.manifest_path.exists() or self.cells_path.exists()
 

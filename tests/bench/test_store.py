@@ -156,3 +156,18 @@ def test_manifest__is_json_with_version(tmp_path: Path) -> None:
     assert store.require_run()["grid"] == "smoke"
     with pytest.raises(BenchError, match="not a bench run directory"):
         RunStore(tmp_path / "missing").require_run()
+
+
+def test_lock__a_second_run_on_the_same_directory_is_refused(tmp_path: Path) -> None:
+    import os
+
+    store = RunStore(tmp_path)
+    assert RunStore(tmp_path / "missing").lock() is None
+    fd = store.lock()
+    try:
+        with pytest.raises(BenchError, match="another bench run is using"):
+            RunStore(tmp_path).lock()
+    finally:
+        os.close(fd)
+    os.close(RunStore(tmp_path).lock())  # free again once released
+    assert list(tmp_path.iterdir()) == []  # locking creates no file
