@@ -37,25 +37,13 @@ from bench.ray_cluster import RayContext, connect
 from bench.schema import SCHEMA_VERSION
 from bench.store import RunStore
 from bench.worker import CellWorker
+from bench.worker_pool import Slot, release_workers, take_workers
 
 MAX_RETRIES = 3  # worker deaths tolerated per cell and run
 MAX_RESTARTS = 4  # Ray restarts of one worker actor
 STALL_TIMEOUT_S = 600.0  # no live worker for this long: remaining cells fail
 WAIT_S = 1.0
 PING_RETRY_S = 0.5  # probe interval of a restarting worker
-
-
-@dataclass
-class Slot:
-    """One worker actor and what it is doing."""
-
-    actor: Any
-    busy: bool = False
-    healthy: bool = False  # True once a ping came back; work goes only to healthy workers
-    pinging: bool = False
-    suspect: bool = False  # a call failed and no ping has come back since
-    next_ping: float = 0.0  # monotonic time of the next health probe
-    sticky: CellState | None = None  # the cell this worker is training
 
 
 @dataclass
@@ -150,7 +138,7 @@ class _Run:
         slots: list[Slot] = []
         if not all(s.finished for s in self.states):
             self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
-            slots = [Slot(actor) for actor in _take_workers(self.remote, self.n_workers)]
+            slots = [Slot(actor) for actor in take_workers(self.remote, self.n_workers)]
         self._emit("start", None)
         stalled_since: float | None = None
         try:
@@ -180,7 +168,7 @@ class _Run:
                 self._emit("tick", None)
         finally:
             if slots:
-                _release_workers(slots, keep=not self.ctx.started_here)
+                release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
             self.progress.close()
         failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
@@ -363,37 +351,3 @@ def _nanmax(a: float, b: float) -> float:
     if a != a:  # NaN: nothing measured yet
         return b
     return a if b != b else max(a, b)
-
-
-# Worker actors outlive a run only in a Ray session the runner did not start (tests,
-# notebooks): the next run reuses them instead of paying process start-up and imports again.
-_IDLE: dict[str, list[Any]] = {}
-
-
-def _session() -> str:
-    import ray
-
-    return str(ray.get_runtime_context().get_job_id())
-
-
-def _take_workers(remote: Any, n: int) -> list[Any]:
-    idle = _IDLE.pop(_session(), [])
-    _IDLE.clear()  # actors of an earlier Ray session are gone with it
-    taken, rest = idle[:n], idle[n:]
-    _kill(rest)
-    return taken + [remote.remote() for _ in range(n - len(taken))]
-
-
-def _release_workers(slots: list[Slot], keep: bool) -> None:
-    """Keep workers for the next run (if Ray outlives this run) unless a call to them failed."""
-    kept = [s.actor for s in slots if keep and not s.suspect]
-    _kill([s.actor for s in slots if s.actor not in kept])
-    if kept:
-        _IDLE[_session()] = kept
-
-
-def _kill(actors: list[Any]) -> None:
-    import ray
-
-    for actor in actors:
-        ray.kill(actor, no_restart=True)
