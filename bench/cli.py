@@ -65,9 +65,9 @@ def run(
     grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="User grid (TOML or YAML): a base cell and list-valued axes."),
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1."),
-    out: Path | None = typer.Option(None, "--out", help="Run directory [default: results/<grid>]."),
+    out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
     address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
-    workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) [default: all CPUs]."),
+    workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
     fresh: bool = typer.Option(False, "--fresh", help="Delete this run directory's results and start over (asks first)."),
     yes: bool = typer.Option(False, "--yes", "-y", help="Do not ask before --fresh deletes results."),
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
@@ -138,13 +138,13 @@ def grids(
 @app.command("eval")
 def eval_(
     method: str | None = typer.Option(None, "--method", help="Method name (hierarchical, decentralized, ic3net, pibt)."),
-    checkpoint: Path | None = typer.Option(None, "--checkpoint", help="checkpoints/<cell_id>.pt of a run [default: untrained]."),
-    n_robots: int | None = typer.Option(None, "--n-robots", min=1, help="Team size N [default: the checkpoint's, else 20]."),
-    loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0, help="Loss probability p [default: the checkpoint's, else 0.2]."),
-    layout: str | None = typer.Option(None, "--layout", help="Preset name or .map path [default: preset sized for N]."),
+    checkpoint: Path | None = typer.Option(None, "--checkpoint", help="checkpoints/<cell_id>.pt of a run (default: untrained)."),
+    n_robots: int | None = typer.Option(None, "--n-robots", min=1, help="Team size N (default: the checkpoint's, else 20)."),
+    loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0, help="Loss probability p (default: the checkpoint's, else 0.2)."),
+    layout: str | None = typer.Option(None, "--layout", help="Preset name or .map path (default: preset sized for N)."),
     episodes: int = typer.Option(10, "--episodes", min=1, help="Evaluation episodes."),
-    seed: int | None = typer.Option(None, "--seed", min=0, help="Seed [default: the checkpoint's, else 0]."),
-    horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T [default: the checkpoint's, else 500]."),
+    seed: int | None = typer.Option(None, "--seed", min=0, help="Seed (default: the checkpoint's, else 0)."),
+    horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T (default: the checkpoint's, else 500)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics and every episode) instead of a table."),
 ) -> None:
     """Evaluate one method greedily and print the eval-table metrics (mean over episodes)."""
@@ -189,7 +189,7 @@ def _run_dir(run: Path | None) -> Path:
 
 @app.command()
 def report(
-    run: Path | None = typer.Option(None, "--run", help="Run directory [default: the most recent under results/]."),
+    run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/."""
     run_dir = _run_dir(run)
@@ -205,7 +205,7 @@ def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
     episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
-    out: Path | None = typer.Option(None, "--out", help="Output GIF path [default: RUN/replays/<cell>-ep<K>.gif]."),
+    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>.gif)."),
 ) -> None:
     """Render one evaluation episode of a cell as a GIF."""
     from bench.store import RunStore
