@@ -16,8 +16,9 @@ received from all other robots over lossy all-to-all links, without the group hi
   ``RolloutBuffer``; the update is one batched forward (chunked over robot-steps only to
   bound memory: the gradient is the same);
 * payload N (N - 1) d_m scalars per step (Sec. III-A, C_dec);
-* ``safety_filter=True`` runs the hierarchical method's filter (Algorithm 1) with every
-  robot its own group, on the received (possibly stale) positions of the others.
+* ``safety_filter=True`` runs the hierarchical method's filter (Algorithm 1,
+  eq:safety_conditions) with every robot its own group, on the received (possibly stale)
+  positions of the others; the policy gradient uses the sampled (proposed) controls.
 """
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ from pydantic import Field
 from torch import nn
 
 from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
-from algorithms.common.all_to_all import AllToAllBoard, map_feature_size
+from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
@@ -47,9 +48,9 @@ from algorithms.common.trainer import (
     critic_features,
     team_advantage,
 )
+from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import N_ACTIONS
 from envs.channel import LossProcess
-from envs.errors import BenchError
 from envs.observations import PatchExtractor
 
 
@@ -66,6 +67,8 @@ class DecentralizedParams(MethodParams):
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
     eval_sampling: bool = Field(True, description="evaluate with sampled actions (False: argmax; docs/decisions.md)")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
+    search_radius: int = Field(2, ge=0, description="safety filter search radius L (with the filter)")
+    c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max (with the filter)")
     chunk_rows: int = Field(65536, ge=256, description="robot-steps per backward chunk (memory only)")
 
 
@@ -92,7 +95,6 @@ class DecentralizedState:
     collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
     greedy: bool  # argmax actions (else sampled from ``gen``)
     gen: torch.Generator
-    filter: Any = None
 
 
 class DecentralizedMethod(Method):
@@ -109,9 +111,7 @@ class DecentralizedMethod(Method):
         self.critic = CentralCritic(p.critic_hidden)
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
-        if p.safety_filter:
-            raise BenchError("decentralized: safety_filter=True needs the hierarchical safety "
-                             "filter (algorithms/hierarchical/safety_filter.py), not available yet")
+        self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max) if p.safety_filter else None
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         return {"actor": self.actor, "critic": self.critic,
@@ -154,10 +154,30 @@ class DecentralizedMethod(Method):
                              active=~core.done & state.running[:, None],
                              critic=critic_features(core),
                              t_frac=np.full(core.batch, core.t / self.env.horizon, np.float32))
-        payload = float(state.board.payload)
-        if state.filter is not None:
-            return state.filter(state.board, logits, actions, payload)
-        return Decision(actions=actions, payload=payload)
+        dec = Decision(actions=actions, payload=float(state.board.payload))
+        if self.filter is not None:
+            self.apply_filter(state.board, logits, dec)
+        return dec
+
+    def apply_filter(self, board: AllToAllBoard, logits: torch.Tensor, dec: Decision) -> None:
+        """Algorithm 1 with every robot its own group (G = B N groups of one robot): the
+        neighbours are the other robots at their last received positions (stale under
+        loss; a robot known to have left the floor is no neighbour); the candidates are
+        ordered by the actor's probabilities. Sets executed actions and filter counts."""
+        core = board.core
+        b, n = core.pos.shape
+        g = b * n
+        present = (board.ctl != OFF_FLOOR) & board.others  # (B, N_recv, N_send)
+        blocked = self.filter.blocked_cells(board.pos.reshape(g, n), present.reshape(g, n))
+        controlled = ~core.done & ~core.ended[:, None]
+        logp = torch.log_softmax(logits, dim=-1).double().numpy().reshape(g, 1, N_ACTIONS)
+        res = self.filter(core.pos.reshape(g, 1), core.occupying.reshape(g, 1),
+                          controlled.reshape(g, 1), dec.actions.reshape(g, 1), logp, blocked)
+        dec.proposed = dec.actions
+        dec.actions = np.where(controlled, res.actions.reshape(b, n), dec.actions)
+        dec.candidates = res.examined.reshape(b, n).sum(1)
+        dec.filter_calls = res.called.reshape(b, n).sum(1)
+        dec.fallbacks = res.fallback.reshape(b, n).sum(1)
 
     def observe(self, batch: EpisodeBatch, state: DecentralizedState, result: Any) -> None:
         state.collided = result.collision

@@ -18,7 +18,11 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
 * REINFORCE with the per-robot value as baseline: loss = -sum A (log pi(u) + log pi(g))
   + 0.01 sum (V - G)^2 - entropy term, over alive robot-steps, divided by the number of
   environment steps; A = G_t - V^i, G_t the Monte-Carlo team return (eq:training_return,
-  gamma = 1, shared with every method); RMSprop(lr 1e-3, alpha 0.97, eps 1e-6); hidden 64.
+  gamma = 1, shared with every method), standardized per batch (the reference's
+  ``normalize_rewards`` option, on by default here), and the value head predicting
+  running-normalized returns (``ValueNorm``; without both, 500-step team returns of
+  hundreds make the first updates collapse the policy, docs/decisions.md);
+  RMSprop(lr 1e-3, alpha 0.97, eps 1e-6); hidden 64.
 
 Rollouts run under no_grad and store inputs, link masks and samples in a
 ``RolloutBuffer``; the update replays the episode with gradients, batched over episodes
@@ -48,6 +52,7 @@ from algorithms.common.robot_obs import (
 )
 from algorithms.common.sampling import action_stream
 from algorithms.common.trainer import RolloutBuffer, mc_returns
+from algorithms.common.value_norm import ValueNorm
 from envs.actions import N_ACTIONS
 from envs.channel import LossProcess
 from envs.observations import PatchExtractor
@@ -64,6 +69,10 @@ class IC3NetParams(MethodParams):
     rms_eps: float = Field(1e-6, gt=0, description="RMSprop epsilon")
     value_coef: float = Field(0.01, ge=0, description="weight of the value loss")
     entropy_coef: float = Field(0.0, ge=0, description="entropy bonus (reference: 0)")
+    value_norm: bool = Field(
+        True, description="value head predicts running-normalized returns (MAPPO ValueNorm; docs/decisions.md)")
+    normalize_advantage: bool = Field(
+        True, description="standardize advantages per batch (reference option normalize_rewards; docs/decisions.md)")
     detach_gap: int = Field(50, ge=1, description="steps per truncated-BPTT chunk")
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
@@ -95,6 +104,7 @@ class IC3NetPolicy(nn.Module):
         self.action_head = nn.Linear(hidden, N_ACTIONS)
         self.gate_head = nn.Linear(hidden, 2)
         self.value_head = nn.Linear(hidden, 1)
+        self.value_norm = ValueNorm()  # used when the method's ``value_norm`` is on
 
     def initial_state(self, b: int, n: int) -> tuple[torch.Tensor, torch.Tensor]:
         return torch.zeros(b * n, self.hidden), torch.zeros(b * n, self.hidden)
@@ -156,6 +166,7 @@ class IC3NetMethod(Method):
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
                 "actions": ((n,), np.int64), "gates": ((n,), np.int64),
+                "values": ((n,), np.float32),
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
@@ -187,9 +198,11 @@ class IC3NetMethod(Method):
         obs = np.concatenate([own_features(core, state.patch), own_history(core, state.collided)],
                              axis=-1)
         mask = action_mask(core)
-        logits, gate_logits, _, state.hc = self.policy(
+        logits, gate_logits, values, state.hc = self.policy(
             torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links),
             torch.from_numpy(alive_n), state.hc)
+        if p.value_norm:
+            values = self.policy.value_norm.denormalize(values)
         actions = sample_categorical(logits, state.greedy, state.gen).numpy()
         gates = sample_categorical(gate_logits, state.greedy, state.gen).numpy()
         if p.gate != "learned":
@@ -198,7 +211,7 @@ class IC3NetMethod(Method):
         state.running = ~core.ended
         if state.buffer is not None:
             state.buffer.add(obs=obs, mask=mask, links=links, alive=alive_n, actions=actions,
-                             gates=gates, active=alive & state.running[:, None])
+                             gates=gates, values=values.numpy(), active=alive & state.running[:, None])
         return Decision(actions=actions, payload=payload)
 
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
@@ -207,14 +220,32 @@ class IC3NetMethod(Method):
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- update
+    def replay_step(
+        self, data: dict[str, torch.Tensor], t: int, hc: tuple[torch.Tensor, torch.Tensor],
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        """The policy's step t again from the stored inputs (same outputs as the rollout)."""
+        return self.policy(data["obs"][t], data["mask"][t], data["links"][t], data["alive"][t], hc)
+
     def update(self, state: IC3NetState) -> dict[str, float]:
         """One RMSprop step: replay the batch with gradients, chunked over time (see module)."""
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
         t_used = buf.t
         returns = mc_returns(buf.rewards[:t_used])  # (T, B) team return G_t
-        n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         data = {k: buf.tensor(k) for k in buf.data}
+        active = data["active"].float()  # (T, B, N) alive robots of running episodes
+        n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
+        # A = G_t - V^i with the rollout's values (the parameters have not changed since).
+        adv = returns[..., None] - data["values"]
+        if p.normalize_advantage:
+            n_act = active.sum().clamp_min(1.0)
+            mean = (adv * active).sum() / n_act
+            std = torch.sqrt((((adv - mean) * active) ** 2).sum() / n_act).clamp_min(1e-6)
+            adv = (adv - mean) / std
+        targets = returns[..., None].expand_as(active)  # (T, B, N) value targets G_t
+        if p.value_norm:
+            self.policy.value_norm.update(targets, active)
+            targets = self.policy.value_norm.normalize(targets)
         b, n = data["actions"].shape[1:]
         hc = self.policy.initial_state(b, n)
         learn_gate = p.gate == "learned" and p.communicate
@@ -223,18 +254,15 @@ class IC3NetMethod(Method):
         for lo in range(0, t_used, p.detach_gap):
             action_loss = value_loss = entropy = torch.zeros(())
             for t in range(lo, min(lo + p.detach_gap, t_used)):
-                logits, gate_logits, values, hc = self.policy(
-                    data["obs"][t], data["mask"][t], data["links"][t], data["alive"][t], hc)
+                logits, gate_logits, values, hc = self.replay_step(data, t, hc)
                 logp_all = torch.log_softmax(logits, dim=-1)
                 logp = logp_all.gather(-1, data["actions"][t][..., None]).squeeze(-1)
                 if learn_gate:
                     logp_g = torch.log_softmax(gate_logits, dim=-1)
                     logp = logp + logp_g.gather(-1, data["gates"][t][..., None]).squeeze(-1)
-                m = data["active"][t].float()  # (B, N) alive robots of running episodes
-                g = returns[t][:, None]
-                adv = (g - values).detach()
-                action_loss = action_loss - (adv * logp * m).sum()
-                value_loss = value_loss + (((values - g) ** 2) * m).sum()
+                m = active[t]
+                action_loss = action_loss - (adv[t] * logp * m).sum()
+                value_loss = value_loss + (((values - targets[t]) ** 2) * m).sum()
                 entropy = entropy - ((logp_all.exp() * logp_all).sum(-1) * m).sum()
             loss = (action_loss + p.value_coef * value_loss - p.entropy_coef * entropy) / n_steps
             loss.backward()

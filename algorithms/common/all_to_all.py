@@ -43,7 +43,10 @@ class AllToAllBoard:
         self.ctl = np.full((b, n, n), WAIT, dtype=np.int64)  # (B, N, N) controls
         self.age = np.zeros((b, n, n), dtype=np.int64)  # (B, N, N) steps since received
         self.eye = np.eye(n, dtype=bool)
+        self.others = ~self.eye[None]  # (1, N, N) no self-messages in the maps
         self.side = 2 * radius + 1
+        self._rows = core.layout.cells[:, 0].astype(np.int32)  # (F,) row of each free cell
+        self._cols = core.layout.cells[:, 1].astype(np.int32)
 
     def messages(self) -> tuple[np.ndarray, np.ndarray]:
         """This step's true messages: (B, N) cells and (B, N) controls U_{t-1} (or OFF_FLOOR)."""
@@ -72,21 +75,23 @@ class AllToAllBoard:
         """(B, N, 3 (2k+1)^2) float32 egocentric maps of the received messages (see module)."""
         core, k, side = self.core, self.radius, self.side
         b, n = core.pos.shape
-        cells = core.layout.cells
-        me = cells[core.pos][:, :, None, :]  # (B, N, 1, 2)
-        valid = (self.ctl != OFF_FLOOR) & ~self.eye[None]  # (B, N, N)
-        ctl = np.minimum(self.ctl, WAIT)
-        projected = core.layout.next_cell[self.pos, ctl]  # (B, N, N)
-        stale = np.minimum(self.age, AGE_CAP).astype(np.float64) / AGE_CAP
+        rows, cols = self._rows, self._cols
+        valid = (self.ctl != OFF_FLOOR) & self.others  # (B, N, N)
+        projected = core.layout.next_cell[self.pos, np.minimum(self.ctl, WAIT)]  # (B, N, N)
+        stale = np.minimum(self.age, AGE_CAP).astype(np.float32) * (1.0 / AGE_CAP)
+        my_r = (rows[core.pos] - k)[:, :, None]  # (B, N, 1) top row of each window
+        my_c = (cols[core.pos] - k)[:, :, None]
         base = np.arange(b * n, dtype=np.int64).reshape(b, n, 1) * (side * side)
         size = b * n * side * side
         out = np.empty((b, n, MAP_CHANNELS, side * side), dtype=np.float32)
-        for ch, (where, weights) in enumerate(((self.pos, None), (projected, None), (self.pos, stale))):
-            rel = cells[where] - me + k  # (B, N, N, 2)
-            inside = valid & (rel >= 0).all(axis=-1) & (rel < side).all(axis=-1)
-            flat = base + rel[..., 0] * side + rel[..., 1]
-            w = None if weights is None else weights[inside]
-            out[:, :, ch] = np.bincount(flat[inside], weights=w, minlength=size).reshape(b, n, -1)
+        for ch, where in ((0, self.pos), (1, projected)):
+            dr = rows[where] - my_r  # (B, N, N) window row, in range iff 0 <= dr < side
+            dc = cols[where] - my_c
+            inside = valid & (dr.view(np.uint32) < side) & (dc.view(np.uint32) < side)
+            flat = (base + dr * side + dc)[inside]
+            out[:, :, ch] = np.bincount(flat, minlength=size).reshape(b, n, -1)
+            if ch == 0:
+                out[:, :, 2] = np.bincount(flat, weights=stale[inside], minlength=size).reshape(b, n, -1)
         return out.reshape(b, n, -1)
 
 

@@ -15,7 +15,6 @@ from envs.actions import Action
 from envs.channel import LossProcess
 from envs.config import EnvConfig
 from envs.core import WarehouseCore
-from envs.errors import BenchError
 from envs.layouts import from_ascii
 from envs.scenarios import validate_scenario
 
@@ -89,11 +88,16 @@ def test_message_maps__drop_robots_that_left_the_floor() -> None:
     assert board.features()[0, 0].sum() == 0
 
 
-def test_safety_filter_option_is_a_clear_error_until_available() -> None:
-    try:
-        DecentralizedMethod(ENV, {"safety_filter": True}, seed=0)
-    except BenchError as exc:
-        assert "safety" in str(exc)
+def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
+    env = EnvConfig(n_robots=10, layout="tiny", horizon=30, groups=2, loss_p=0.0)
+    params = {"eval_chunk": 4, "eval_sampling": True}
+    free = DecentralizedMethod(env, params, seed=0).evaluate(0)
+    assert sum(r["collision_rate"] for r in free) > 0  # untrained robots do collide
+    assert all(np.isnan(r["mean_candidates"]) for r in free)  # no filter, no counts
+    safe = DecentralizedMethod(env, {**params, "safety_filter": True}, seed=0).evaluate(0)
+    assert all(r["collision_rate"] == 0 for r in safe)
+    assert all(r["correction_rate"] > 0 and r["mean_candidates"] >= 1 for r in safe)
+    assert all(0 <= r["fallback_rate"] <= 1 for r in safe)
 
 
 @pytest.mark.slow

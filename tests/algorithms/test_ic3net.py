@@ -97,6 +97,23 @@ def test_payload_is_zero_while_every_gate_is_closed() -> None:
     assert all(0 < r["payload_scalars_per_step"] < n * (n - 1) * m.params.hidden for r in rows)
 
 
+def test_update_replays_exactly_what_the_rollout_computed() -> None:
+    m = IC3NetMethod(ENV, {"batch_episodes": 2}, seed=1)
+    seen: list[tuple] = []
+    hook = m.policy.register_forward_hook(lambda mod, inp, out: seen.append(out[:3]))
+    batch = EpisodeBatch(ENV, 2, batch_rng(0, 0, 0), m.layout)
+    with torch.no_grad():
+        state, _ = m.run(batch, greedy=False)
+        hook.remove()
+        data = {k: state.buffer.tensor(k) for k in state.buffer.data}
+        hc = m.policy.initial_state(2, ENV.n_robots)
+        assert state.buffer.t == len(seen) > 2
+        for t, (logits, gates, values) in enumerate(seen):
+            again, gates_again, values_again, hc = m.replay_step(data, t, hc)
+            assert torch.equal(again, logits) and torch.equal(gates_again, gates)
+            assert torch.equal(values_again, values)
+
+
 @pytest.mark.slow
 def test_ic3net__learns_on_a_small_layout() -> None:
     torch.manual_seed(0)
