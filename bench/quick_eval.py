@@ -1,7 +1,7 @@
 """``bench eval``: evaluate one method in this process, from a checkpoint or untrained.
 
-Runs the same ``Method.evaluate`` chunks as the runner's evaluator workers (so the rows
-equal the eval table's rows for the same cell), without Ray and without writing files.
+Runs the runner's evaluator code (``CellWorker.eval_chunk``) in this process, so the rows
+equal the eval table's rows for the same cell and state; no Ray, no files written.
 """
 from __future__ import annotations
 
@@ -13,9 +13,10 @@ import numpy as np
 import torch
 
 from algorithms.common.episodes import EVAL_METRICS
-from algorithms.registry import method_class
 from bench.cells import Cell
+from bench.plan import cell_spec
 from bench.store import load_checkpoint
+from bench.worker import CellWorker
 from envs.errors import BenchError
 from envs.layouts import preset_for
 
@@ -47,18 +48,19 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
         spec["layout"] = preset_for(n_robots)  # a new team size gets its own preset
     spec.update(episodes=0, eval_episodes=episodes)
     cell = Cell.make(**spec)
-    cls = method_class(cell.method)
-    params = cell.method_params()
-    m = cls(cell.to_env_config(), params.model_dump(), seed=cell.seed)
-    if state is not None:
-        try:
-            m.load_state_dict(state)
-        except (KeyError, RuntimeError, ValueError) as exc:
-            raise BenchError(f"checkpoint {checkpoint!r} does not fit {cell.method} with these settings: "
-                             f"{' '.join(str(exc).split())[:200]}") from None
+    worker = CellWorker()  # the runner's evaluator code path: same rows as the eval table
+    box = [state] if state is not None else []
     rows: list[dict[str, Any]] = []
-    for chunk in range(math.ceil(episodes / params.eval_chunk)):
-        rows.extend(m.evaluate(chunk, cell.seed))
+    try:
+        for chunk in range(math.ceil(episodes / cell.method_params().eval_chunk)):
+            rows.extend(worker.eval_chunk(cell_spec(cell), box, chunk)["rows"])
+    except BenchError:
+        raise
+    except (KeyError, RuntimeError, ValueError) as exc:
+        if state is None:
+            raise
+        raise BenchError(f"checkpoint {checkpoint!r} does not fit {cell.method} with these settings: "
+                         f"{' '.join(str(exc).split())[:200]}") from None
     return cell, [r for r in rows if int(r["episode"]) < episodes]
 
 

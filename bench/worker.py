@@ -83,7 +83,7 @@ class CellWorker:
     def __init__(self) -> None:
         torch.set_num_threads(1)
         self._train: tuple[str, Method] | None = None
-        self._eval: tuple[str, Method] | None = None
+        self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
     def ping(self) -> int:
         return os.getpid()
@@ -141,9 +141,11 @@ class CellWorker:
         cell_id = str(spec["cell_id"])
         state = _resolve(state_box)
         if self._eval is None or self._eval[0] != cell_id:
-            self._eval = (cell_id, build_method(spec))
-        method = self._eval[1]
-        if state is not None:
-            method.load_state_dict(state)  # every chunk from the same state: order-independent
+            method = build_method(spec)
+            self._eval = (cell_id, method, copy.deepcopy(method.state_dict()))
+        _, method, initial = self._eval
+        # Every chunk starts from the same state (RNG streams included), so the rows do not
+        # depend on which chunks this worker ran before; no state: the untrained initialization.
+        method.load_state_dict(state if state is not None else initial)
         rows = method.evaluate(chunk, int(spec["seed"]))
         return {"rows": rows, "wall_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()}

@@ -131,9 +131,14 @@ def test_console_script__unknown_grid_exits_2_and_version_names_the_commit() -> 
     assert ver.returncode == 0 and ver.stdout.startswith("warehouse-marl-bench 0.1.0 (git ")
 
 
-def test_eval__from_a_checkpoint_prints_the_metrics_the_eval_table_stores(
-        capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path]) -> None:
-    _, out = store_dir
+@pytest.mark.parametrize("method", ["toy", "decentralized"])  # greedy; sampled evaluation
+def test_eval__from_a_checkpoint_prints_the_rows_the_eval_table_stores(
+        capsys: pytest.CaptureFixture[str], toy: str, tmp_path: Path, method: str) -> None:
+    grid_file = write_grid_file(tmp_path / "g.toml", toy_spec(method=method, eval_episodes=5,
+                                                               params={"batch_episodes": 2, "eval_chunk": 2}),
+                                {"seed": [3]})
+    out = tmp_path / "run"
+    write_finished_store(out, load_grid_file(grid_file))
     store = RunStore(out)
     cell_id = store.read_cells()["cell_id"].iloc[0]
     code, stdout, err = _cli(capsys, "eval", "--checkpoint", str(store.ckpt_path(cell_id)), "--episodes", "5",
@@ -141,12 +146,13 @@ def test_eval__from_a_checkpoint_prints_the_metrics_the_eval_table_stores(
     assert code == 0, err
     printed = json.loads(stdout)
     stored = store.read_eval()
-    stored = stored[stored.cell_id == cell_id]
+    stored = stored[stored.cell_id == cell_id].sort_values("episode")
     assert list(printed["mean"]) == list(EVAL_METRICS)
     assert printed["mean"]["team_return"] == pytest.approx(stored["team_return"].mean())
     assert printed["mean"]["success_rate"] == pytest.approx(stored["success_rate"].mean())
     episodes = pd.DataFrame(printed["episodes"])
-    assert episodes["team_return"].tolist() == pytest.approx(stored["team_return"].tolist())
+    for col in ("team_return", "collision_rate", "steps"):
+        assert episodes[col].tolist() == pytest.approx(stored[col].tolist()), col
 
 
 def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFixture[str], toy: str) -> None:

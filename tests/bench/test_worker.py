@@ -41,8 +41,9 @@ def test_train_chunks__resuming_from_each_checkpoint_equals_one_straight_run(toy
     assert state["episodes_done"] == 6
 
 
-def test_eval_chunks__same_rows_in_any_order_and_on_any_worker(toy: str) -> None:
-    spec = cell_spec(Cell.make(**toy_spec(eval_episodes=6)))
+@pytest.mark.parametrize("method", ["toy", "decentralized"])  # greedy; sampled evaluation
+def test_eval_chunks__same_rows_in_any_order_and_on_any_worker(toy: str, method: str) -> None:
+    spec = cell_spec(Cell.make(**toy_spec(method=method, eval_episodes=6)))
     _, state = _train_all(CellWorker(), spec, k=10, restart_every_chunk=False)
     one = CellWorker()
     forward = [r for c in (0, 1, 2) for r in one.eval_chunk(spec, [state], c)["rows"]]
