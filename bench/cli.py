@@ -248,7 +248,10 @@ def perf(
         try:
             fn = getattr(importlib.import_module(module), func)
         except (ImportError, AttributeError) as exc:
-            raise BenchError(f"perf suite {name!r} is not available: {exc}") from None
+            if suite is not Suite.all:
+                raise BenchError(f"perf suite {name!r} is not available: {exc}") from None
+            typer.echo(f"bench perf: skipping suite {name!r} (not available: {exc})", err=True)
+            continue
         frames.append(fn())
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     _print_frame(df, f"bench perf --suite {suite.value}")
