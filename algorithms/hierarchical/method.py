@@ -59,7 +59,7 @@ class HierarchicalParams(MethodParams):
     search_radius: int = Field(2, ge=0, description="safety filter search radius L")
     c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max")
     safety_filter: bool = Field(True, description="run Algorithm 1 before execution")
-    hidden: int = Field(64, ge=4, description="hidden width of the encoders and policy heads")
+    hidden: int = Field(32, ge=4, description="hidden width of the encoders, policy heads and critic")
     predictor_hidden: int = Field(64, ge=4, description="GRU hidden size per link")
     predictor_embed: int = Field(32, ge=4, description="message embedding width of the predictor")
     obs_radius: int = Field(2, ge=1, description="half-width k of the (2k+1)^2 local patches")

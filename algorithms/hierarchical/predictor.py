@@ -143,9 +143,24 @@ def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.nda
     to_t = _group_major
     x = model.encode(to_t(msg_bar), to_t(avail), to_t(state.age), to_t(own_msgs))
     state.h = model.step(x, state.h)
-    pred = model.decode(state.h, to_t(state.mem), to_t(state.age))
-    pred_np = pred.numpy().transpose(1, 0, *range(2, pred.ndim))
-    return np.where(avail[..., None, None], link_msgs, pred_np)
+    out = link_msgs.copy()
+    lost = ~avail
+    if not lost.any():
+        return out
+    # Decode only the lost links (the others use the received message), padded per group.
+    b, z, k = avail.shape
+    lost_z = lost.transpose(1, 0, 2).reshape(z, b * k)
+    count = lost_z.sum(axis=1)
+    sel = np.argsort(~lost_z, axis=1, kind="stable")[:, : int(count.max())]  # (Z, W)
+    zi = np.arange(z)[:, None]
+    mem = state.mem.transpose(1, 0, 2, 3, 4).reshape(z, b * k, *state.mem.shape[3:])[zi, sel]
+    age = state.age.transpose(1, 0, 2).reshape(z, b * k)[zi, sel]
+    h = state.h.reshape(z, b * k, -1)[torch.from_numpy(zi), torch.from_numpy(sel)]
+    pred = model.decode(h, torch.from_numpy(mem), torch.from_numpy(age)).numpy()
+    valid = np.arange(sel.shape[1])[None, :] < count[:, None]
+    zz = np.broadcast_to(zi, sel.shape)[valid]
+    out[sel[valid] // k, zz, sel[valid] % k] = pred[valid]
+    return out
 
 
 def _group_major(a: np.ndarray) -> torch.Tensor:
