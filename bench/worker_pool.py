@@ -34,7 +34,8 @@ _IDLE: dict[str, list[Any]] = {}
 def _session() -> str:
     import ray
 
-    return str(ray.get_runtime_context().get_job_id())
+    ctx = ray.get_runtime_context()  # job ids restart at 1 in every new cluster: add the node
+    return f"{ctx.get_node_id()}/{ctx.get_job_id()}"
 
 
 def take_workers(remote: Any, n: int) -> list[Any]:
