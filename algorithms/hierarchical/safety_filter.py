@@ -168,41 +168,50 @@ class SafetyFilter:
         found = np.zeros(u_n, dtype=bool)
         budget = np.full(u_n, self.c_max - 1, dtype=np.int64)
         for d in range(1, self.radius + 1):
-            sel = np.flatnonzero(~found & (budget > 0) & (n_ctl >= d))
-            if sel.size == 0:
+            todo = np.flatnonzero(~found & (budget > 0) & (n_ctl >= d))
+            if todo.size == 0:
                 break
-            m = int(n_ctl[sel].max())
-            if d == 1:
-                k = m * 4
-                exists = np.broadcast_to(ctl[sel, :m, None], (sel.size, m, 4)).reshape(sel.size, k)
-                ok = (u_alt[sel, :m] & (c1[sel, :m] == 0)
-                      & ((bad_total[sel, None] - bad[sel, :m]) == 0)[..., None]
-                      & ((pairs_total[sel, None] - deg[sel, :m]) == 0)[..., None]).reshape(sel.size, k)
-                ok &= exists
-                score = delta[sel, :m].reshape(sel.size, k)
-                rob, alt = _level_tables_dense1(m)
-            elif d == 2:
-                ok, score, exists, rob, alt = self._level2(
-                    sel, m, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
-                k = score.shape[1]
-            else:
-                ok, score, exists, rob, alt = self._level_general(
-                    sel, m, d, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
-                k = score.shape[1]
-            # The best admissible candidate and its rank in the level's order.
-            best = np.where(ok, score, -np.inf).max(-1)
-            kstar = np.argmax(ok & (score == best[:, None]), axis=-1)
-            ahead = (score > best[:, None]) | ((score == best[:, None]) & (np.arange(k) < kstar[:, None]))
-            rank = (exists & ahead).sum(-1)
-            hit = ok.any(-1) & (rank < budget[sel])
-            n_level = exists.sum(-1)
-            examined[sel] += np.where(hit, rank + 1, np.minimum(n_level, budget[sel]))
-            budget[sel] = np.where(hit, 0, np.maximum(budget[sel] - n_level, 0))
-            hs = sel[hit]
-            if hs.size:
-                kh = kstar[hit]
-                actions[hs[:, None], rob[kh]] = alt_act[hs[:, None], rob[kh], alt[kh]]
-                found[hs] = True
+            m = int(n_ctl[todo].max())
+            n_level = np.array([math.comb(c, d) for c in range(m + 1)])[n_ctl[todo]] * 4**d
+            # Robots violating (1) or (4) under the proposal must all change: with more than
+            # d of them nothing at this level is admissible, only the count matters.
+            sel = todo[bad_total[todo] <= d]
+            hit_all = np.zeros(todo.size, dtype=bool)
+            rank_all = np.zeros(todo.size, dtype=np.int64)
+            if sel.size:
+                m = int(n_ctl[sel].max())
+                if d == 1:
+                    k = m * 4
+                    exists = np.broadcast_to(ctl[sel, :m, None], (sel.size, m, 4)).reshape(sel.size, k)
+                    ok = (u_alt[sel, :m] & (c1[sel, :m] == 0)
+                          & ((bad_total[sel, None] - bad[sel, :m]) == 0)[..., None]
+                          & ((pairs_total[sel, None] - deg[sel, :m]) == 0)[..., None]).reshape(sel.size, k)
+                    ok &= exists
+                    score = delta[sel, :m].reshape(sel.size, k)
+                    rob, alt = _level_tables_dense1(m)
+                elif d == 2:
+                    ok, score, exists, rob, alt = self._level2(
+                        sel, m, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
+                    k = score.shape[1]
+                else:
+                    ok, score, exists, rob, alt = self._level_general(
+                        sel, m, d, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta)
+                    k = score.shape[1]
+                # The best admissible candidate and its rank in the level's order.
+                best = np.where(ok, score, -np.inf).max(-1)
+                kstar = np.argmax(ok & (score == best[:, None]), axis=-1)
+                ahead = (score > best[:, None]) | ((score == best[:, None]) & (np.arange(k) < kstar[:, None]))
+                rank = (exists & ahead).sum(-1)
+                hit = ok.any(-1) & (rank < budget[sel])
+                at = np.searchsorted(todo, sel)
+                hit_all[at], rank_all[at] = hit, rank
+                hs = sel[hit]
+                if hs.size:
+                    kh = kstar[hit]
+                    actions[hs[:, None], rob[kh]] = alt_act[hs[:, None], rob[kh], alt[kh]]
+                    found[hs] = True
+            examined[todo] += np.where(hit_all, rank_all + 1, np.minimum(n_level, budget[todo]))
+            budget[todo] = np.where(hit_all, 0, np.maximum(budget[todo] - n_level, 0))
         return actions, examined, found
 
     @staticmethod

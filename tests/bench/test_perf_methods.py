@@ -1,0 +1,24 @@
+"""bench/perf_methods.py on a toy configuration (shape of the results, not speed).
+
+Runtime: about 2 s.
+"""
+from __future__ import annotations
+
+import math
+
+from bench.perf_methods import measure_filter, measure_training
+
+
+def test_measure_training__reports_throughput_and_projection() -> None:
+    row = measure_training("hierarchical", 8, "tiny", iterations=1, batch_episodes=2, horizon=12)
+    assert row["episode_steps"] > 0
+    assert row["env_steps_per_s"] > 0 and math.isclose(row["agent_steps_per_s"], 8 * row["env_steps_per_s"])
+    assert row["paper_cell_train_min"] > 0
+
+
+def test_measure_filter__counts_group_steps_and_candidates() -> None:
+    row = measure_filter(8, "tiny", horizon=12, batch_episodes=2)
+    assert 0 < row["group_steps"] <= 2 * 12 * 4
+    assert row["mean_candidates"] >= 1.0
+    assert 0.0 <= row["fallback_rate"] <= 1.0 and 0.0 <= row["correction_rate"] <= 1.0
+    assert row["filter_us_per_group_step"] > 0
