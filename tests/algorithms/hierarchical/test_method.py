@@ -119,3 +119,20 @@ def test_hierarchical__proposition2_no_collisions_without_loss(n_robots: int, la
     env = EnvConfig.make(n_robots=n_robots, layout=layout, horizon=60, loss_p=0.0)
     assert (collision_rates(env, True, batches=4) == 0.0).all()  # 16 episodes
     assert collision_rates(env, False, batches=1).max() > 0.0
+
+
+@pytest.mark.parametrize("extra", [
+    {"groups": 1}, {"groups": 3, "comm_graph": "ring"}, {"on_goal": "stay"},
+    {"loss_model": "gilbert_elliott", "loss_p": 0.6},
+])
+def test_hierarchical__other_configurations_train_and_evaluate(extra: dict) -> None:
+    env = EnvConfig.make(**{"n_robots": 7, "layout": "tiny", "horizon": 15, "loss_p": 0.3, **extra})
+    m = HierarchicalMethod(env, {"batch_episodes": 2, "eval_chunk": 2, "hidden": 8}, seed=0)
+    rows = m.train_iteration()
+    assert np.isfinite(rows[0]["actor_loss"]) and np.isfinite(rows[0]["critic_loss"])
+    assert len(m.evaluate(0)) == 2
+
+
+def test_hierarchical__no_collisions_without_loss_when_finished_robots_stay() -> None:
+    env = EnvConfig.make(n_robots=20, layout="wh20", horizon=60, loss_p=0.0, on_goal="stay")
+    assert (collision_rates(env, True, batches=2) == 0.0).all()
