@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -32,10 +31,13 @@ from bench.cells import Cell
 from bench.grids import Grid, dedup
 from envs.errors import BenchError
 
-if sys.version_info >= (3, 11):
+try:
     import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib  # type: ignore[no-redef]
+except ImportError:  # pragma: no cover - Python 3.10
+    try:
+        import tomli as tomllib  # type: ignore[no-redef]
+    except ImportError:
+        tomllib = None  # type: ignore[assignment]
 
 TOP_KEYS = {"name", "description", "seeds", "base", "axes"}
 
@@ -48,6 +50,8 @@ def _parse(path: Path) -> dict[str, Any]:
     suffix = path.suffix.lower()
     try:
         if suffix == ".toml":
+            if tomllib is None:  # pragma: no cover - Python 3.10 without tomli
+                raise BenchError(f"grid file {str(path)!r}: TOML needs Python 3.11+ or tomli; use YAML")
             data = tomllib.loads(text)
         elif suffix in (".yaml", ".yml"):
             import yaml
