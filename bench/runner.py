@@ -228,11 +228,14 @@ class _Run:
         try:
             result = ray.get(ref, timeout=0)
         except ray.exceptions.RayTaskError as exc:  # the method raised: the cell fails
+            cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+            if isinstance(cause, ray.exceptions.RayError) and not isinstance(cause, ray.exceptions.RayTaskError):
+                self._worker_lost(kind, slot, st, chunk, cause, slots)  # e.g. a lost state object
+                return
             slot.busy = False
             if kind == "train":
                 slot.sticky = None
             if st is not None and not st.finished:
-                cause = exc.cause if getattr(exc, "cause", None) is not None else exc
                 self._fail(st, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
             return
         except ray.exceptions.RayError as exc:  # the worker died: retry elsewhere
