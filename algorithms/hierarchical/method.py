@@ -13,7 +13,7 @@ predictors are trained with their own supervised loss and optimizer (eq:gru_pred
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -70,7 +70,9 @@ class HierarchicalParams(MethodParams):
     max_grad_norm: float = Field(10.0, gt=0, description="gradient clipping of each optimizer")
     share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
     normalize_advantage: bool = Field(True, description="scale the team advantage by its batch RMS")
-    update_chunk: int = Field(64, ge=1, description="time steps per backward pass in the update")
+    update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
+    execution: Literal["argmax", "sample"] = Field(
+        "argmax", description="evaluation controls: argmax at both levels (SPEC), or sampled")
 
 
 @dataclass
@@ -82,6 +84,7 @@ class Controller:
     pred: PredictorState | None = None
     buffer: RolloutBuffer | None = None
     running: np.ndarray | None = None  # (B,) episodes running before the current step
+    gen: torch.Generator | None = None  # sampled evaluation: its own stream, from batch.rng
 
 
 class HierarchicalMethod(Method):
@@ -119,6 +122,8 @@ class HierarchicalMethod(Method):
         p: HierarchicalParams = self.params  # type: ignore[assignment]
         core = batch.core
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
+        if greedy and p.execution == "sample":  # never touch the training stream
+            ctrl.gen = torch.Generator().manual_seed(int(batch.rng.integers(2**62)))
         if not greedy:
             b, n, zz = core.batch, core.n, self.env.groups
             slots, links = self.gs.n_slots, self.gs.neighbors.shape[1]
@@ -138,6 +143,8 @@ class HierarchicalMethod(Method):
 
     def decide(self, batch: EpisodeBatch, state: Controller, greedy: bool) -> Decision:
         core, gs = batch.core, self.gs
+        gen = state.gen if state.gen is not None else self.torch_gen
+        greedy = greedy and state.gen is None
         state.running = ~core.ended
         # Channel and predictor: S_t^z, A_t^{z',z} -> S-hat_t^z.
         avail = gs.link_availability(state.channel.step())  # (B, Z, K)
@@ -160,8 +167,9 @@ class HierarchicalMethod(Method):
         controlled = ~core.done & state.running[:, None]
         action_mask = self.layout.move_valid[core.pos]
         with torch.no_grad():
-            ref, _, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=None, greedy=greedy)
-            proposed_g = sample_categorical(logp, greedy, self.torch_gen)  # (Z, B, n)
+            ref, _, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=None,
+                                               greedy=greedy, gen=gen)
+            proposed_g = sample_categorical(logp, greedy, gen)  # (Z, B, n)
         proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
 
         dec = Decision(actions=proposed, proposed=proposed, payload=float(state.channel.payload_hier),
@@ -186,6 +194,7 @@ class HierarchicalMethod(Method):
 
     def policy_forward(self, own: np.ndarray, nbr: np.ndarray, controlled: np.ndarray,
                        action_mask: np.ndarray, ref: torch.Tensor | None, greedy: bool = False,
+                       gen: torch.Generator | None = None,
                        ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
         (M, N), action_mask (M, N, 5). Samples r when ``ref`` is None. Returns r (Z, M),
@@ -196,7 +205,7 @@ class HierarchicalMethod(Method):
         amask = self.group_major(action_mask, fill=True)
         ref_logp = torch.log_softmax(self.reference(feats_r, mask), dim=-1)  # (Z, M, R)
         if ref is None:
-            ref = sample_categorical(ref_logp, greedy, self.torch_gen)
+            ref = sample_categorical(ref_logp, greedy, gen if gen is not None else self.torch_gen)
         return ref, ref_logp, self.local(feats_u, mask, ref, amask)
 
     def _apply_filter(self, core: Any, cells: np.ndarray, present: np.ndarray, controlled: np.ndarray,

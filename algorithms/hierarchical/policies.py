@@ -45,16 +45,17 @@ def neighbor_patches(patch: PatchExtractor, gs: GroupStructure, cells: np.ndarra
     """
     b, z = cells.shape[:2]
     size = patch.pad_obs.size
-    rows = (np.arange(b)[:, None] * z + np.arange(z)[None, :])[:, :, None, None]  # (B, Z, 1, 1)
-    grids = []
-    for where in (cells, heading):
-        flat = (rows * size + patch.center[where])[present]
-        grids.append(np.bincount(flat, minlength=b * z * size).reshape(b * z, size))
+    plane = b * z * size  # one padded grid per (episode, receiving group) and channel
+    rows = ((np.arange(b)[:, None] * z + np.arange(z)[None, :]) * size)[:, :, None, None]  # (B, Z, 1, 1)
+    flat = np.concatenate([(rows + patch.center[cells])[present],
+                           (rows + patch.center[heading])[present] + plane])
+    grid = np.zeros(2 * plane, dtype=np.int32)
+    np.add.at(grid, flat, 1)
     core = patch.core
-    row = np.arange(b)[:, None] * z + gs.groups[None, :]  # (B, N)
-    idx = patch.center[core.pos][..., None] + patch.offsets  # (B, N, P)
-    out = [np.minimum(g[row[..., None], idx], 255).astype(np.uint8) for g in grids]
-    return np.concatenate(out, axis=-1)
+    row = (np.arange(b)[:, None] * z + gs.groups[None, :]) * size  # (B, N)
+    idx = (row + patch.center[core.pos])[..., None] + patch.offsets  # (B, N, P)
+    out = grid[np.concatenate([idx, idx + plane], axis=-1)]
+    return np.minimum(out, 255).astype(np.uint8)
 
 
 class ReferencePolicy(nn.Module):
