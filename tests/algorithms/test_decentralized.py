@@ -1,6 +1,6 @@
 """Decentralized baseline: all-to-all payload, stale messages under loss, message maps, learning.
 
-Runtime: about 2 s for the unit tests; the learning test about 20-40 s on one core.
+Runtime: about 3 s for the unit tests; the learning test about 25 s on one core.
 """
 from __future__ import annotations
 
@@ -109,7 +109,8 @@ def test_decentralized__learns_on_a_small_layout() -> None:
         return float(np.mean([r["success_rate"] for r in m.evaluate(0) + m.evaluate(1)]))
 
     before = success()
-    for _ in range(150):
+    for _ in range(400):
         m.train_iteration()
     after = success()
-    assert after >= before + 0.3, (before, after)
+    # Seed 0 on one torch thread: argmax success goes from about 0.06 to about 0.98.
+    assert after >= before + 0.4, (before, after)
