@@ -2,8 +2,8 @@
 
 wh20 preset (128 free cells), N = 8 robots in Z = 4 groups, p = 0.2, horizon 48, default
 hyperparameters, fixed seed. Untrained, the greedy policy reaches about 0.05; after 60
-updates (480 episodes) seeds 0..3 reached 0.53..0.80 (seed 0: 0.70). With the advantage
-sign flipped it stays at 0.0. Runtime: about 25 s on one free core.
+updates (480 episodes) seeds 0..2 reached 0.53..0.66 (seed 0: 0.53). With the advantage
+sign flipped it stays at 0.0. Runtime: about 10-20 s on one free core.
 """
 from __future__ import annotations
 
