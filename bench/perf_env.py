@@ -30,12 +30,12 @@ import pandas as pd
 
 from envs.config import EnvConfig
 from envs.core import WarehouseCore
-from envs.layouts import Layout, load_layout, preset_for
+from envs.layouts import MAPS_DIR, Layout, load_layout, preset_for
 from envs.observations import PatchExtractor, robot_features
 from envs.scenarios import sample_scenarios
 
 ROOT = Path(__file__).resolve().parents[1]
-REAL_MAP = ROOT.parent / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 ANCHORS_PY = ROOT / ".anchors-venv" / "bin" / "python"
 ANCHORS_SCRIPT = Path(__file__).resolve().with_name("anchors_script.py")
 OBS_RADIUS = 5

@@ -29,8 +29,9 @@ from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.registry import method_class
 from bench.perf_baselines import PAPER_EPISODES, PAPER_HORIZON, time_training
 from envs.config import EnvConfig
+from envs.layouts import MAPS_DIR
 
-REAL_MAP = Path(__file__).resolve().parents[2] / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 
 
 def measure_training(method: str, n_robots: int, layout: str, iterations: int = 1,

@@ -27,8 +27,9 @@ import pandas as pd
 from algorithms.common.episodes import EVAL_STREAM, EpisodeBatch, batch_rng
 from algorithms.pibt import PIBTMethod
 from envs.config import EnvConfig
+from envs.layouts import MAPS_DIR
 
-REAL_MAP = Path(__file__).resolve().parents[2] / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 PAPER_EVAL_EPISODES = 100
 
 

@@ -245,16 +245,29 @@ def preset_for(n_robots: int) -> str:
     return "wh100"
 
 
+MAPS_DIR = Path(__file__).parent / "maps"
+# The paper's warehouse layouts are not published; this standard MAPF warehouse map
+# (5,699 free cells) is the bundled stand-in used by the paper and full grids.
+PAPER_MAP = "warehouse-10-20-10-2-1"
+
+
+def bundled_maps() -> list[str]:
+    """Names of the MovingAI maps shipped in envs/maps/ (load them by name)."""
+    return sorted(p.stem for p in MAPS_DIR.glob("*.map"))
+
+
 _CACHE: dict[str, Layout] = {}
 
 
 def load_layout(spec: str | Layout) -> Layout:
-    """A preset name, a MovingAI ``.map`` path or an ASCII file (``.txt``); cached."""
+    """A preset name, a bundled map name, a MovingAI ``.map`` path or an ASCII ``.txt``; cached."""
     if isinstance(spec, Layout):
         return spec
     if spec not in _CACHE:
         if spec in PRESET_PARAMS:
             _CACHE[spec] = preset(spec)
+        elif (MAPS_DIR / f"{spec}.map").is_file():
+            _CACHE[spec] = load_movingai(MAPS_DIR / f"{spec}.map")
         elif spec.endswith(".map"):
             _CACHE[spec] = load_movingai(spec)
         elif spec.endswith(".txt"):
@@ -265,7 +278,7 @@ def load_layout(spec: str | Layout) -> Layout:
             _CACHE[spec] = from_ascii(text, Path(spec).stem)
         else:
             raise BenchError(
-                f"unknown layout {spec!r}: use a preset ({', '.join(PRESET_PARAMS)}), "
-                "a MovingAI .map path or an ASCII .txt path"
+                f"unknown layout {spec!r}: use a preset ({', '.join(PRESET_PARAMS)}), a bundled "
+                f"map ({', '.join(bundled_maps())}), a MovingAI .map path or an ASCII .txt path"
             )
     return _CACHE[spec]

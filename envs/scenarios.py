@@ -42,7 +42,9 @@ def sample_scenarios(
             if not same.any():
                 break
             idx = np.flatnonzero(same)
-            if len(idx) == 1:  # swap with a random other robot's goal
+            if n_robots == 1:  # a lone robot: any other cell of the region
+                g[0] = rng.choice(region[region != starts[b, 0]])
+            elif len(idx) == 1:  # swap with a random other robot's goal
                 j = int(rng.integers(n_robots - 1))
                 j += j >= idx[0]
                 g[[idx[0], j]] = g[[j, idx[0]]]

@@ -12,9 +12,9 @@ from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.pibt import FREE, PIBTMethod, initial_priority, plan_episode
 from envs import EnvConfig
 from envs.actions import WAIT
-from envs.layouts import from_ascii
+from envs.layouts import MAPS_DIR, from_ascii
 
-REAL_MAP = Path(__file__).resolve().parents[3] / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 
 
 def _run_checked(method: PIBTMethod, batch: EpisodeBatch) -> EpisodeBatch:

@@ -34,7 +34,7 @@ def test_paper_grid__uses_the_paper_settings() -> None:
         assert (c.groups, c.search_radius, c.c_max, c.horizon, c.eval_episodes) == (4, 2, 500, 500, 100)
         assert c.episodes == (0 if c.method == "pibt" else 2000)
         assert c.safety_filter == (c.method == "hierarchical")
-        assert c.layout == f"wh{c.n_robots}" and c.seed == 0
+        assert c.layout == "warehouse-10-20-10-2-1" and c.seed == 0
 
 
 def test_smoke_grid__every_method_two_team_sizes_two_loss_probabilities() -> None:

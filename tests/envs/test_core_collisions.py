@@ -232,3 +232,15 @@ def test_shared_or_blocked_start_cells_are_rejected() -> None:
         validate_scenario(layout, 2, [(0, 0), (0, 0)], [(0, 1), (0, 2)])
     with pytest.raises(BenchError, match=r"goals cell \(1, 1\) is an obstacle"):
         validate_scenario(layout, 2, [(0, 0), (0, 1)], [(1, 1), (0, 2)])
+
+
+def test_sample_scenarios__single_robot_never_starts_on_its_goal():
+    import numpy as np
+
+    from envs.layouts import from_ascii
+    from envs.scenarios import sample_scenarios
+
+    two_cells = from_ascii("..", name="two")
+    for seed in range(20):
+        s, g = sample_scenarios(two_cells, 1, 3, np.random.default_rng(seed))
+        assert (s != g).all()

@@ -10,10 +10,18 @@ import pytest
 from envs.actions import Action
 from envs.distances import UNREACHABLE, distance_cache
 from envs.errors import BenchError
-from envs.layouts import PRESET_PARAMS, from_ascii, load_layout, load_movingai, preset, preset_for
+from envs.layouts import (
+    MAPS_DIR,
+    PRESET_PARAMS,
+    from_ascii,
+    load_layout,
+    load_movingai,
+    preset,
+    preset_for,
+)
 from envs.scenarios import main_region, sample_scenarios
 
-REAL_MAP = Path(__file__).resolve().parents[3] / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 
 # Free cells of each preset; they change only if the generator or its parameters change.
 PRESET_FREE_CELLS = {
@@ -224,3 +232,12 @@ def test_missing_map_file_is_a_bench_error(tmp_path: Path) -> None:
     missing = tmp_path / "nope.map"
     with pytest.raises(BenchError, match="nope.map.*cannot read"):
         load_layout(str(missing))
+
+
+def test_load_layout__bundled_map_by_name_equals_the_shared_file():
+    from envs.layouts import PAPER_MAP, bundled_maps, load_layout
+
+    assert PAPER_MAP in bundled_maps()
+    bundled = load_layout(PAPER_MAP)
+    assert bundled.n_free == 5699
+    assert (bundled.obstacles == load_layout(str(REAL_MAP)).obstacles).all()

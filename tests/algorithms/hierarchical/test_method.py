@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import io
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,8 +14,9 @@ import torch
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.hierarchical.method import HierarchicalMethod
 from envs.config import EnvConfig
+from envs.layouts import MAPS_DIR
 
-REAL_MAP = Path(__file__).resolve().parents[4] / "shared" / "maps" / "warehouse-10-20-10-2-1.map"
+REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 
 
 def make(seed: int = 3, loss_p: float = 0.3, **params: object) -> HierarchicalMethod:
