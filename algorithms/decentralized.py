@@ -23,7 +23,7 @@ received from all other robots over lossy all-to-all links, without the group hi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -65,7 +65,8 @@ class DecentralizedParams(MethodParams):
     normalize_advantage: bool = Field(True, description="scale A_t by its batch RMS (docs/decisions.md)")
     entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
-    eval_sampling: bool = Field(True, description="evaluate with sampled actions (False: argmax; docs/decisions.md)")
+    execution: Literal["argmax", "sample"] = Field(
+        "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
     search_radius: int = Field(2, ge=0, description="safety filter search radius L (with the filter)")
     c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max (with the filter)")
@@ -132,7 +133,7 @@ class DecentralizedMethod(Method):
         state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
                                    PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
                                    np.zeros((b, n), dtype=bool),
-                                   *action_stream(batch, greedy, p.eval_sampling, self.torch_gen))
+                                   *action_stream(batch, greedy, p.execution == "sample", self.torch_gen))
         return state
 
     def observe_robots(self, state: DecentralizedState) -> np.ndarray:

@@ -77,7 +77,8 @@ class IC3NetParams(MethodParams):
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
-    eval_sampling: bool = Field(True, description="evaluate with sampled actions, as the reference code does (False: argmax)")
+    execution: Literal["argmax", "sample"] = Field(
+        "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
 
 
 def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
@@ -171,7 +172,7 @@ class IC3NetMethod(Method):
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
                            np.zeros((b, n), dtype=bool), ~core.ended,
-                           *action_stream(batch, greedy, p.eval_sampling, self.torch_gen))
+                           *action_stream(batch, greedy, p.execution == "sample", self.torch_gen))
 
     def links(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
         """(B, N_send, N_recv) bool: L_t = g^j g^i a^j a^i A_t[j, i], j != i (see module)."""

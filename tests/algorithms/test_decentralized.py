@@ -90,7 +90,7 @@ def test_message_maps__drop_robots_that_left_the_floor() -> None:
 
 def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
     env = EnvConfig(n_robots=10, layout="tiny", horizon=30, groups=2, loss_p=0.0)
-    params = {"eval_chunk": 4, "eval_sampling": True}
+    params = {"eval_chunk": 4, "execution": "sample"}
     free = DecentralizedMethod(env, params, seed=0).evaluate(0)
     assert sum(r["collision_rate"] for r in free) > 0  # untrained robots do collide
     assert all(np.isnan(r["mean_candidates"]) for r in free)  # no filter, no counts
@@ -103,7 +103,7 @@ def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
 @pytest.mark.slow
 def test_decentralized__learns_on_a_small_layout() -> None:
     env = EnvConfig(n_robots=6, layout="tiny", horizon=40, groups=2, loss_p=0.2)
-    m = DecentralizedMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "eval_sampling": False}, seed=0)
+    m = DecentralizedMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "execution": "argmax"}, seed=0)
 
     def success() -> float:
         return float(np.mean([r["success_rate"] for r in m.evaluate(0) + m.evaluate(1)]))

@@ -117,7 +117,7 @@ def test_update_replays_exactly_what_the_rollout_computed() -> None:
 @pytest.mark.slow
 def test_ic3net__learns_on_a_small_layout() -> None:
     env = EnvConfig(n_robots=4, layout="tiny", horizon=30, groups=2, loss_p=0.2)
-    m = IC3NetMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "eval_sampling": False}, seed=0)
+    m = IC3NetMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "execution": "argmax"}, seed=0)
 
     def success() -> float:
         return float(np.mean([r["success_rate"] for r in m.evaluate(0) + m.evaluate(1)]))
