@@ -52,14 +52,21 @@ def time_training(method: Method, iterations: int = 1) -> dict[str, float]:
             "episode_steps": episode_steps}
 
 
-def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1) -> pd.DataFrame:
-    """One row per (baseline, N): training throughput and projected paper-cell times."""
+def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1,
+                        horizon: int = PAPER_HORIZON, batch_episodes: int = 8,
+                        layout: str | None = None) -> pd.DataFrame:
+    """One row per (baseline, N): training throughput and projected paper-cell times.
+
+    ``layout`` None uses the preset sized for each N; the projections always assume the
+    paper's 2000 x 500 training and 100 x 500 evaluation episode-steps.
+    """
     from bench.perf_methods import measure_training  # it imports this module's helpers
 
     rows = []
     for name in BASELINES:
         for n in sizes:
-            row = measure_training(name, n, preset_for(n), iterations=iterations)
+            row = measure_training(name, n, layout or preset_for(n), iterations=iterations,
+                                   batch_episodes=batch_episodes, horizon=horizon)
             # Evaluation is a rollout without storage: B episodes per batched step.
             per_episode_step_s = row["rollout_ms_per_step"] / 1e3 / row["batch_episodes"]
             row["paper_cell_eval_min"] = per_episode_step_s * PAPER_EVAL_EPISODES * PAPER_HORIZON / 60
