@@ -10,6 +10,7 @@ import torch
 
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.trainer import policy_gradient_losses
 from algorithms.decentralized import DecentralizedMethod
 from envs.actions import Action
 from envs.channel import LossProcess
@@ -98,6 +99,32 @@ def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
     assert all(r["collision_rate"] == 0 for r in safe)
     assert all(r["correction_rate"] > 0 and r["mean_candidates"] >= 1 for r in safe)
     assert all(0 <= r["fallback_rate"] <= 1 for r in safe)
+
+
+def test_update__chunked_actor_loss_is_the_papers_loss_with_the_same_gradient() -> None:
+    env = EnvConfig(n_robots=6, layout="tiny", horizon=20, groups=2, loss_p=0.3)
+
+    def rolled(chunk_rows: int) -> tuple[DecentralizedMethod, object]:
+        m = DecentralizedMethod(env, {"batch_episodes": 3, "chunk_rows": chunk_rows}, seed=2)
+        with torch.no_grad():
+            state, _ = m.run(EpisodeBatch(env, 3, batch_rng(0, 0, 0), m.layout), greedy=False)
+        return m, state
+
+    small, state_small = rolled(256)  # about 360 robot-steps: two chunks
+    whole, state_whole = rolled(100_000)
+    buf = state_whole.buffer
+    # The paper's loss (eq:losses) on the same batch, before any update.
+    with torch.no_grad():
+        logits = whole.actor(buf.tensor("obs"), buf.tensor("mask"))
+        logp = torch.log_softmax(logits, -1).gather(-1, buf.tensor("actions")[..., None])[..., 0]
+        logp_team = (logp * buf.tensor("active")).sum(-1)  # (T, B): sum over robots
+        values = whole.critic(buf.tensor("critic"), buf.tensor("t_frac"))
+    ref = policy_gradient_losses(logp_team, values, buf.rewards[: buf.t], buf.running[: buf.t])
+    out_small, out_whole = small.update(state_small), whole.update(state_whole)
+    assert np.isclose(out_whole["actor_loss"], float(ref.actor), rtol=1e-4, atol=1e-6)
+    assert np.isclose(out_small["actor_loss"], out_whole["actor_loss"], rtol=1e-4, atol=1e-6)
+    for a, b in zip(small.actor.parameters(), whole.actor.parameters(), strict=True):
+        assert torch.allclose(a, b, atol=1e-6)
 
 
 @pytest.mark.slow
