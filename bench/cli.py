@@ -197,7 +197,8 @@ def report(
         from reports.build import build_report
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
-    typer.echo(str(build_report(run_dir)))
+    out = build_report(run_dir)
+    typer.echo(f"report: {out / 'index.html'}  (also index.md, figures, tables, claims.md)")
 
 
 @app.command()

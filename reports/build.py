@@ -58,6 +58,23 @@ def save_figure(fig: Figure, stem: Path) -> list[Path]:
             for fmt in ("png", "pdf")]
 
 
+def _study_entries(run_dir: Path, out: Path) -> list[Entry]:
+    """Optuna studies beside the run (``<run>/../studies/<name>/trials.parquet``, where
+    ``bench tune`` exports them): their reports are rebuilt and linked from the index
+    (optimization history, the L x |R_z| landscape, parameter importances)."""
+    from studies.export import TRIALS_FILE
+    from studies.report import build_study_report
+
+    entries = []
+    for trials in sorted((run_dir.resolve().parent / "studies").glob(f"*/{TRIALS_FILE}")):
+        files = build_study_report(trials.parent)
+        rel = tuple(os.path.relpath(f, out) for f in files
+                    if f.suffix in (".md", ".png"))
+        image = next((r for r in rel if r.endswith("study_landscape.png")), None)
+        entries.append(Entry(f"Study {trials.parent.name}: |R_z| x L (bench tune)", rel, image=image))
+    return entries
+
+
 def build_report(run_dir: Path | str) -> Path:
     """Rebuild ``<run_dir>/report/`` from the store; returns that directory (holding
     ``index.html``). Missing or failed cells are listed, never fatal; a run directory
@@ -96,6 +113,8 @@ def build_report(run_dir: Path | str) -> Path:
     claims = all_claims(train, evals)
     write_text(out / "claims.md", claims_markdown(claims))
     entries.append(Entry("Claims of Sec. IV", ("claims.md",)))
+
+    entries += _study_entries(Path(run_dir), out)
 
     # GIFs written by `bench replay` (default RUN/replays/) or into the report folder.
     replays = sorted(f"../replays/{p.name}" for p in (Path(run_dir) / "replays").glob("*.gif"))

@@ -142,3 +142,24 @@ def test_build_report__corrupt_file_is_skipped_and_reported(tmp_path):
 def test_build_report__not_a_run_directory_is_a_user_error(tmp_path):
     with pytest.raises(BenchError, match="cells.parquet not found"):
         build_report(tmp_path / "nowhere")
+
+
+def test_build_report__links_studies_exported_beside_the_run(tmp_path):
+    import optuna
+
+    from studies.export import write_trials
+
+    run = tmp_path / "smoke"
+    write_store(run, *frames(episodes=8, eval_eps=4, specs=smoke_specs()))
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = optuna.create_study(study_name="demo", direction="maximize")
+    for ref, radius, value in ((2, 0, 0.1), (8, 2, 0.4), (4, 1, 0.3)):
+        study.enqueue_trial({"ref_size": ref, "search_radius": radius})
+        trial = study.ask({"ref_size": optuna.distributions.CategoricalDistribution([2, 4, 8]),
+                           "search_radius": optuna.distributions.CategoricalDistribution([0, 1, 2])})
+        study.tell(trial, value)
+    write_trials(study, tmp_path / "studies" / "demo")
+    out = build_report(run)
+    index = (out / "index.md").read_text()
+    assert "Study demo" in index
+    assert (tmp_path / "studies" / "demo" / "report" / "study_landscape.png").stat().st_size > 0
