@@ -48,8 +48,9 @@ from algorithms.common.trainer import (
     critic_features,
     team_advantage,
 )
+from algorithms.hierarchical.policies import ACTION_GAIN
 from algorithms.hierarchical.safety_filter import SafetyFilter
-from envs.actions import N_ACTIONS
+from envs.actions import DELTAS, N_ACTIONS
 from envs.channel import LossProcess
 from envs.observations import PatchExtractor
 
@@ -65,6 +66,7 @@ class DecentralizedParams(MethodParams):
     normalize_advantage: bool = Field(True, description="scale A_t by its batch RMS (docs/decisions.md)")
     entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
+    action_path: bool = Field(True, description="linear action-aligned logit path, as the hierarchical policy's")
     execution: Literal["argmax", "sample"] = Field(
         "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
@@ -73,16 +75,39 @@ class DecentralizedParams(MethodParams):
     chunk_rows: int = Field(65536, ge=256, description="robot-steps per backward chunk (memory only)")
 
 
-class DecentralizedActor(nn.Module):
-    """pi_theta(u | o): (..., F) observations and (..., 5) masks -> (..., 5) masked logits."""
+def action_feature_index(radius: int) -> np.ndarray:
+    """(3, 5) columns of the observation holding, for each action, its shortest-path
+    progress and the message maps' robots (received positions; cells their received
+    controls lead to) on the cell the action leads to: the action-aligned features phi."""
+    side = 2 * radius + 1
+    maps = own_feature_size(radius) + HISTORY_SIZE  # start of the message maps
+    cells = [(radius + dr) * side + (radius + dc) for dr, dc in DELTAS.tolist()]
+    return np.array([list(range(6, 6 + N_ACTIONS)), [maps + c for c in cells],
+                     [maps + side * side + c for c in cells]])
 
-    def __init__(self, n_in: int, hidden: int) -> None:
+
+class DecentralizedActor(nn.Module):
+    """pi_theta(u | o): (..., F) observations and (..., 5) masks -> (..., 5) masked logits.
+
+    logit(a) = MLP(o)[a] + ACTION_GAIN v . phi(o, a): the same linear, action-aligned path
+    (v = 0 at init) as the hierarchical local policy, so neither method learns the obvious
+    "progress and free target cell" rule more slowly than the other (docs/decisions.md).
+    """
+
+    def __init__(self, n_in: int, hidden: int, radius: int, action_path: bool = True) -> None:
         super().__init__()
         self.net = nn.Sequential(nn.Linear(n_in, hidden), nn.ReLU(), nn.Linear(hidden, hidden),
                                  nn.ReLU(), nn.Linear(hidden, N_ACTIONS))
+        self.action_path = action_path
+        self.register_buffer("action_idx", torch.from_numpy(action_feature_index(radius)))
+        self.action_w = nn.Parameter(torch.zeros(self.action_idx.shape[0]))
 
     def forward(self, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        return masked_logits(self.net(obs), mask)
+        logits = self.net(obs)
+        if self.action_path:
+            phi = obs[..., self.action_idx].transpose(-1, -2)  # (..., 5, 3)
+            logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
+        return masked_logits(logits, mask)
 
 
 @dataclass
@@ -108,7 +133,7 @@ class DecentralizedMethod(Method):
         p = self.params
         self.n_obs = (own_feature_size(p.patch_radius) + HISTORY_SIZE
                       + map_feature_size(p.patch_radius))
-        self.actor = DecentralizedActor(self.n_obs, p.hidden)
+        self.actor = DecentralizedActor(self.n_obs, p.hidden, p.patch_radius, p.action_path)
         self.critic = CentralCritic(p.critic_hidden)
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)

@@ -1,6 +1,6 @@
 """Decentralized baseline: all-to-all payload, stale messages under loss, message maps, learning.
 
-Runtime: about 3 s for the unit tests; the learning test about 25 s on one core.
+Runtime: about 3 s for the unit tests; the learning test about 10 s on one core.
 """
 from __future__ import annotations
 
@@ -11,12 +11,13 @@ import torch
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.trainer import policy_gradient_losses
-from algorithms.decentralized import DecentralizedMethod
-from envs.actions import Action
+from algorithms.decentralized import DecentralizedMethod, action_feature_index
+from envs.actions import DELTAS, Action
 from envs.channel import LossProcess
 from envs.config import EnvConfig
 from envs.core import WarehouseCore
 from envs.layouts import from_ascii
+from envs.observations import action_progress
 from envs.scenarios import validate_scenario
 
 ENV = EnvConfig(n_robots=6, layout="tiny", horizon=20, groups=2, loss_p=0.3)
@@ -101,6 +102,31 @@ def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
     assert all(0 <= r["fallback_rate"] <= 1 for r in safe)
 
 
+def test_action_aligned_features_are_progress_and_robots_on_each_target_cell() -> None:
+    env = EnvConfig(n_robots=12, layout="tiny", horizon=20, groups=2, loss_p=0.5)
+    m = DecentralizedMethod(env, {}, seed=0)
+    batch = EpisodeBatch(env, 2, batch_rng(0, 0, 3), m.layout)
+    with torch.no_grad():
+        state = m.begin(batch, greedy=False)
+        for _ in range(4):  # some stale messages by now
+            m.observe(batch, state, batch.core.step(m.decide(batch, state, greedy=False).actions))
+    core, board = batch.core, state.board
+    board.receive()
+    phi = m.observe_robots(state)[..., action_feature_index(m.params.patch_radius)]  # (B, N, 3, 5)
+    assert np.array_equal(phi[:, :, 0], action_progress(core))
+    cells = core.layout.cells
+    target = cells[core.pos][:, :, None, :] + DELTAS  # (B, N, 5, 2) cell each action aims at
+    others = cells[board.pos]  # (B, N_recv, N_send, 2) received positions
+    heading = cells[core.layout.next_cell[board.pos, np.minimum(board.ctl, 4)]]
+    off = ~np.eye(env.n_robots, dtype=bool)[None, :, :, None]
+    on_floor = (board.ctl != OFF_FLOOR)[..., None]
+    for ch, where in ((1, others), (2, heading)):
+        hits = (where[:, :, None, :, :] == target[:, :, :, None, :]).all(-1)  # (B, N, 5, N)
+        expected = (hits & off.transpose(0, 1, 3, 2) & on_floor.transpose(0, 1, 3, 2)).sum(-1)
+        assert np.array_equal(phi[:, :, ch], expected), ch
+    assert phi[:, :, 1].sum() > 0  # the comparison is not vacuous
+
+
 def test_update__chunked_actor_loss_is_the_papers_loss_with_the_same_gradient() -> None:
     env = EnvConfig(n_robots=6, layout="tiny", horizon=20, groups=2, loss_p=0.3)
 
@@ -136,8 +162,8 @@ def test_decentralized__learns_on_a_small_layout() -> None:
         return float(np.mean([r["success_rate"] for r in m.evaluate(0) + m.evaluate(1)]))
 
     before = success()
-    for _ in range(400):
+    for _ in range(200):
         m.train_iteration()
     after = success()
-    # Seed 0 on one torch thread: argmax success goes from about 0.06 to about 0.98.
+    # Seed 0 on one torch thread: argmax success goes from 0.05 to about 0.73 (0.93 at 400).
     assert after >= before + 0.4, (before, after)
