@@ -31,6 +31,7 @@ from pydantic import Field
 from torch import nn
 
 from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.robot_obs import (
@@ -48,7 +49,6 @@ from algorithms.common.trainer import (
     critic_features,
     team_advantage,
 )
-from algorithms.hierarchical.policies import ACTION_GAIN
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import DELTAS, N_ACTIONS
 from envs.channel import LossProcess
@@ -82,31 +82,28 @@ def action_feature_index(radius: int) -> np.ndarray:
     side = 2 * radius + 1
     maps = own_feature_size(radius) + HISTORY_SIZE  # start of the message maps
     cells = [(radius + dr) * side + (radius + dc) for dr, dc in DELTAS.tolist()]
-    return np.array([list(range(6, 6 + N_ACTIONS)), [maps + c for c in cells],
-                     [maps + side * side + c for c in cells]])
+    return np.concatenate([progress_index(), [[maps + c for c in cells]],
+                           [[maps + side * side + c for c in cells]]])
 
 
 class DecentralizedActor(nn.Module):
     """pi_theta(u | o): (..., F) observations and (..., 5) masks -> (..., 5) masked logits.
 
-    logit(a) = MLP(o)[a] + ACTION_GAIN v . phi(o, a): the same linear, action-aligned path
-    (v = 0 at init) as the hierarchical local policy, so neither method learns the obvious
-    "progress and free target cell" rule more slowly than the other (docs/decisions.md).
+    logit(a) = MLP(o)[a] + ACTION_GAIN v . phi(o, a): the linear, action-aligned path of
+    the hierarchical local policy (``ActionPath``, v = 0 at init), so neither method learns
+    the obvious "progress and free target cell" rule more slowly (docs/decisions.md).
     """
 
     def __init__(self, n_in: int, hidden: int, radius: int, action_path: bool = True) -> None:
         super().__init__()
         self.net = nn.Sequential(nn.Linear(n_in, hidden), nn.ReLU(), nn.Linear(hidden, hidden),
                                  nn.ReLU(), nn.Linear(hidden, N_ACTIONS))
-        self.action_path = action_path
-        self.register_buffer("action_idx", torch.from_numpy(action_feature_index(radius)))
-        self.action_w = nn.Parameter(torch.zeros(self.action_idx.shape[0]))
+        self.path = ActionPath(action_feature_index(radius)) if action_path else None
 
     def forward(self, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         logits = self.net(obs)
-        if self.action_path:
-            phi = obs[..., self.action_idx].transpose(-1, -2)  # (..., 5, 3)
-            logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
+        if self.path is not None:
+            logits = self.path(obs, logits)
         return masked_logits(logits, mask)
 
 

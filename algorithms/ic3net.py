@@ -42,6 +42,7 @@ from pydantic import Field
 from torch import nn
 
 from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
@@ -76,6 +77,8 @@ class IC3NetParams(MethodParams):
     detach_gap: int = Field(50, ge=1, description="steps per truncated-BPTT chunk")
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
+    action_path: bool = Field(
+        False, description="add the linear action-aligned progress path of the other methods (not IC3Net's)")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
     execution: Literal["argmax", "sample"] = Field(
         "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
@@ -96,7 +99,7 @@ def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> t
 class IC3NetPolicy(nn.Module):
     """Encoder, C per pass, LSTM cell and the action / gate / value heads."""
 
-    def __init__(self, n_in: int, hidden: int, comm_passes: int) -> None:
+    def __init__(self, n_in: int, hidden: int, comm_passes: int, action_path: bool = False) -> None:
         super().__init__()
         self.hidden = hidden
         self.encoder = nn.Linear(n_in, hidden)
@@ -106,6 +109,7 @@ class IC3NetPolicy(nn.Module):
         self.gate_head = nn.Linear(hidden, 2)
         self.value_head = nn.Linear(hidden, 1)
         self.value_norm = ValueNorm()  # used when the method's ``value_norm`` is on
+        self.path = ActionPath(progress_index()) if action_path else None
 
     def initial_state(self, b: int, n: int) -> tuple[torch.Tensor, torch.Tensor]:
         return torch.zeros(b * n, self.hidden), torch.zeros(b * n, self.hidden)
@@ -123,7 +127,10 @@ class IC3NetPolicy(nn.Module):
             heard = average_comm(h.view(b, n, self.hidden), links, alive)
             h, c = self.lstm((x + comm(heard)).view(b * n, self.hidden), (h, c))
         hh = h.view(b, n, self.hidden)
-        logits = masked_logits(self.action_head(hh), mask)
+        logits = self.action_head(hh)
+        if self.path is not None:
+            logits = self.path(obs, logits)
+        logits = masked_logits(logits, mask)
         return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
 
 
@@ -149,7 +156,7 @@ class IC3NetMethod(Method):
         super().__init__(env, params, seed)
         p = self.params
         self.n_obs = own_feature_size(p.patch_radius) + HISTORY_SIZE
-        self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes)
+        self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes, p.action_path)
         self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
                                              alpha=p.rms_alpha, eps=p.rms_eps)
 
