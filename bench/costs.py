@@ -4,9 +4,8 @@ cost (core-seconds) = (training episodes + evaluation episodes) * horizon * N
                       / agent-steps per second on one core
 
 This is an upper bound on the simulated agent-steps (episodes end early when every robot
-has arrived) and ignores Ray start-up and checkpoint writes. The constants below are
-ESTIMATES until the perf suites (``bench perf``) measure them on the reference machine;
-update ``AGENT_STEPS_PER_S`` (and ``MEASURED``) from ``bench perf --suite all`` output.
+has arrived) and ignores Ray start-up and checkpoint writes. The constants below come from
+``bench perf``; re-measure on your machine with ``bench perf --suite all``.
 """
 from __future__ import annotations
 
@@ -16,19 +15,30 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from bench.cells import Cell
 
-# Agent-steps (robots x environment steps) per second on one core, for training (rollout
-# plus update, amortized) and evaluation. ESTIMATES: one rough timing per method at N=20
-# and N=100 (batch 8, horizon 100, untrained policies) on a 2-core development box shared
-# with other jobs, rounded down; replace with ``bench perf`` numbers from a quiet machine.
-AGENT_STEPS_PER_S: dict[str, dict[str, float]] = {
-    "hierarchical": {"train": 15_000.0, "eval": 15_000.0},
-    "decentralized": {"train": 25_000.0, "eval": 40_000.0},
-    "ic3net": {"train": 10_000.0, "eval": 30_000.0},
-    "pibt": {"train": float("inf"), "eval": 100_000.0},
+# Agent-steps (robots x environment steps) per second on one core at N = 20 and N = 100,
+# for training (rollout plus update, amortized) and evaluation; other N interpolate
+# linearly (clamped). MEASURED with `bench perf --suite {hierarchical,baselines,pibt}` on
+# 2026-11-22 (2-core x86_64 box, one torch thread, batch 8, untrained policies, N = 100 on
+# the MovingAI warehouse map for hierarchical and PIBT, wh100 for the baselines), rounded.
+AGENT_STEPS_PER_S: dict[str, dict[str, dict[int, float]]] = {
+    "hierarchical": {"train": {20: 28_000.0, 100: 61_000.0}, "eval": {20: 49_000.0, 100: 116_000.0}},
+    "decentralized": {"train": {20: 109_000.0, 100: 80_000.0}, "eval": {20: 160_000.0, 100: 163_000.0}},
+    "ic3net": {"train": {20: 61_000.0, 100: 100_000.0}, "eval": {20: 180_000.0, 100: 254_000.0}},
+    "pibt": {"train": {20: float("inf"), 100: float("inf")}, "eval": {20: 330_000.0, 100: 330_000.0}},
 }
-DEFAULT_RATE = {"train": 20_000.0, "eval": 40_000.0}  # methods registered later (tests, plugins)
-MEASURED = False  # flip to True once the constants above come from ``bench perf``
+DEFAULT_RATE = {"train": {20: 20_000.0, 100: 20_000.0}, "eval": {20: 40_000.0, 100: 40_000.0}}
+MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
+
+
+def rate(method: str, phase: str, n_robots: int) -> float:
+    """Agent-steps per second of ``method`` in ``phase`` ("train"/"eval") at ``n_robots``."""
+    points = AGENT_STEPS_PER_S.get(method, DEFAULT_RATE)[phase]
+    (n0, r0), (n1, r1) = sorted(points.items())
+    if r0 == r1:
+        return r0
+    w = min(max((n_robots - n0) / (n1 - n0), 0.0), 1.0)
+    return r0 + w * (r1 - r0)
 
 
 def cell_agent_steps(cell: Cell) -> tuple[float, float]:
@@ -39,9 +49,8 @@ def cell_agent_steps(cell: Cell) -> tuple[float, float]:
 
 def cell_seconds(cell: Cell) -> float:
     """Estimated core-seconds of one cell (upper bound; see the module docstring)."""
-    rate = AGENT_STEPS_PER_S.get(cell.method, DEFAULT_RATE)
     train, ev = cell_agent_steps(cell)
-    return train / rate["train"] + ev / rate["eval"]
+    return train / rate(cell.method, "train", cell.n_robots) + ev / rate(cell.method, "eval", cell.n_robots)
 
 
 def grid_cell_hours(cells: Iterable[Cell]) -> float:

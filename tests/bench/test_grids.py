@@ -68,7 +68,8 @@ def test_unknown_grid__is_a_bench_error() -> None:
 
 def test_cost__is_episodes_times_horizon_times_n_over_throughput() -> None:
     cell = get_grid("paper").cells[0]
-    rate = costs.AGENT_STEPS_PER_S[cell.method]
+    assert cell.n_robots == 20  # a measured point: no interpolation
+    rate = {k: v[20] for k, v in costs.AGENT_STEPS_PER_S[cell.method].items()}
     expected = (2000 * 500 * cell.n_robots / rate["train"] + 100 * 500 * cell.n_robots / rate["eval"])
     assert costs.cell_seconds(cell) == pytest.approx(expected)
     assert costs.grid_cell_hours([cell, cell]) == pytest.approx(2 * expected / 3600)
@@ -110,3 +111,10 @@ def test_grid_file__mistakes_are_one_line_errors_naming_the_key(tmp_path: Path, 
     with pytest.raises(BenchError) as err:
         load_grid_file(path)
     assert named in str(err.value) and "bad.toml" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_cost_rate__interpolates_linearly_between_measured_team_sizes_and_clamps() -> None:
+    pts = costs.AGENT_STEPS_PER_S["hierarchical"]["train"]
+    assert costs.rate("hierarchical", "train", 60) == pytest.approx((pts[20] + pts[100]) / 2)
+    assert costs.rate("hierarchical", "train", 8) == pts[20]
+    assert costs.rate("hierarchical", "train", 400) == pts[100]
