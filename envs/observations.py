@@ -59,27 +59,31 @@ class PatchExtractor:
         return np.stack([shelves, robots], axis=2).reshape(b, n, 2, side, side)
 
 
-def robot_features(
-    core: WarehouseCore, patch: PatchExtractor, groups: np.ndarray | None = None
-) -> np.ndarray:
-    """(B, N, F_obs) float32 per-robot features; see ``feature_size``.
-
-    [position/shape (2), goal offset/shape (2), distance/(H+W) (1), done (1),
-     action_progress (5), local patch (2 (2k+1)^2)]
-    """
+def state_features(core: WarehouseCore) -> np.ndarray:
+    """(B, N, 11) float32 what a robot knows of itself: position/shape (2), goal
+    offset/shape (2), distance/(H+W) (1), done (1), action_progress (5)."""
     h, w = core.layout.shape
     scale = np.array([h, w], dtype=np.float32)
     rc = core.layout.cells[core.pos].astype(np.float32)  # (B, N, 2)
     grc = core.layout.cells[core.goal].astype(np.float32)
-    parts = [
+    return np.concatenate([
         rc / scale,
         (grc - rc) / scale,
         (np.minimum(core.dist, h * w) / float(h + w))[..., None].astype(np.float32),
         core.done[..., None].astype(np.float32),
         action_progress(core),
-        patch(groups).reshape(core.pos.shape + (-1,)),
-    ]
-    return np.concatenate(parts, axis=-1)
+    ], axis=-1)
+
+
+def robot_features(
+    core: WarehouseCore, patch: PatchExtractor, groups: np.ndarray | None = None
+) -> np.ndarray:
+    """(B, N, F_obs) float32 per-robot features; see ``feature_size``.
+
+    [state_features (11), local patch (2 (2k+1)^2)]
+    """
+    return np.concatenate(
+        [state_features(core), patch(groups).reshape(core.pos.shape + (-1,))], axis=-1)
 
 
 def feature_size(radius: int) -> int:

@@ -19,25 +19,13 @@ import numpy as np
 
 from envs.actions import N_ACTIONS
 from envs.core import WarehouseCore
-from envs.observations import PatchExtractor, action_progress
+from envs.observations import PatchExtractor, state_features
 
 
 def own_features(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
     """(B, N, own_feature_size(k)) float32: a robot's own state and the shelves around it."""
-    h, w = core.layout.shape
-    scale = np.array([h, w], dtype=np.float32)
-    rc = core.layout.cells[core.pos].astype(np.float32)  # (B, N, 2)
-    grc = core.layout.cells[core.goal].astype(np.float32)
     shelves = patch.pad_obs[patch.center[core.pos][..., None] + patch.offsets]  # (B, N, P)
-    parts = [
-        rc / scale,
-        (grc - rc) / scale,
-        (np.minimum(core.dist, h * w) / float(h + w))[..., None].astype(np.float32),
-        core.done[..., None].astype(np.float32),
-        action_progress(core),
-        shelves,
-    ]
-    return np.concatenate(parts, axis=-1)
+    return np.concatenate([state_features(core), shelves], axis=-1)
 
 
 def own_feature_size(radius: int) -> int:
