@@ -74,6 +74,7 @@ class IC3NetParams(MethodParams):
         True, description="value head predicts running-normalized returns (MAPPO ValueNorm; docs/decisions.md)")
     normalize_advantage: bool = Field(
         True, description="standardize advantages per batch (reference option normalize_rewards; docs/decisions.md)")
+    max_grad_norm: float | None = Field(None, gt=0, description="gradient-norm clip (reference: none)")
     detach_gap: int = Field(50, ge=1, description="steps per truncated-BPTT chunk")
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
@@ -278,10 +279,12 @@ class IC3NetMethod(Method):
             totals["action_loss"] += float(action_loss.detach()) / n_steps
             totals["value_loss"] += float(value_loss.detach()) / n_steps
             totals["entropy"] += float(entropy.detach())
+        grad_norm = float(nn.utils.clip_grad_norm_(self.policy.parameters(), p.max_grad_norm or float("inf")))
         self.optimizer.step()
         n_active = float(max(buf.data["active"][:t_used].sum(), 1))
         gate_open = float(buf.data["gates"][:t_used][buf.data["active"][:t_used]].mean()) \
             if n_active else 0.0
         return {"actor_loss": totals["action_loss"], "critic_loss": totals["value_loss"],
                 "entropy": totals["entropy"] / n_active, "gate_open_rate": gate_open,
+                "grad_norm": grad_norm,
                 "return_mean": float(returns[0].mean())}
