@@ -25,6 +25,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from algorithms.common.action_path import ACTION_GAIN  # shared with the baselines
 from algorithms.hierarchical.group_layers import GroupMLP, masked_mean
 from algorithms.hierarchical.messages import GroupStructure
 from envs.actions import DELTAS, N_ACTIONS
@@ -73,7 +74,6 @@ class ReferencePolicy(nn.Module):
         return self.head(o)
 
 
-ACTION_GAIN = 10.0  # the action-aligned weights move ACTION_GAIN x faster under Adam
 
 
 def action_feature_index(obs_radius: int) -> np.ndarray:
