@@ -147,7 +147,7 @@ def eval_(
     horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T (default: the checkpoint's, else 500)."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics and every episode) instead of a table."),
 ) -> None:
-    """Evaluate one method (its execution mode: argmax or sampled) and print the eval-table metrics.
+    """Evaluate one method (its own execution mode: argmax or sampled); print the eval metrics."""
     from bench.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
