@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from algorithms.common.episodes import EVAL_METRICS
+from bench import costs
 from bench.cli import main
 from bench.grid_files import load_grid_file
 from bench.store import RunStore
@@ -169,4 +170,4 @@ def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -
     assert rows["smoke"].split("│")[2].strip() == "16"
     assert rows["paper"].split("│")[2].strip() == "28"
     assert rows["full"].split("│")[2].strip() == "216"
-    assert "estimate" in stdout
+    assert f"cost: {costs.LABEL}" in stdout  # measured or estimate, said in the title
