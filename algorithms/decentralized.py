@@ -144,7 +144,7 @@ class DecentralizedMethod(Method):
     def begin(self, batch: EpisodeBatch, greedy: bool) -> DecentralizedState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
-        loss = LossProcess((b, n, n), env.loss_p, batch.rng, env.loss_model, env.burst_length)
+        loss = LossProcess.from_config((b, n, n), env, batch.rng)
         buffer = None
         if not greedy:
             buffer = RolloutBuffer(env.horizon, b, {

@@ -168,7 +168,7 @@ class IC3NetMethod(Method):
     def begin(self, batch: EpisodeBatch, greedy: bool) -> IC3NetState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
-        loss = LossProcess((b, n, n), env.loss_p, batch.rng, env.loss_model, env.burst_length)
+        loss = LossProcess.from_config((b, n, n), env, batch.rng)
         buffer = None
         if not greedy:
             buffer = RolloutBuffer(env.horizon, b, {

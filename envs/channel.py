@@ -68,6 +68,12 @@ class LossProcess:
         elif model != "bernoulli":
             raise ValueError(f"unknown loss model {model!r}")
 
+    @classmethod
+    def from_config(cls, link_shape: tuple[int, ...], config: EnvConfig,
+                    rng: np.random.Generator) -> LossProcess:
+        """The loss model, mean loss p and burst length of an environment config."""
+        return cls(link_shape, config.loss_p, rng, config.loss_model, config.burst_length)
+
     def step(self) -> np.ndarray:
         """Bool array shaped ``link_shape``: True where this step's message arrives."""
         u = self.rng.random(self.shape)
@@ -88,9 +94,7 @@ class GroupChannel:
         self.adjacency = comm_graph(z, config.comm_graph)  # (Z, Z)
         self.groups = group_assignment(config.n_robots, z)
         self.group_sizes = np.bincount(self.groups, minlength=z)  # (Z,)
-        self.process = LossProcess(
-            (batch, z, z), config.loss_p, rng, config.loss_model, config.burst_length
-        )
+        self.process = LossProcess.from_config((batch, z, z), config, rng)
         self.d_m = config.d_m
         n = config.n_robots
         # Scalars transmitted per step: every sender group's robots on each outgoing link.
