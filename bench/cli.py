@@ -145,28 +145,34 @@ def eval_(
     episodes: int = typer.Option(10, "--episodes", min=1, help="Evaluation episodes."),
     seed: int | None = typer.Option(None, "--seed", min=0, help="Seed (default: the checkpoint's, else 0)."),
     horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T (default: the checkpoint's, else 500)."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics and every episode) instead of a table."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics per mode and every episode) instead of a table."),
+    execution: str | None = typer.Option(None, "--execution", help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode of the cell)."),
 ) -> None:
-    """Evaluate one method (its own execution mode: argmax or sampled); print the eval metrics."""
+    """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
+    pibt) on the same scenarios; print the eval metrics, one column per mode."""
     from bench.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
-                            episodes, seed, horizon)
+                            episodes, seed, horizon, execution=execution)
     means = summarize(rows)
     if as_json:
         typer.echo(json.dumps({"cell": json.loads(cell.canonical_json()), "checkpoint": str(checkpoint or ""),
-                               "mean": _jsonable(means), "episodes": [_jsonable(r) for r in rows]}, indent=2))
+                               "executions": list(means),
+                               "mean": {m: _jsonable(v) for m, v in means.items()},
+                               "episodes": [_jsonable(r) for r in rows]}, indent=2))
         return
     from rich.console import Console
     from rich.table import Table
 
     src = f"checkpoint {checkpoint}" if checkpoint else "untrained initialization"
+    per_mode = len(rows) // max(len(means), 1)
     table = Table(title=f"{cell.method} N={cell.n_robots} p={cell.loss_p} layout={cell.layout} "
-                        f"seed={cell.seed}, {len(rows)} episodes, {src}")
-    table.add_column("metric")
-    table.add_column("mean", justify="right")
-    for k, v in means.items():
-        table.add_row(k, "nan" if math.isnan(v) else f"{v:.4g}")
+                        f"seed={cell.seed}, {per_mode} episodes per mode (same scenarios), {src}")
+    table.add_column("metric (mean)")
+    for mode in means:
+        table.add_column(mode, justify="right")
+    for k in next(iter(means.values()), {}):
+        table.add_row(k, *("nan" if math.isnan(v[k]) else f"{v[k]:.4g}" for v in means.values()))
     Console().print(table)
 
 
@@ -206,9 +212,10 @@ def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
     episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
-    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>.gif)."),
+    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>[-<mode>].gif)."),
+    execution: str | None = typer.Option(None, "--execution", help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
 ) -> None:
-    """Render one evaluation episode of a cell as a GIF."""
+    """Render one evaluation episode of a cell, in one execution mode, as a GIF."""
     from bench.store import RunStore
 
     run_dir = _run_dir(run)
@@ -219,8 +226,9 @@ def replay(
         from reports.replay import write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
-    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}.gif"
-    typer.echo(str(write_replay(run_dir, cell, episode, target)))
+    suffix = f"-{execution}" if execution else ""
+    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.gif"
+    typer.echo(str(write_replay(run_dir, cell, episode, target, execution=execution)))
 
 
 # -------------------------------------------------------------------- perf

@@ -4,9 +4,10 @@ The episode is not stored step by step; it is re-run deterministically: the cell
 from ``cells.parquet`` (``config_json``), its method from the registry with the cell's
 seed, its trained state from ``checkpoints/<cell_id>.pt`` (``weights_only`` load), and
 evaluation chunk ``episode // eval_chunk`` is run exactly as the bench's evaluator runs it
-(``Method.evaluate(chunk, seed)``), with hooks that record episode ``episode % eval_chunk``
-step by step. The recorded episode's metrics are checked against its stored evaluation
-row, so a GIF never shows an episode other than the one in the store.
+(``Method.evaluate(chunk, seed, execution)``, in one execution mode: argmax by default,
+planner for PIBT), with hooks that record episode ``episode % eval_chunk`` step by step.
+The recorded episode's metrics are checked against its stored evaluation row of the same
+mode, so a GIF never shows an episode other than the one in the store.
 
 Each frame (``envs.render.render_rgb``) shows robots coloured by group, the goals of
 unfinished robots, collisions (red border), controls changed by the safety filter (black
@@ -26,6 +27,7 @@ import pandas as pd
 
 from algorithms.base import Method
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
 from bench.cells import Cell
 from bench.schema import EVAL_SCHEMA
@@ -103,13 +105,13 @@ def _hook(method: Method, rec: Recorder) -> None:
     """Wrap the method's begin/decide/observe (instance attributes) to feed ``rec``."""
     begin, decide, observe = method.begin, method.decide, method.observe
 
-    def _begin(batch: EpisodeBatch, greedy: bool) -> Any:
-        state = begin(batch, greedy)
+    def _begin(batch: EpisodeBatch, choice: ActionChoice) -> Any:
+        state = begin(batch, choice)
         rec.begin(batch)
         return state
 
-    def _decide(batch: EpisodeBatch, state: Any, greedy: bool) -> Decision:
-        dec = decide(batch, state, greedy)
+    def _decide(batch: EpisodeBatch, state: Any, choice: ActionChoice) -> Decision:
+        dec = decide(batch, state, choice)
         rec.decided(batch, dec)
         return dec
 
@@ -120,8 +122,10 @@ def _hook(method: Method, rec: Recorder) -> None:
     method.begin, method.decide, method.observe = _begin, _decide, _observe  # type: ignore[method-assign]
 
 
-def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder) -> list[dict[str, float]]:
-    """``method.evaluate(chunk, seed)`` with every group-level loss draw reported to ``rec``."""
+def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder,
+                  execution: str | None = None) -> list[dict[str, Any]]:
+    """``method.evaluate(chunk, seed, execution)`` with every group-level loss draw
+    reported to ``rec``."""
     original: Callable[[LossProcess], np.ndarray] = LossProcess.step
 
     def step(self: LossProcess) -> np.ndarray:
@@ -132,7 +136,7 @@ def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder) -> list[
     _hook(method, rec)
     LossProcess.step = step  # type: ignore[method-assign]
     try:
-        return method.evaluate(chunk, seed)
+        return method.evaluate(chunk, seed, execution)
     finally:
         LossProcess.step = original  # type: ignore[method-assign]
 
@@ -178,12 +182,12 @@ def render_steps(layout: Any, rec: Recorder, groups: np.ndarray, adjacency: np.n
     return [np.pad(f, ((0, 0), (0, width - f.shape[1]), (0, 0)), constant_values=255) for f in frames]
 
 
-def _stored_row(rs: RunStore, cell_id: str, episode: int) -> pd.Series | None:
+def _stored_row(rs: RunStore, cell_id: str, episode: int, execution: str) -> pd.Series | None:
     path = rs.eval_path(cell_id)
     if not path.exists():
         return None
     df = read_table(path, EVAL_SCHEMA).to_pandas()
-    rows = df[df["episode"] == episode]
+    rows = df[(df["episode"] == episode) & (df["execution"] == execution)]
     return None if rows.empty else rows.iloc[-1]
 
 
@@ -200,11 +204,12 @@ def load_cell(rs: RunStore, cell_id: str) -> Cell:
 
 
 def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | str,
-                 fps: float = 8.0, verify: bool = True) -> Path:
-    """Write evaluation episode ``episode`` of cell ``cell_id`` as a GIF at ``out``.
+                 fps: float = 8.0, verify: bool = True, execution: str | None = None) -> Path:
+    """Write evaluation episode ``episode`` of cell ``cell_id``, in execution mode
+    ``execution`` (default: argmax, or planner for PIBT), as a GIF at ``out``.
 
-    BenchError when the cell, its checkpoint (learned methods) or the episode does not
-    exist, or (``verify``) when the re-run does not reproduce the stored evaluation row.
+    BenchError when the cell, its checkpoint (learned methods), the episode or the mode does
+    not exist, or (``verify``) when the re-run does not reproduce the stored evaluation row.
     """
     rs = RunStore(run_dir)
     cell = load_cell(rs, cell_id)
@@ -222,11 +227,16 @@ def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | st
     chunk, k = divmod(int(episode), size)
     adjacency = comm_graph(env.groups, env.comm_graph)
     rec = Recorder(k, adjacency)
-    rows = _run_recorded(method, chunk, cell.seed, rec)
+    modes = cell.execution_modes()
+    choice = method.execution_choice(execution, cell.seed, chunk)
+    if choice.name not in modes:
+        raise BenchError(f"--execution {choice.name!r}: cell {cell_id} was evaluated in "
+                         f"{', '.join(modes)}")
+    rows = _run_recorded(method, chunk, cell.seed, rec, choice.name)
     if k >= len(rows):  # the last chunk may be cut short by eval_episodes
         raise BenchError(f"episode {episode} was not produced by evaluation chunk {chunk}")
     if verify:
-        stored = _stored_row(rs, cell_id, int(episode))
+        stored = _stored_row(rs, cell_id, int(episode), choice.name)
         if stored is not None:
             bad = [c for c in CHECK_COLUMNS
                    if not np.isclose(float(rows[k][c]), float(stored[c]), rtol=1e-6, atol=1e-9,
@@ -234,7 +244,7 @@ def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | st
             if bad:
                 c = bad[0]
                 raise BenchError(
-                    f"replay of cell {cell_id} episode {episode} does not reproduce the stored "
+                    f"replay of cell {cell_id} episode {episode} ({choice.name}) does not reproduce the stored "
                     f"evaluation ({c}: {rows[k][c]} re-run vs {stored[c]} stored); was the "
                     "checkpoint replaced after evaluation?")
     groups = group_assignment(env.n_robots, env.groups)

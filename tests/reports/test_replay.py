@@ -14,6 +14,7 @@ from algorithms.common.episodes import Decision
 from algorithms.pibt import PIBTMethod
 from algorithms.registry import method_class
 from bench.cells import Cell
+from bench.schema import SCHEMA_VERSION
 from bench.store import RunStore
 from envs.actions import WAIT
 from envs.channel import GroupChannel
@@ -27,7 +28,7 @@ def _store(run: Path, cls: type = PIBTMethod, eval_episodes: int = 4) -> tuple[C
     rs = RunStore(run)
     rs.write_cells([{**cell.config_columns(), "grid": "t", "status": "done", "error": "",
                      "train_episodes_done": 0, "wall_s": 0.0, "peak_mem_mb": 0.0, "attempts": 1,
-                     "versions_json": "{}", "schema_version": 1}])
+                     "versions_json": "{}", "schema_version": SCHEMA_VERSION}])
     m = cls(cell.to_env_config(), cell.method_params().model_dump(mode="json"), seed=cell.seed)
     rows = [r for c in range(eval_episodes // 2) for r in m.evaluate(c, cell.seed)]
     rs.write_eval(cell.cell_id, rows, {})
@@ -75,13 +76,13 @@ class ChannelPIBT(PIBTMethod):
 
     drawn: list[np.ndarray] = []
 
-    def begin(self, batch, greedy):
-        state = super().begin(batch, greedy)
+    def begin(self, batch, choice):
+        state = super().begin(batch, choice)
         state.channel = GroupChannel(self.env, batch.core.batch, batch.rng.spawn(1)[0])
         return state
 
-    def decide(self, batch, state, greedy) -> Decision:
-        dec = super().decide(batch, state, greedy)
+    def decide(self, batch, state, choice) -> Decision:
+        dec = super().decide(batch, state, choice)
         avail = state.channel.step()
         type(self).drawn.append(avail.copy())
         proposed = dec.actions.copy()
