@@ -108,7 +108,8 @@ def grids(
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Count with K seeds instead of each grid's default."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="Also list a user grid file."),
 ) -> None:
-    """List the grids with their cell counts and estimated cost (cell-hours on one core)."""
+    """List the grids with their cell counts (configurations x seeds) and cost (cell-hours on
+    one core, every seed and every evaluation mode counted)."""
     from rich.console import Console
     from rich.table import Table
 
@@ -116,8 +117,9 @@ def grids(
     from bench.grid_files import load_grid_file
     from bench.grids import BUILTIN, get_grid
 
-    table = Table(title=f"grids (cost: {costs.LABEL}, (episodes+eval)*horizon*N / agent-steps per s)")
-    for col in ("grid", "cells", "methods", "N", "p", "seeds", "cell-hours"):
+    table = Table(title=f"grids (cost: {costs.LABEL}, (episodes + eval episodes x modes) x horizon x N "
+                        "/ agent-steps per s, summed over cells = configurations x seeds)")
+    for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "cell-hours"):
         table.add_column(col)
     listed = [get_grid(name, seeds) for name in BUILTIN]
     if grid_file is not None:
@@ -126,7 +128,7 @@ def grids(
         ns = sorted({c.n_robots for c in g.cells})
         ps = sorted({c.loss_p for c in g.cells})
         table.add_row(g.name, str(len(g)), ",".join(g.methods), ",".join(map(str, ns)),
-                      ",".join(map(str, ps)), str(len({c.seed for c in g.cells})),
+                      ",".join(map(str, ps)), str(g.configurations), str(g.seeds),
                       f"{costs.grid_cell_hours(g.cells):.3g}")
     console = Console(width=None if sys.stdout.isatty() else 140)  # logs: no truncated cells
     console.print(table)
