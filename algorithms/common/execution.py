@@ -31,6 +31,7 @@ import torch
 from envs.errors import BenchError
 
 ARGMAX, SAMPLE, PLANNER, TRAIN = "argmax", "sample", "planner", "train"
+HEADLINE = ARGMAX  # the mode headline numbers quote (docs/decisions.md: the paper's execution)
 DEFAULT_TEMPERATURES = (0.5,)
 ACTION_STREAM = 2  # after TRAIN_STREAM = 0 and EVAL_STREAM = 1 (algorithms/common/episodes.py)
 
