@@ -2,9 +2,8 @@
 
 Every learned cell is evaluated in every mode on the same scenarios (docs/decisions.md):
 
-* ``argmax``: the most probable action at every level (the paper's execution, Sec. III:
-  "a deterministic reference can be selected" / "the corresponding deterministic control",
-  after eq:local_policy);
+* ``argmax``: the most probable action at every level (the paper's execution, Sec. III-B
+  "a deterministic reference can be selected" and eq:local_deterministic_control);
 * ``sample``: a sample from the policy, softmax(logits) (temperature T = 1, the training
   distribution);
 * ``sample@T``: a sample from softmax(logits / T) (tempered; T = 0.5 by default, the cell
