@@ -38,6 +38,7 @@ from algorithms.common.episodes import (
 )
 from algorithms.common.execution import (
     ARGMAX,
+    DEFAULT_TEMPERATURES,
     PLANNER,
     ActionChoice,
     execution_modes,
@@ -122,7 +123,7 @@ class Method(ABC):
         return state, stats.finish(core.done)
 
     @classmethod
-    def execution_modes(cls, temperatures: Iterable[float] = (0.5,)) -> tuple[str, ...]:
+    def execution_modes(cls, temperatures: Iterable[float] = DEFAULT_TEMPERATURES) -> tuple[str, ...]:
         """This method's evaluation modes: argmax, sample, sample@T (learned) or planner."""
         return execution_modes(cls.learned, temperatures)
 

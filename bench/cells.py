@@ -18,7 +18,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from algorithms.base import MethodParams
-from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures, execution_modes
+from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import METHODS, method_class
 from envs.config import EnvConfig
 from envs.errors import BenchError
@@ -156,10 +156,10 @@ class Cell(BaseModel):
         """Evaluation modes of the cell, in order: argmax, sample, sample@T (learned), or
         planner (a planner such as PIBT)."""
         try:
-            learned = method_class(self.method).learned
+            cls = method_class(self.method)
         except ImportError as exc:
             raise BenchError(f"method {self.method!r} cannot be imported: {exc}") from None
-        return execution_modes(learned, self.eval_temperatures)
+        return cls.execution_modes(self.eval_temperatures)
 
     def method_path(self) -> str:
         """'module:Class' of the method, so workers import it without the driver's registry."""

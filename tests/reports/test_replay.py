@@ -114,3 +114,34 @@ def test_recorder__links_and_corrections_are_those_of_the_episode(tmp_path, monk
     cell2, _ = _store(tmp_path / "plain")
     plain = _frames(replay.write_replay(tmp_path / "plain", cell2.cell_id, 3, tmp_path / "p.gif"))
     assert gif.shape[1] > plain.shape[1]
+
+
+def _learned_store(run):
+    """A one-cell decentralized store (untrained weights) evaluated in its three modes."""
+    cell = Cell.make(method="decentralized", n_robots=6, loss_p=0.3, layout="tiny", episodes=0,
+                     horizon=30, eval_episodes=4, params={"eval_chunk": 2})
+    rs = RunStore(run)
+    rs.write_cells([{**cell.config_columns(), "grid": "t", "status": "done", "error": "",
+                     "train_episodes_done": 0, "wall_s": 0.0, "peak_mem_mb": 0.0, "attempts": 1,
+                     "versions_json": "{}", "schema_version": SCHEMA_VERSION}])
+    m = method_class("decentralized")(cell.to_env_config(), cell.method_params().model_dump(mode="json"),
+                                      seed=cell.seed)
+    rows = {mode: [r for c in range(2) for r in m.evaluate(c, cell.seed, mode)] for mode in cell.execution_modes()}
+    rs.write_eval(cell.cell_id, [r for mode_rows in rows.values() for r in mode_rows], {})
+    rs.write_checkpoint(cell.cell_id, {"cell": cell.canonical_json(), "state": m.state_dict()})
+    return cell, rows
+
+
+def test_write_replay__replays_the_stored_episode_of_the_chosen_execution_mode(tmp_path):
+    cell, rows = _learned_store(tmp_path)
+    assert rows["argmax"][1]["team_return"] != rows["sample@0.5"][1]["team_return"]
+    for mode in ("argmax", "sample", "sample@0.5"):
+        out = replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / f"{mode}.gif", execution=mode)
+        assert len(_frames(out)) == rows[mode][1]["steps"] + 1, mode  # verified against its own row
+    assert not np.array_equal(_frames(tmp_path / "argmax.gif"), _frames(tmp_path / "sample@0.5.gif"))
+    default = replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / "d.gif")
+    assert np.array_equal(_frames(default), _frames(tmp_path / "argmax.gif"))
+    with pytest.raises(BenchError, match="'sample@0.25': cell .* was evaluated in argmax, sample, sample@0.5"):
+        replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / "x.gif", execution="sample@0.25")
+    with pytest.raises(BenchError, match="unknown execution mode 'argmx'"):
+        replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / "x.gif", execution="argmx")
