@@ -138,6 +138,12 @@ def test_checkpoint__round_trip_with_weights_only_and_format_check(tmp_path: Pat
     torch.save({"something": "else"}, tmp_path / "foreign.pt")
     with pytest.raises(BenchError, match="not a bench checkpoint"):
         load_checkpoint(tmp_path / "foreign.pt")
+    old = {**torch.load(store.ckpt_path("abc"), weights_only=True), "schema_version": 1}
+    torch.save(old, tmp_path / "v1.pt")  # schema 2 changed eval rows only: v1 checkpoints load
+    assert torch.equal(load_checkpoint(tmp_path / "v1.pt")["state"]["w"], state["w"])
+    torch.save({**old, "schema_version": SCHEMA_VERSION + 1}, tmp_path / "vnext.pt")
+    with pytest.raises(BenchError, match=f"schema version {SCHEMA_VERSION + 1}"):
+        load_checkpoint(tmp_path / "vnext.pt")
     (tmp_path / "torn.pt").write_bytes(store.ckpt_path("abc").read_bytes()[:100])
     with pytest.raises(BenchError, match="corrupt checkpoint"):
         load_checkpoint(tmp_path / "torn.pt")
