@@ -1,124 +1,359 @@
-"""Which configuration a study runs next: an exhaustive grid with seed replicates, or TPE.
+"""Runs a grid on Ray and records it in the store (SPEC 4 "Execution on Ray", "Store").
 
-A 20-point space (|R_z| x L) is cheaper to enumerate than to search: TPE re-proposed
-already-tried points 3 times in 12 trials (issue #16), and a single trial per point cannot
-tell a good configuration from a lucky seed. ``SearchPlan`` therefore has two modes:
+The driver owns every file and nothing else; workers (bench/worker.py, one Ray actor per
+core, one torch thread each) only compute. The loop:
 
-* ``grid`` (default when the space has at most ``GRID_MAX`` points): the driver enqueues the
-  point with the fewest live trials (complete, pruned, running or waiting), ties broken by
-  a permutation seeded from the study seed. Every point thus gets replicate 0 before any
-  gets replicate 1, and ``size x replicates`` trials evaluate every point ``replicates``
-  times. We enqueue (``study.enqueue_trial``) instead of using Optuna's ``GridSampler``:
-  the grid sampler visits each point once and then samples finished points at random, so it
-  cannot balance replicates, and its choice depends on which trials other drivers finished.
-* ``tpe``: the sampler proposes points; a point with a complete trial but fewer than
-  ``replicates`` live ones is re-run first, so every point TPE likes is replicated too.
+1. plan (bench/plan.py): read and validate the store, decide where each cell resumes;
+   connect to Ray; only then write (discard stale train parts, manifest, cells.parquet);
+2. dispatch: a free worker takes an evaluation unit (execution mode x chunk) of a trained
+   cell first, else starts
+   (or resumes from its checkpoint) the next cell; training is sticky: the worker that
+   trains a cell gets its next chunk of ``checkpoint_every`` iterations;
+3. collect with ``ray.wait`` (timeouts, never a blocking get loop): a training chunk's rows
+   are written as a part, then its checkpoint; after the last chunk the final state is
+   ``ray.put`` once and evaluation units (every chunk in every execution mode: argmax,
+   sample, sample@T; planner for PIBT) fan out to every free worker; when all are in, the
+   eval file (one row per episode and mode) is written once and the cell is done;
+4. failures: a method that raises fails its cell (error recorded, the rest go on); a
+   worker that dies (process killed, node removed) is restarted by Ray and its unit is
+   re-dispatched from the last checkpoint, up to ``MAX_RETRIES`` times per cell.
 
-Replicate ``r`` of every point trains with the same seed (``replicate_seed``): replicates of
-different points are paired (common random numbers), so differences between points are
-not differences between seeds.
+Seeds come from the cell only and chunk boundaries from ``checkpoint_every``, so the
+numbers do not depend on the number of workers or on the order of execution.
 """
 from __future__ import annotations
 
-import itertools
-import json
-from collections import Counter
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import Literal
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
 
-import numpy as np
-import optuna
-from optuna.trial import FrozenTrial, TrialState
+from bench.grids import Grid
+from bench.plan import CellState, plan_run, versions, versions_json
+from bench.progress import NullProgress, Progress, Snapshot
+from bench.ray_cluster import RayContext, connect
+from bench.schema import SCHEMA_VERSION
+from bench.store import RunStore
+from bench.worker import CellWorker
+from bench.worker_pool import Slot, release_workers, take_workers
 
-from envs.errors import BenchError
-from studies.space import space_size
-from studies.storage import REPLICATE, RETRY_OF
-
-GRID_MAX = 64  # spaces up to this many points are searched exhaustively under "auto"
-LIVE = (TrialState.COMPLETE, TrialState.PRUNED, TrialState.RUNNING, TrialState.WAITING)
-SearchMode = Literal["auto", "grid", "tpe"]
-
-
-def replicate_seed(study_seed: int, replicate: int) -> int:
-    """Training seed of replicate ``replicate`` of any point: SeedSequence([study seed, 1, r])
-    -> 31-bit int (the same for every point of the study: paired comparisons)."""
-    state = np.random.SeedSequence([int(study_seed), 1, int(replicate)]).generate_state(1)
-    return int(state[0] & 0x7FFFFFFF)
+MAX_RETRIES = 3  # worker deaths tolerated per cell and run
+MAX_RESTARTS = 4  # Ray restarts of one worker actor
+STALL_TIMEOUT_S = 600.0  # no live worker for this long: remaining cells fail
+WAIT_S = 1.0
+PING_RETRY_S = 0.5  # probe interval of a restarting worker
 
 
-def point_key(params: Mapping[str, int]) -> str:
-    """Canonical text of a configuration (sorted JSON), used to count its trials."""
-    return json.dumps({k: int(v) for k, v in sorted(params.items())}, sort_keys=True)
+@dataclass
+class RunSummary:
+    out: Path
+    total: int
+    done: int
+    failed: int
+    wall_s: float
+    failures: dict[str, str] = field(default_factory=dict)
 
 
-def grid_points(space: Mapping[str, Sequence[int]], seed: int) -> list[dict[str, int]]:
-    """Every point of ``space`` once, in an order permuted by ``seed`` (deterministic)."""
-    names = list(space)
-    points = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*space.values())]
-    order = np.random.default_rng(np.random.SeedSequence([int(seed), 4])).permutation(len(points))
-    return [points[i] for i in order]
+EventHook = Callable[[str, CellState], None]
 
 
-def resolve_mode(mode: str, space: Mapping[str, Sequence[int]]) -> Literal["grid", "tpe"]:
-    """``auto`` -> ``grid`` for at most ``GRID_MAX`` points, else ``tpe``."""
-    if mode == "auto":
-        return "grid" if space_size(space) <= GRID_MAX else "tpe"
-    if mode in ("grid", "tpe"):
-        return mode  # type: ignore[return-value]
-    raise BenchError(f"unknown search {mode!r}; choose auto, grid or tpe")
+def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
+             fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
+             on_event: EventHook | None = None, command: list[str] | None = None) -> RunSummary:
+    """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
+
+    Raises BenchError before writing anything when the store, the grid or the address is bad.
+    """
+    store = RunStore(out)
+    store.check_writable()
+    lock = store.lock()
+    try:
+        states, others = plan_run(store, grid, fresh)
+        if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
+            ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
+        else:
+            ctx = connect(address, workers)
+        try:
+            if lock is None:  # a new run directory: create and lock it now that all checks passed
+                store.root.mkdir(parents=True, exist_ok=True)
+                lock = store.lock()
+            run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
+                       progress or NullProgress(), on_event, command or sys.argv)
+            return run.execute()
+        finally:
+            ctx.shutdown()
+    finally:
+        if lock is not None:
+            os.close(lock)
 
 
-@dataclass(frozen=True)
-class SearchPlan:
-    """How the driver picks the next trial's parameters (see the module docstring)."""
+class _Run:
+    def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
+                 ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
+                 on_event: EventHook | None, command: list[str]) -> None:
+        self.grid, self.store, self.states, self.others = grid, store, states, others
+        self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
+        self.on_event, self.command = on_event, command
+        self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
+        self.inflight: dict[Any, tuple[str, Slot, CellState | None, Any]] = {}
+        self.versions = versions_json()
+        self.t0 = time.monotonic()
+        self.start_progress = sum(s.progress() * s.weight for s in states)
+        self.total_weight = sum(s.weight for s in states) or 1.0
+        self.last_event = ""
+        self.last_error = ""
 
-    mode: Literal["grid", "tpe"]
-    replicates: int
-    points: tuple[dict[str, int], ...]  # grid order (all points; also used by tpe to count)
+    # ------------------------------------------------------------------ setup
+    def _prepare_store(self) -> None:
+        store = self.store
+        if self.fresh:
+            store.wipe()
+        store.remove_temp_files()
+        for st in self.states:
+            if st.phase != "done":
+                store.discard_parts_from(st.cell_id, st.episodes_done if st.has_checkpoint else 0)
+        now = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        manifest = (None if self.fresh else store.read_manifest()) or {"created": now, "runs": []}
+        runs = list(manifest.get("runs", []))[-49:] + [{"grid": self.grid.name, "started": now,
+                                                         "command": self.command}]
+        v = versions()
+        manifest.update({
+            "schema_version": SCHEMA_VERSION, "package_version": v["package"], "git_sha": v["git"],
+            "versions": v, "grid": self.grid.name, "command": self.command, "updated": now,
+            "runs": runs, "ray": self.ctx.address, "workers": self.n_workers,
+        })
+        store.write_manifest(manifest)
+        self._write_cells()
 
-    @classmethod
-    def make(cls, mode: str, space: Mapping[str, Sequence[int]], replicates: int, seed: int) -> SearchPlan:
-        if replicates < 1:
-            raise BenchError(f"--replicates must be >= 1, got {replicates}")
-        return cls(resolve_mode(mode, space), int(replicates), tuple(grid_points(space, seed)))
+    def _write_cells(self) -> None:
+        self.store.write_cells(self.others + [s.row(self.grid.name) for s in self.states])
 
-    def default_trials(self) -> int:
-        """Trials that evaluate every point ``replicates`` times (grid), else 20 (tpe)."""
-        return len(self.points) * self.replicates if self.mode == "grid" else 20
+    # ------------------------------------------------------------------- loop
+    def execute(self) -> RunSummary:
+        import ray
 
-    def next_point(self, trials: Sequence[FrozenTrial]) -> tuple[dict[str, int], int] | None:
-        """(params, replicate index) to enqueue next, or None to let the sampler propose.
+        self._prepare_store()
+        slots: list[Slot] = []
+        if not all(s.finished for s in self.states):
+            self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
+            slots = [Slot(actor) for actor in take_workers(self.remote, self.n_workers)]
+        self._emit("start", None)
+        stalled_since: float | None = None
+        try:
+            while not all(s.finished for s in self.states):
+                now = time.monotonic()
+                for slot in slots:
+                    if slot.healthy and not slot.busy:
+                        self._dispatch(slot)
+                    elif not slot.healthy and not slot.pinging and now >= slot.next_ping:
+                        slot.pinging = True
+                        self._submit(slot.actor.ping.remote(), "ping", slot, None, 0)
+                if any(s.healthy for s in slots):
+                    stalled_since = None
+                else:
+                    stalled_since = stalled_since or time.monotonic()
+                    if time.monotonic() - stalled_since > STALL_TIMEOUT_S:
+                        self._fail_remaining(f"no live Ray worker for {STALL_TIMEOUT_S:.0f} s")
+                        break
+                if self.inflight:
+                    ready, _ = ray.wait(list(self.inflight), num_returns=1, timeout=WAIT_S)
+                    if ready:
+                        more, _ = ray.wait(list(self.inflight), num_returns=len(self.inflight), timeout=0)
+                        for ref in dict.fromkeys(ready + more):
+                            self._collect(ref, slots)
+                else:
+                    time.sleep(0.05)
+                self._emit("tick", None)
+        finally:
+            if slots:
+                release_workers(slots, keep=not self.ctx.started_here)
+            self._write_cells()
+            self.progress.close()
+        failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
+        return RunSummary(self.store.root, len(self.states), sum(s.phase == "done" for s in self.states),
+                          len(failed), time.monotonic() - self.t0, failed)
 
-        Nothing is enqueued while a trial is WAITING (a re-queued crash runs first).
-        """
-        if any(t.state == TrialState.WAITING for t in trials):
-            return None
-        live = Counter(point_key(t.params) for t in trials if t.state in LIVE and t.params)
-        if self.mode == "grid":
-            point = min(self.points, key=lambda p: live[point_key(p)])  # min keeps grid order on ties
-            return point, replicate_index(trials, point)
-        complete = {point_key(t.params): t.params for t in trials if t.state == TrialState.COMPLETE}
-        for key, params in complete.items():
-            if live[key] < self.replicates:
-                return dict(params), replicate_index(trials, params)
-        return None
+    def _dispatch(self, slot: Slot) -> None:
+        """Give a free worker an evaluation chunk, else the next cell to train."""
+        for st in self.states:
+            if st.phase == "evaluating" and st.eval_todo:
+                mode, chunk = unit = st.eval_todo.pop(0)
+                ref = slot.actor.eval_chunk.remote(st.spec, [st.state_ref], chunk, mode)
+                self._submit(ref, "eval", slot, st, unit)
+                return
+        pending = [s for s in self.states if s.phase == "pending"]
+        if pending:
+            st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
+            self._start(st, slot)
+            if st.phase == "evaluating":  # trained before the interruption: evaluate now
+                self._dispatch(slot)
+
+    def _start(self, st: CellState, slot: Slot) -> None:
+        import ray
+
+        st.attempts += 1
+        if st.state_ref is None and st.has_checkpoint:
+            ckpt = self.store.read_checkpoint(st.cell_id)
+            st.state_ref = ray.put(ckpt["state"]) if ckpt is not None else None
+        st.versions_json = self.versions
+        if st.trained:
+            self._begin_eval(st)
+        else:
+            st.phase = "training"
+            slot.sticky = st
+            self._submit_train(slot, st)
+        self._write_cells()
+        self._emit("started", st)
+
+    def _submit_train(self, slot: Slot, st: CellState) -> None:
+        box = [st.state_ref] if st.state_ref is not None else []
+        ref = slot.actor.train_chunk.remote(st.spec, box, st.iterations, self.k)
+        self._submit(ref, "train", slot, st, 0)
+
+    def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: Any) -> None:
+        slot.busy = kind != "ping"
+        self.inflight[ref] = (kind, slot, st, chunk)
+
+    def _begin_eval(self, st: CellState) -> None:
+        st.phase, st.trained = "evaluating", True
+        st.eval_todo = [u for u in st.eval_units() if u not in st.eval_rows]
+
+    # --------------------------------------------------------------- results
+    def _collect(self, ref: Any, slots: list[Slot]) -> None:
+        import ray
+
+        kind, slot, st, chunk = self.inflight.pop(ref)
+        try:
+            result = ray.get(ref, timeout=0)
+        except ray.exceptions.RayTaskError as exc:  # the method raised: the cell fails
+            cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+            if isinstance(cause, ray.exceptions.RayError) and not isinstance(cause, ray.exceptions.RayTaskError):
+                self._worker_lost(kind, slot, st, chunk, cause, slots)  # e.g. a lost state object
+                return
+            slot.busy = False
+            if kind == "train":
+                slot.sticky = None
+            if st is not None and not st.finished:
+                self._fail(st, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
+            return
+        except ray.exceptions.RayError as exc:  # the worker died: retry elsewhere
+            self._worker_lost(kind, slot, st, chunk, exc, slots)
+            return
+        if kind == "ping":
+            slot.healthy, slot.pinging, slot.suspect = True, False, False
+            return
+        slot.busy = False
+        if st is None or st.finished:
+            return
+        st.wall_s += float(result["wall_s"])
+        st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
+        if kind == "train":
+            self._train_done(slot, st, result)
+        else:
+            self._eval_done(st, chunk, result["rows"])
+
+    def _train_done(self, slot: Slot, st: CellState, result: dict[str, Any]) -> None:
+        import ray
+
+        rows = result["rows"]
+        if rows:
+            assert int(rows[0]["episode"]) == st.episodes_done, "train rows out of order"
+            self.store.write_train_part(st.cell_id, st.episodes_done, rows)
+        st.iterations, st.episodes_done = int(result["iterations"]), int(result["episodes_done"])
+        self.store.write_checkpoint(st.cell_id, {
+            "cell": st.cell.canonical_json(), "method": st.cell.method, "iterations": st.iterations,
+            "episodes_done": st.episodes_done, "finished": bool(result["finished"]),
+            "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
+            "state": result["state"],
+        })
+        st.has_checkpoint = True
+        st.state_ref = ray.put(result["state"])
+        self._emit("train_chunk", st)
+        if result["finished"]:
+            slot.sticky = None
+            self._begin_eval(st)
+            self._write_cells()
+        else:
+            self._submit_train(slot, st)
+
+    def _eval_done(self, st: CellState, unit: tuple[str, int], rows: list[dict[str, Any]]) -> None:
+        st.eval_rows[unit] = rows
+        self._emit("eval_chunk", st)
+        units = st.eval_units()
+        if any(u not in st.eval_rows for u in units):
+            return
+        # Mode by mode, episode by episode; the last chunk may run past eval_episodes.
+        all_rows = [r for u in units for r in st.eval_rows[u] if int(r["episode"]) < st.cell.eval_episodes]
+        self.store.write_eval(st.cell_id, all_rows, {
+            "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
+            "train_episodes_done": st.episodes_done,
+        })
+        st.phase, st.state_ref = "done", None
+        self._write_cells()
+        self._emit("done", st)
+
+    def _fail(self, st: CellState, error: str) -> None:
+        st.phase, st.error, st.state_ref, st.eval_todo = "failed", error, None, []
+        self._write_cells()
+        self._emit("failed", st)
+
+    def _fail_remaining(self, error: str) -> None:
+        for st in self.states:
+            if not st.finished:
+                st.phase, st.error = "failed", error
+
+    def _worker_lost(self, kind: str, slot: Slot, st: CellState | None, chunk: Any, exc: BaseException,
+                     slots: list[Slot]) -> None:
+        """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
+        import ray
+
+        if kind == "ping":
+            slot.pinging = False
+            slot.suspect = True
+            if isinstance(exc, ray.exceptions.ActorDiedError):
+                ray.kill(slot.actor, no_restart=True)  # restarts exhausted or node gone: a new worker
+                slot.actor = self.remote.remote()
+            else:  # restarting (ActorUnavailableError): probe again shortly
+                slot.next_ping = time.monotonic() + PING_RETRY_S
+            return
+        slot.busy, slot.healthy, slot.suspect, slot.next_ping = False, False, True, time.monotonic()
+        if st is not None and not st.finished:
+            st.retries += 1
+            self.last_error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+            if st.retries > MAX_RETRIES:
+                self._fail(st, f"worker died {st.retries} times: {type(exc).__name__}")
+            elif kind == "train":
+                slot.sticky = None
+                st.phase = "pending"  # resumes from st.state_ref (the last checkpoint) on any worker
+                self._emit("retry", st)
+            else:
+                st.eval_todo.insert(0, chunk)
+                self._emit("retry", st)
+
+    # --------------------------------------------------------------- progress
+    def _emit(self, kind: str, st: CellState | None) -> None:
+        if st is not None and kind in ("started", "done", "failed", "retry"):
+            detail = {"failed": f": {st.error}", "retry": f" after {self.last_error[:80]}"}.get(kind, "")
+            self.last_event = f"{kind} {st.label()}{detail}"
+        if self.on_event is not None and st is not None:
+            self.on_event(kind, st)
+        done_w = sum(s.progress() * s.weight for s in self.states)
+        left = self.total_weight - self.start_progress
+        frac = (done_w - self.start_progress) / left if left > 1e-9 else 1.0
+        snap = Snapshot(
+            total=len(self.states), done=sum(s.phase == "done" for s in self.states),
+            running=sum(s.phase in ("training", "evaluating") for s in self.states),
+            failed=sum(s.phase == "failed" for s in self.states), fraction=min(max(frac, 0.0), 1.0),
+            elapsed_s=time.monotonic() - self.t0, message=self.last_event if kind != "tick" else "",
+        )
+        self.progress.update(snap)
 
 
-def replicate_index(trials: Sequence[FrozenTrial], params: Mapping[str, int],
-                    before: int | None = None) -> int:
-    """Replicate index for a new attempt at ``params``: the number of first attempts (trials
-    not re-queued from a crash) with the same parameters, whatever their state, numbered
-    below ``before`` (all of them when None)."""
-    key = point_key(params)
-    return sum(1 for t in trials if t.params and RETRY_OF not in t.user_attrs
-               and (before is None or t.number < before) and point_key(t.params) == key)
-
-
-def trial_replicate(study: optuna.Study, trial: optuna.trial.Trial) -> int:
-    """The replicate index of a just-asked trial: its enqueued attribute, else counted among
-    the first attempts before it (a re-queued trial counts from the trial it replaces)."""
-    if REPLICATE in trial.user_attrs:
-        return int(trial.user_attrs[REPLICATE])
-    root = int(trial.user_attrs.get(RETRY_OF, trial.number))
-    return replicate_index(study.get_trials(deepcopy=False), trial.params, before=root)
+def _nanmax(a: float, b: float) -> float:
+    if a != a:  # NaN: nothing measured yet
+        return b
+    return a if b != b else max(a, b)
