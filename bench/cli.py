@@ -64,7 +64,7 @@ def _root(
 def run(
     grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="User grid (TOML or YAML): a base cell and list-valued axes."),
-    seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1."),
+    seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1 (default: paper 3, full 3, smoke 1; a verdict needs 3)."),
     out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
     address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
     workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
