@@ -84,6 +84,13 @@ def _broken_copy(src: Path, dst: Path, how: str) -> Path:
     (["eval"], "give --method"),
     (["report", "--run", "{missing}"], "not a bench run directory"),
     (["replay", "--run", "{out}", "--cell", "nope"], "cell 'nope' is not in"),
+    (["eval", "--method", "toy", "--n-robots", "4", "--layout", "tiny", "--execution", "argmx"],
+     "unknown execution mode 'argmx'"),
+    (["eval", "--method", "pibt", "--n-robots", "4", "--layout", "tiny", "--execution", "argmax"],
+     "'argmax' does not apply to a planner"),
+    (["replay", "--run", "{out}", "--cell", "{cell}", "--execution", "sample@0.25"],
+     "was evaluated in argmax, sample, sample@0.5"),
+    (["run", "--grid-file", "{bad_temp}"], "eval_temperatures: temperature 1 is the 'sample' mode"),
 ])
 def test_cli__user_mistake_is_one_line_exit_2_and_the_store_is_unchanged(
         capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path], tmp_path: Path,
@@ -92,7 +99,10 @@ def test_cli__user_mistake_is_one_line_exit_2_and_the_store_is_unchanged(
     (tmp_path / "bad_method.toml").write_text('[base]\nmethod = "qmix"\nn_robots = 4\nloss_p = 0.2\n')
     (tmp_path / "bad_value.toml").write_text('[base]\nmethod = "toy"\nloss_p = 0.2\n[axes]\nn_robots = [4, 0]\n')
     (tmp_path / "file").write_text("not a directory")
+    (tmp_path / "bad_temp.toml").write_text('[base]\nmethod = "toy"\nn_robots = 4\nloss_p = 0.2\n'
+                                            'layout = "tiny"\neval_temperatures = [1.0]\n')
     subst = dict(grid=grid_file, out=out, bad_method=tmp_path / "bad_method.toml",
+                 bad_temp=tmp_path / "bad_temp.toml", cell=RunStore(out).read_cells()["cell_id"].iloc[0],
                  bad_value=tmp_path / "bad_value.toml", file=tmp_path / "file", missing=tmp_path / "missing.toml")
     argv = [a.format(**subst) for a in args]
     if argv[0] == "run" and "--out" not in argv:
