@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from bench import costs
 from bench.cells import Cell
+from bench.grid_files import load_grid_file
 from bench.grids import Grid
 from bench.plan import plan_run
 from bench.store import RunStore
 from reports.store import load_store
-from tests.bench.conftest import toy_spec, write_finished_store
+from tests.bench.conftest import toy_spec, write_finished_store, write_grid_file
 
 MODES = ["argmax", "sample", "sample@0.5"]
 
@@ -62,3 +64,16 @@ def test_plan__planner_cells_have_one_mode(tmp_path: Path) -> None:
     assert ev["execution"].tolist() == ["planner"] * 3
     states, _ = plan_run(RunStore(tmp_path / "run"), grid, fresh=False)
     assert states[0].phase == "done" and states[0].eval_units() == [("planner", 0), ("planner", 1)]
+
+
+def test_grid_file__eval_temperatures_set_the_modes_rows_and_cost(toy: str, tmp_path: Path) -> None:
+    base = {**toy_spec(), "eval_temperatures": [0.25, 2.0]}
+    grid = load_grid_file(write_grid_file(tmp_path / "g.toml", base, {"seed": [0]}))
+    cell = grid.cells[0]
+    modes = ["argmax", "sample", "sample@2", "sample@0.25"]
+    assert list(cell.execution_modes()) == modes
+    _, ev = costs.cell_agent_steps(cell)
+    assert ev == 4 * cell.eval_episodes * cell.horizon * cell.n_robots
+    write_finished_store(tmp_path / "run", grid)
+    rows = RunStore(tmp_path / "run").read_eval()
+    assert rows.groupby("execution").size().to_dict() == {m: 5 for m in modes}
