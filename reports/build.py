@@ -86,7 +86,7 @@ def build_report(run_dir: Path | str) -> Path:
 
     titles = {
         "fig1_training": "Fig. 1: training convergence",
-        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net",
+        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net, per execution mode",
         "fig3_comm_payload": "Fig. 3: communication payload and ratio",
     }
     builders = {"fig1_training": lambda: fig1_training(train),
@@ -102,13 +102,14 @@ def build_report(run_dir: Path | str) -> Path:
     write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
     write_text(out / "table1_safety.tex", table1_latex(table))
     write_text(out / "table1_safety.csv", table.to_csv(index=False))
-    entries.append(Entry("Table I: safety filter",
+    entries.append(Entry("Table I: safety filter, per execution mode",
                          ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes)))
 
     summary = summary_frame(evals, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
-    entries.append(Entry("Summary of every configuration (method x N x p)", ("summary.md", "summary.csv")))
+    entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
+                         ("summary.md", "summary.csv")))
 
     claims = all_claims(train, evals)
     write_text(out / "claims.md", claims_markdown(claims))
