@@ -110,8 +110,12 @@ def _integer_cells(what: str, cells: Any) -> np.ndarray:
         arr = np.asarray(cells)
     except ValueError as exc:
         raise BenchError(f"reset options: {what} must be a list of (row, col) pairs: {exc}") from None
-    if arr.size and arr.dtype.kind not in "iu":
+    items = np.asarray(cells, dtype=object).reshape(-1)
+    flags = [isinstance(x, (bool, np.bool_)) for x in items]
+    if arr.size and (arr.dtype.kind not in "iu" or any(flags)):
+        first = items[flags.index(True) if any(flags) else 0]
+        kind = "bool" if any(flags) else str(arr.dtype)
         raise BenchError(
-            f"reset options: {what} must hold integer (row, col) pairs, got {arr.dtype} values "
-            f"such as {arr.reshape(-1)[0]!r}")
+            f"reset options: {what} must hold integer (row, col) pairs, got {kind} values "
+            f"such as {first!r}")
     return arr.astype(np.int64)

@@ -15,6 +15,7 @@ from envs.core import WarehouseCore
 from envs.errors import BenchError
 from envs.layouts import from_ascii, load_layout
 from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
+from envs.observations import robot_features
 from envs.scenarios import sample_scenarios
 from envs.warehouse_v0 import parallel_env
 
@@ -319,3 +320,167 @@ def test_warehouse_v0__writes_readable_gif_with_one_frame_per_step(tmp_path):
 def test_write_gif__rejects_empty_frames(tmp_path):
     with pytest.raises(BenchError, match="no frames"):
         write_gif([], tmp_path / "x.gif")
+
+
+# ------------------------------------------------------- input checks (issue 14)
+def test_warehouse_v0__step_or_state_before_reset_is_an_error():
+    env = parallel_env(**SMALL)
+    with pytest.raises(BenchError, match=r"call reset\(\) before step"):
+        env.step({"robot_77": "garbage"})
+    with pytest.raises(BenchError, match=r"call reset\(\) before state"):
+        env.state()
+
+
+def test_warehouse_v0__step_after_the_episode_ended_is_an_error():
+    env = parallel_env(n_robots=3, layout="tiny", horizon=1)
+    env.reset(seed=0)
+    env.step(dict.fromkeys(env.agents, 4))
+    assert env.agents == []
+    with pytest.raises(BenchError, match=r"episode ended at t=1.*call reset\(\)"):
+        env.step({})
+    env.reset(seed=0)  # and a reset starts over
+    env.step(dict.fromkeys(env.agents, 4))
+
+
+@pytest.mark.parametrize("bad", [1.5, 1.0, "1", True, np.bool_(True), None, "up", float("nan"),
+                                 -1, 5, np.int64(7), np.array([1]), np.float32(2.0)])
+def test_warehouse_v0__non_integer_or_out_of_range_action_names_agent_and_value(bad):
+    env = parallel_env(**SMALL)
+    env.reset(seed=0)
+    acts = dict.fromkeys(env.agents, 4)
+    acts["robot_3"] = bad
+    with pytest.raises(BenchError, match=r"action .* for live agent 'robot_3' is not an integer in 0\.\.4"):
+        env.step(acts)
+    assert env.core.t == 0  # nothing moved
+
+
+@pytest.mark.parametrize("good", [3, np.int64(3), np.int32(3), np.uint8(3), np.array(3)])
+def test_warehouse_v0__integer_actions_of_any_numpy_kind_are_accepted(good):
+    env = parallel_env(**SMALL)
+    env.reset(seed=0)
+    acts = dict.fromkeys(env.agents, 4)
+    acts["robot_3"] = good
+    env.step(acts)
+    assert env.core.prev_actions[0, 3] == 3
+
+
+def test_warehouse_v0__unknown_agent_in_actions_is_an_error():
+    env = parallel_env(**SMALL)
+    env.reset(seed=0)
+    with pytest.raises(BenchError, match="unknown agent 'robot_77'"):
+        env.step({**dict.fromkeys(env.agents, 4), "robot_77": 4})
+    with pytest.raises(BenchError, match="actions must be a dict"):
+        env.step([4] * 6)
+
+
+def _arrive_first_step(on_goal):
+    layout = from_ascii("@@@@@\n@...@\n@...@\n@@@@@", "box")
+    env = parallel_env(n_robots=2, layout=layout, horizon=10, on_goal=on_goal)
+    env.reset(options={"starts": [(1, 1), (2, 3)], "goals": [(1, 2), (2, 1)]})
+    env.step({"robot_0": 3, "robot_1": 2})  # robot_0 arrives
+    return env
+
+
+def test_warehouse_v0__finished_agent_may_be_absent_none_or_any_valid_action():
+    env = _arrive_first_step("remove")
+    assert env.agents == ["robot_1"]
+    for finished in ({}, {"robot_0": None}, {"robot_0": 4}, {"robot_0": 1}):
+        before = env.core.t
+        env.step({"robot_1": 4, **finished})
+        assert env.core.t == before + 1 and env.agents == ["robot_1"]
+    with pytest.raises(BenchError, match="action 'x' for finished agent 'robot_0'"):
+        env.step({"robot_1": 4, "robot_0": "x"})
+    with pytest.raises(BenchError, match="action None for live agent 'robot_1'"):
+        env.step({"robot_1": None})
+
+
+def test_warehouse_v0__stay_mode_finished_robot_waits_whatever_its_action():
+    env = _arrive_first_step("stay")
+    pos = env.core.pos.copy()
+    _, _, _, _, infos = env.step({"robot_0": 2, "robot_1": 4})  # a move: masked, ignored
+    np.testing.assert_array_equal(env.core.pos, pos)
+    assert not infos["robot_0"]["invalid"] and infos["robot_0"]["position"] == (1, 2)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"start": [(1, 1)], "goals": [(1, 2)]}, "unknown option 'start'; did you mean 'starts'"),
+        ({"starts": [(1, 1)], "Goals": [(1, 2)]}, "unknown option 'Goals'; did you mean 'goals'"),
+        ([(1, 1)], "options must be a dict"),
+        ("starts", "options must be a dict"),
+        ({"starts": [(1.0, 1)], "goals": [(1, 2)]}, "starts must hold integer .* float64"),
+        ({"starts": [(1, 1)], "goals": [(1.5, 2)]}, "goals must hold integer"),
+        ({"starts": [(True, 1)], "goals": [(1, 2)]}, "starts must hold integer .* bool values such as True"),
+        ({"starts": [(1, 1)], "goals": [("1", 2)]}, "goals must hold integer"),
+        ({"starts": [(1, 1), (1,)], "goals": [(1, 2)]}, "starts must be a list of"),
+    ],
+)
+def test_warehouse_v0__bad_reset_options_are_errors(options, message):
+    env = parallel_env(n_robots=1, layout="tiny")
+    with pytest.raises(BenchError, match=message):
+        env.reset(options=options)
+
+
+def test_warehouse_v0__other_reset_options_are_ignored_with_a_warning():
+    env = parallel_env(**SMALL)
+    with pytest.warns(UserWarning, match="option 'speed' is not used"):
+        obs, _ = env.reset(seed=0, options={"speed": 2})
+    obs2, _ = parallel_env(**SMALL).reset(seed=0)
+    np.testing.assert_array_equal(obs["robot_0"]["observation"], obs2["robot_0"]["observation"])
+
+
+def test_bench_error_is_a_value_error():
+    assert issubclass(BenchError, ValueError)
+
+
+# --------------------------------------------------- wrappers need (issue 15)
+def test_warehouse_v0__robot_starting_on_its_goal_is_in_reset_and_ends_at_first_step():
+    layout = from_ascii("@@@@@\n@...@\n@...@\n@@@@@", "box")
+    env = parallel_env(n_robots=2, layout=layout, horizon=10)
+    obs, infos = env.reset(options={"starts": [(1, 1), (2, 3)], "goals": [(1, 1), (2, 1)]})
+    assert env.agents == ["robot_0", "robot_1"] and set(obs) == set(infos) == set(env.agents)
+    np.testing.assert_array_equal(obs["robot_0"]["action_mask"], [0, 0, 0, 0, 1])
+    assert infos["robot_0"]["at_goal"]
+    _, rew, term, trunc, _ = env.step({"robot_0": 4, "robot_1": 2})
+    assert term == {"robot_0": True, "robot_1": False} and not any(trunc.values())
+    assert rew["robot_0"] == rew["robot_1"] and env.agents == ["robot_1"]
+
+
+def test_warehouse_v0__sampled_scenarios_never_start_a_robot_on_its_goal():
+    env = parallel_env(n_robots=30, layout="tiny")
+    for seed in range(30):
+        _, infos = env.reset(seed=seed)
+        assert not any(info["at_goal"] for info in infos.values())
+
+
+def test_warehouse_v0__groups_default_to_min_4_n():
+    assert parallel_env(n_robots=2, layout="tiny").config.groups == 2
+    assert parallel_env(n_robots=3, layout="tiny").config.groups == 3
+    assert parallel_env(n_robots=9, layout="tiny").config.groups == 4
+    assert parallel_env(n_robots=2, groups=1, layout="tiny").config.groups == 1
+    assert EnvConfig.make(n_robots=2).groups == 2
+    with pytest.raises(BenchError, match="groups=4 exceeds n_robots=2"):
+        parallel_env(n_robots=2, groups=4, layout="tiny")
+
+
+def test_warehouse_v0__flat_observation_is_features_then_mask():
+    env = parallel_env(**SMALL, flat_obs=True)
+    ref = parallel_env(**SMALL)
+    obs, _ = env.reset(seed=3)
+    obs_ref, _ = ref.reset(seed=3)
+    for a in env.agents:
+        assert obs[a].dtype == np.float32 and env.observation_space(a).contains(obs[a])
+        np.testing.assert_array_equal(obs[a], np.concatenate(
+            [obs_ref[a]["observation"], obs_ref[a]["action_mask"].astype(np.float32)]))
+
+
+def test_warehouse_v0__observations_are_views_of_one_batched_array():
+    env = parallel_env(**SMALL)
+    obs, _ = env.reset(seed=0)
+    base = obs["robot_0"]["observation"].base
+    assert base is not None and all(obs[a]["observation"].base is base for a in env.agents)
+    feats = robot_features(env.core, env.patch, env.groups)[0]
+    np.testing.assert_array_equal(np.stack([obs[a]["observation"] for a in env.agents]), feats)
+    _, infos = env.reset(seed=0)
+    infos["robot_0"]["terminal_observation"] = 1  # SuperSuit writes into infos
