@@ -8,10 +8,16 @@ clock starts; each timed segment is one episode of ``steps`` steps from a fresh
 (untimed) reset, repeated until ``target_seconds`` of stepping have been timed, so robots
 reaching goals do not thin out the floor as a long random walk would.
 
+Mode ``pettingzoo`` times our PettingZoo adapter ``envs.warehouse_v0`` (B = 1, patch
+radius 5): the step with every agent's observation, mask, reward, flags and infos.
+
 Anchors (one env, B = 1) run on the same grids in ``.anchors-venv`` (``make anchors``):
-POGEMA ``pogema_v0`` (11x11 observations, ``on_target="finish"``) and RWARE's
-``Warehouse`` with blocked cells as shelves. ``vs_pogema`` is a row's agent-steps/s over
-POGEMA's on the same layout and N. Without the anchor venv the table holds our rows and
+POGEMA ``pogema_v0`` (11x11 observations, ``on_target="finish"``, collision system
+``soft``, the closest to ours: ours is POGEMA soft without its lowest-index-wins rule for
+contested cells, docs/decisions.md), POGEMA's PettingZoo wrapper (mode ``pettingzoo``,
+same settings) and RWARE's ``Warehouse`` with blocked cells as shelves. ``vs_pogema`` is
+a row's agent-steps/s over POGEMA's on the same layout and N (PettingZoo rows over
+POGEMA's PettingZoo wrapper). Without the anchor venv the table holds our rows and
 a note saying why the anchors are missing.
 
     .venv/bin/python -m bench.perf_env           # markdown table, then JSON
@@ -33,6 +39,7 @@ from envs.core import WarehouseCore
 from envs.layouts import MAPS_DIR, Layout, load_layout, preset_for
 from envs.observations import PatchExtractor, robot_features
 from envs.scenarios import sample_scenarios
+from envs.warehouse_v0 import parallel_env
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
@@ -74,6 +81,37 @@ def time_core(
     return total_steps, total_time
 
 
+def time_pettingzoo(
+    layout: Layout, n: int, steps: int, target_seconds: float, seed: int = 0,
+) -> tuple[int, float]:
+    """(timed steps, timed seconds) through ``warehouse_v0.parallel_env`` (B = 1).
+
+    What a user of the PettingZoo API pays per step: the core step, observations
+    (radius ``OBS_RADIUS``, as POGEMA's) with action masks, rewards, terminations and
+    infos for every live agent. Each step's action dict holds all N agents (finished
+    agents' actions are ignored, as POGEMA's wrapper does), drawn before the clock.
+    """
+    env = parallel_env(n_robots=n, layout=layout, horizon=steps, obs_radius=OBS_RADIUS)
+    rng = np.random.default_rng(seed)
+    names = env.possible_agents
+    total_steps, total_time, episode = 0, 0.0, 0
+    while total_time < target_seconds or total_steps == 0:
+        env.reset(seed=seed + episode)
+        actions = [dict(zip(names, a, strict=True))
+                   for a in rng.integers(0, 5, size=(steps, n)).tolist()]
+        t0 = time.perf_counter()
+        done = 0
+        for a in actions:
+            if not env.agents:
+                break
+            env.step(a)
+            done += 1
+        total_time += time.perf_counter() - t0
+        total_steps += done
+        episode += 1
+    return total_steps, total_time
+
+
 def run_anchors(
     cases: list[tuple[Layout, int]], steps: int, target_seconds: float, seed: int = 0,
 ) -> tuple[list[dict], str]:
@@ -84,7 +122,7 @@ def run_anchors(
         dict(sim=sim, layout=layout.name, n_agents=n, steps=steps, seed=seed,
              target_seconds=target_seconds,
              grid=["".join("#" if o else "." for o in row) for row in layout.obstacles])
-        for layout, n in cases for sim in ("pogema", "rware")
+        for layout, n in cases for sim in ("pogema", "pogema_pettingzoo", "rware")
     ]}
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     proc = subprocess.run(
@@ -96,7 +134,9 @@ def run_anchors(
         return [], f"anchors failed (exit {proc.returncode}): {last}"
     rows = json.loads(proc.stdout)
     for row in rows:
-        row["mode"], row["note"] = "env", row.pop("settings")
+        row["mode"] = "pettingzoo" if row["sim"] == "pogema_pettingzoo" else "env"
+        row["sim"] = row["sim"].replace("_pettingzoo", "")
+        row["note"] = row.pop("settings")
     return rows, ""
 
 
@@ -109,6 +149,7 @@ def run_env_suite(
     real_map: str | Path | None = REAL_MAP,
     real_map_n: int = 100,
     with_obs: bool = True,
+    with_pettingzoo: bool = True,
 ) -> pd.DataFrame:
     """Agent-steps/s and env-steps/s of our core (and the anchors) in one table.
 
@@ -129,6 +170,13 @@ def run_env_suite(
                     steps=done, seconds=secs, env_steps_per_s=done * batch / secs,
                     agent_steps_per_s=done * batch * n / secs, version=version, note="",
                 ))
+        if with_pettingzoo:
+            done, secs = time_pettingzoo(layout, n, steps, target_seconds)
+            rows.append(dict(
+                sim="ours", mode="pettingzoo", layout=layout.name, n_robots=n, batch=1,
+                steps=done, seconds=secs, env_steps_per_s=done / secs,
+                agent_steps_per_s=done * n / secs, version=version, note="",
+            ))
     note = "anchors not requested"
     if include_anchors:
         anchor_rows, note = run_anchors(cases, steps, target_seconds)
@@ -136,12 +184,16 @@ def run_env_suite(
     df = pd.DataFrame(rows)
     if note:
         df.loc[df["sim"] == "ours", "note"] = note
+    # Core rows compare with POGEMA's env, PettingZoo rows with POGEMA's PettingZoo wrapper.
+    kind = {"pettingzoo": "pettingzoo"}
     pogema = {
-        (r.layout, r.n_robots): r.agent_steps_per_s for r in df.itertuples() if r.sim == "pogema"
+        (r.layout, r.n_robots, r.mode): r.agent_steps_per_s
+        for r in df.itertuples() if r.sim == "pogema"
     }
+    keys = [(r.layout, r.n_robots, kind.get(r.mode, "env")) for r in df.itertuples()]
     df["vs_pogema"] = [
-        r.agent_steps_per_s / pogema[(r.layout, r.n_robots)]
-        if (r.layout, r.n_robots) in pogema else float("nan") for r in df.itertuples()
+        r.agent_steps_per_s / pogema[k] if k in pogema else float("nan")
+        for r, k in zip(df.itertuples(), keys, strict=True)
     ]
     return df.reindex(columns=COLUMNS)
 

@@ -44,13 +44,9 @@ from envs.observations import PatchExtractor, feature_size, robot_features
 from envs.pz_inputs import action_vector, scenario_options
 from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.scenarios import sample_scenarios, validate_scenario
+from envs.step_infos import StepInfos
 
 RENDER_MODES = ("human", "rgb_array", "ansi")
-INFO_KEYS = (
-    "position", "goal", "group", "collision", "at_goal", "invalid", "progress",
-    "goal_bonus", "collision_penalty", "time_penalty", "link_available", "payload_hier",
-    "payload_dec", "t",
-)
 
 
 def parallel_env(**kwargs: Any) -> WarehouseParallelEnv:
@@ -170,11 +166,10 @@ class WarehouseParallelEnv(ParallelEnv):
         self.frames = []
         if self.record:
             self.frames.append(self._frame())
-        everyone = np.arange(n)
         zero = np.zeros(n)
         no = np.zeros(n, dtype=bool)
-        return (self._observations(everyone),
-                self._infos(everyone, zero, zero, zero, zero, no, no))
+        return (self._observations(None),
+                self._infos(self.agents, zero, zero, zero, zero, no, no))
 
     # ------------------------------------------------------------------- step
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -190,6 +185,7 @@ class WarehouseParallelEnv(ParallelEnv):
         self._last = res
         self.links = self.channel.step()[0]  # A_{t+1}: messages carrying X_{t+1}
 
+        everyone = len(self.agents) == self.config.n_robots
         live = np.flatnonzero(self._live)  # agents alive at the start of this step
         ended = bool(res.terminated[0] or res.truncated[0])
         # "remove": a robot is terminated the step it completes (or at the first step if
@@ -197,12 +193,12 @@ class WarehouseParallelEnv(ParallelEnv):
         done = self.core.done[0] if self.core.remove else np.zeros_like(self._live)
         term = done[live] | bool(res.terminated[0])
         trunc = ~term & bool(res.truncated[0])
-        names = [self.possible_agents[i] for i in live.tolist()]
+        names = self.agents  # == [possible_agents[i] for i in live]
         rewards = dict.fromkeys(names, float(res.reward[0]))
         terminations = dict(zip(names, term.tolist(), strict=True))
         truncations = dict(zip(names, trunc.tolist(), strict=True))
-        obs = self._observations(live)
-        infos = self._infos(live, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
+        obs = self._observations(None if everyone else live)
+        infos = self._infos(names, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
                             res.time_penalty[0], res.collision[0], res.invalid[0])
         if ended:
             self._live[:] = False
@@ -222,37 +218,39 @@ class WarehouseParallelEnv(ParallelEnv):
         mask[self.core.done[0], :WAIT] = 0
         return mask
 
-    def _observations(self, idx: np.ndarray) -> dict[str, Any]:
-        """Observations of robots ``idx``: row views of one (N, F) array (and (N, 5) mask)."""
+    def _observations(self, idx: np.ndarray | None) -> dict[str, Any]:
+        """Observations of robots ``idx`` (None: all): row views of one (N, F) feature
+        array and one (N, 5) mask array of this step."""
         feats = robot_features(self.core, self.patch, self.groups)[0]  # (N, F)
         mask = self.action_masks()
-        names = [self.possible_agents[i] for i in idx.tolist()]
+        if idx is None:
+            names = self.possible_agents
+        else:
+            names = [self.possible_agents[i] for i in idx.tolist()]
+            feats, mask = feats[idx], mask[idx]
         if self.flat_obs:
-            flat = np.concatenate([feats, mask.astype(np.float32)], axis=1)
-            return dict(zip(names, flat[idx], strict=True))
+            return dict(zip(names, np.concatenate([feats, mask.astype(np.float32)], axis=1),
+                            strict=True))
         return {a: {"observation": f, "action_mask": m}
-                for a, f, m in zip(names, feats[idx], mask[idx], strict=True)}
+                for a, f, m in zip(names, feats, mask, strict=True)}
 
-    def _infos(self, idx: np.ndarray, progress: np.ndarray, goal_bonus: np.ndarray,
+    def _infos(self, names: list[str], progress: np.ndarray, goal_bonus: np.ndarray,
                collision_penalty: np.ndarray, time_penalty: np.ndarray,
-               collision: np.ndarray, invalid: np.ndarray) -> dict[str, dict]:
-        """Infos of robots ``idx`` (keys ``INFO_KEYS``), one column conversion per key."""
+               collision: np.ndarray, invalid: np.ndarray) -> StepInfos:
+        """Infos of agents ``names`` (keys ``INFO_KEYS``), built lazily from (N, ...)
+        columns of this step (``envs.step_infos``)."""
         cells = self.layout.cells
-        pos, goal = self.core.pos[0, idx], self.core.goal[0, idx]
-        z = self.groups[idx]
-        m = len(idx)
-        columns = (
-            map(tuple, cells[pos].tolist()), map(tuple, cells[goal].tolist()), z.tolist(),
-            collision[idx].tolist(), (pos == goal).tolist(), invalid[idx].tolist(),
-            progress[idx].tolist(), goal_bonus[idx].tolist(),
-            collision_penalty[idx].tolist(), time_penalty[idx].tolist(),
-            self.links.T[z],  # (m, Z) row views: does z receive from z' this step
-            [self.channel.payload_hier] * m, [self.channel.payload_dec] * m,
-            [self.core.t] * m,
-        )
-        names = [self.possible_agents[i] for i in idx.tolist()]
-        return {a: dict(zip(INFO_KEYS, row, strict=True))
-                for a, row in zip(names, zip(*columns, strict=True), strict=True)}
+        pos, goal = self.core.pos[0], self.core.goal[0]
+        columns = {
+            "position": cells[pos], "goal": cells[goal], "group": self.groups,
+            "collision": collision, "at_goal": pos == goal, "invalid": invalid,
+            "progress": progress, "goal_bonus": goal_bonus,
+            "collision_penalty": collision_penalty, "time_penalty": time_penalty,
+            "link_available": self.links.T[self.groups],  # (N, Z): does z_i hear from z'
+        }
+        constants = {"payload_hier": self.channel.payload_hier,
+                     "payload_dec": self.channel.payload_dec, "t": self.core.t}
+        return StepInfos(names, self.agent_ids, columns, constants)
 
     def state(self) -> np.ndarray:
         """(5 N + 1,) float32 global state: positions and goals (row/H, col/W), completed
