@@ -57,3 +57,4 @@ def test_sb3__ppo_recipe_learns_on_tiny(seed):
     before = arrived(train(0, seed, **TINY), episodes=20, seed=1000, **TINY)
     after = arrived(train(20_000, seed, **TINY), episodes=20, seed=1000, **TINY)
     assert after > before + 0.2, (before, after)
+
