@@ -20,6 +20,8 @@ from envs.errors import BenchError
 ACTION_NAMES = "0 Up, 1 Down, 2 Left, 3 Right, 4 Wait"
 # Python int and every numpy integer scalar type (bool and np.bool_ are not among them).
 _INT_TYPES = frozenset({int} | {np.dtype(c).type for c in np.typecodes["AllInteger"]})
+_FAST_INT_TYPES = _INT_TYPES - {np.uint64}  # types that always fit int64 (Python ints:
+# np.array raises OverflowError beyond int64, caught below)
 SCENARIO_KEYS = ("starts", "goals")
 
 
@@ -40,11 +42,13 @@ def _as_action(value: Any) -> int | None:
 
 
 def action_vector(
-    actions: Any, agent_ids: Mapping[str, int], live: np.ndarray, out: np.ndarray
+    actions: Any, names: list[str], agent_ids: Mapping[str, int], live: np.ndarray,
+    out: np.ndarray,
 ) -> np.ndarray:
     """Fill ``out`` ((N,) int64) with the actions of a parallel ``step``.
 
-    ``actions`` maps agent names to actions in 0..4. Every live agent (``live`` (N,) bool)
+    ``actions`` maps agent names to actions in 0..4; ``names`` are all N agent names in
+    index order and ``agent_ids`` maps each to its index. Every live agent (``live`` (N,) bool)
     needs one. Agents that already left the episode may be absent, map to ``None``, or map
     to any valid action (ignored: a finished robot only Waits); an invalid value is an
     error for them too. Unknown agent names are errors.
@@ -52,19 +56,28 @@ def action_vector(
     if not isinstance(actions, Mapping):
         raise BenchError(
             f"step: actions must be a dict {{agent: action}}, got {type(actions).__name__}")
-    out.fill(WAIT)
-    # Fast path (one C-level pass per check): known names, integer types, all in range.
-    idx = list(map(agent_ids.get, actions.keys()))
-    values = list(actions.values())
-    if None not in idx and _INT_TYPES.issuperset(map(type, values)):
-        a = np.array(values, dtype=np.int64)
+    # Fast path (C-level passes): integer types, all in range, names known; the common
+    # dict over every agent in index order is one copy.
+    keys, values = list(actions), list(actions.values())
+    if _FAST_INT_TYPES.issuperset(map(type, values)):
+        try:
+            a = np.array(values, dtype=np.int64)
+        except OverflowError:  # a Python int beyond int64: the slow path names it
+            a = np.full(1, N_ACTIONS)
         if (a.view(np.uint64) < N_ACTIONS).all():  # negatives wrap to huge values
-            given = np.zeros(len(out), dtype=bool)
-            given[idx] = True
-            if (given | ~live).all():
-                out[idx] = a
+            if keys == names:
+                out[:] = a
                 return out
+            idx = list(map(agent_ids.get, keys))
+            if None not in idx:
+                given = np.zeros(len(out), dtype=bool)
+                given[idx] = True
+                if (given | ~live).all():
+                    out.fill(WAIT)
+                    out[idx] = a
+                    return out
     # Slow path: the same rules, one agent at a time, to name the first offender.
+    out.fill(WAIT)
     given = np.zeros(len(out), dtype=bool)
     for agent, value in actions.items():
         i = agent_ids.get(agent) if isinstance(agent, str) else None

@@ -180,32 +180,37 @@ class WarehouseParallelEnv(ParallelEnv):
         if self.core.ended[0]:
             raise BenchError(
                 f"step: the episode ended at t={self.core.t} (no agents left); call reset()")
-        u = action_vector(actions, self.agent_ids, self._live, self._actions)
+        u = action_vector(actions, self.possible_agents, self.agent_ids, self._live,
+                          self._actions)
         res = self.core.step(u[None])
         self._last = res
         self.links = self.channel.step()[0]  # A_{t+1}: messages carrying X_{t+1}
 
-        everyone = len(self.agents) == self.config.n_robots
-        live = np.flatnonzero(self._live)  # agents alive at the start of this step
-        ended = bool(res.terminated[0] or res.truncated[0])
+        names = self.agents  # alive at the start of this step, in index order
+        everyone = len(names) == self.config.n_robots
+        live = None if everyone else np.flatnonzero(self._live)
+        terminated, truncated = bool(res.terminated[0]), bool(res.truncated[0])
         # "remove": a robot is terminated the step it completes (or at the first step if
         # it started on its goal); "stay": only when the whole team has completed.
-        done = self.core.done[0] if self.core.remove else np.zeros_like(self._live)
-        term = done[live] | bool(res.terminated[0])
-        trunc = ~term & bool(res.truncated[0])
-        names = self.agents  # == [possible_agents[i] for i in live]
+        if terminated or not self.core.remove:
+            term = np.full(len(names), terminated)
+        else:
+            term = self.core.done[0] if everyone else self.core.done[0, live]
         rewards = dict.fromkeys(names, float(res.reward[0]))
-        terminations = dict(zip(names, term.tolist(), strict=True))
-        truncations = dict(zip(names, trunc.tolist(), strict=True))
-        obs = self._observations(None if everyone else live)
+        any_term = bool(term.any())
+        terminations = (dict(zip(names, term.tolist(), strict=True)) if any_term
+                        else dict.fromkeys(names, False))
+        truncations = (dict(zip(names, (~term).tolist(), strict=True)) if truncated
+                       else dict.fromkeys(names, False))
+        obs = self._observations(live)
         infos = self._infos(names, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
                             res.time_penalty[0], res.collision[0], res.invalid[0])
-        if ended:
+        if terminated or truncated:
             self._live[:] = False
-        else:
-            self._live[live[term]] = False
-        if ended or term.any():
-            self.agents = [a for a, keep in zip(names, ~term, strict=True) if keep and not ended]
+            self.agents = []
+        elif any_term:
+            self._live[np.flatnonzero(self._live)[term]] = False
+            self.agents = [a for a, done in zip(names, term.tolist(), strict=True) if not done]
         if self.record:
             self.frames.append(self._frame())
         return obs, rewards, terminations, truncations, infos

@@ -484,3 +484,17 @@ def test_warehouse_v0__observations_are_views_of_one_batched_array():
     np.testing.assert_array_equal(np.stack([obs[a]["observation"] for a in env.agents]), feats)
     _, infos = env.reset(seed=0)
     infos["robot_0"]["terminal_observation"] = 1  # SuperSuit writes into infos
+
+
+@pytest.mark.parametrize("huge", [2**70, np.uint64(2**64 - 1), -(2**70)])
+def test_warehouse_v0__huge_integer_actions_are_errors_not_overflows(huge):
+    env = parallel_env(**SMALL)
+    env.reset(seed=0)
+    with pytest.raises(BenchError, match="for live agent 'robot_0' is not an integer in 0..4"):
+        env.step({**dict.fromkeys(env.agents, 4), "robot_0": huge})
+
+
+def test_warehouse_v0__actions_in_any_order_or_subset_map_to_the_right_robots():
+    env = _arrive_first_step("remove")  # robot_0 finished, robot_1 live
+    env.step({"robot_1": 0, "robot_0": 3})  # reversed order, finished agent's action ignored
+    assert env.core.prev_actions[0].tolist() == [4, 0]
