@@ -58,6 +58,12 @@ def test_step_infos__every_read_path_gives_the_built_dicts(read):
     assert all(type(v) in (int, float, bool, tuple) for v in want["robot_0"].values())
 
 
+def test_step_infos__copies_and_pickles_are_plain_dicts_without_the_columns():
+    infos, _ = make_infos()
+    for clone in (pickle.loads(pickle.dumps(infos)), copy.deepcopy(infos), copy.copy(infos)):
+        assert type(clone) is dict
+
+
 def test_step_infos__is_a_mutable_dict_like_supersuit_expects():
     infos, want = make_infos()
     assert isinstance(infos, dict) and len(infos) == 2 and "robot_1" in infos
