@@ -77,7 +77,8 @@ def time_pogema_pettingzoo(case: dict) -> dict:
     total_steps, total_time, episode = 0, 0.0, 0
     while total_time < case["target_seconds"] or total_steps == 0:
         env.reset(seed=case["seed"] + episode)
-        actions = [dict(zip(names, a)) for a in rng.integers(0, 5, size=(steps, n)).tolist()]
+        actions = [dict(zip(names, a, strict=True))
+                   for a in rng.integers(0, 5, size=(steps, n)).tolist()]
         t0 = CLOCK()
         done = 0
         for a in actions:

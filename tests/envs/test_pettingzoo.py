@@ -14,8 +14,8 @@ from envs.config import EnvConfig
 from envs.core import WarehouseCore
 from envs.errors import BenchError
 from envs.layouts import from_ascii, load_layout
-from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.observations import robot_features
+from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.scenarios import sample_scenarios
 from envs.warehouse_v0 import parallel_env
 

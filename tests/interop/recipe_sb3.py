@@ -36,6 +36,6 @@ def arrived(model: PPO, episodes: int, seed: int, **config) -> float:
         while env.agents:
             names = env.agents
             acts, _ = model.predict(np.stack([obs[a] for a in names]), deterministic=False)
-            obs, _, _, _, infos = env.step(dict(zip(names, acts.tolist())))
+            obs, _, _, _, infos = env.step(dict(zip(names, acts.tolist(), strict=True)))
         hits.append(np.mean([info["at_goal"] for info in infos.values()]))
     return float(np.mean(hits))
