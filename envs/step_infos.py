@@ -11,7 +11,7 @@ mutable ``dict``s: SuperSuit and Stable-Baselines3 write keys such as
 """
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -27,7 +27,9 @@ _PENDING = object()  # placeholder value of an agent whose info is not built yet
 class StepInfos(dict):
     """{agent: info} for one step; see the module docstring.
 
-    ``agent_ids`` maps agent names to robot indices i; ``columns`` holds, per robot i,
+    ``agent_ids`` maps agent names to robot indices i; ``columns`` (or a function called
+    on the first read that returns them, so nothing is computed for unread infos) holds,
+    per robot i,
     ``position``/``goal`` (N, 2) (row, col), ``group`` (N,), ``collision``, ``at_goal``,
     ``invalid`` (N,) bool, the four reward terms (N,) float, ``link_available`` (N, Z)
     bool (row i: A_t[:, z_i]); ``constants`` are ``payload_hier``, ``payload_dec``, ``t``.
@@ -37,7 +39,8 @@ class StepInfos(dict):
     __slots__ = ("_ids", "_cols", "_lists", "_const")
 
     def __init__(self, names: list[str], agent_ids: Mapping[str, int],
-                 columns: dict[str, np.ndarray], constants: dict[str, int]) -> None:
+                 columns: dict[str, np.ndarray] | Callable[[], dict[str, np.ndarray]],
+                 constants: dict[str, int]) -> None:
         dict.update(self, dict.fromkeys(names, _PENDING))
         self._ids, self._cols, self._const = agent_ids, columns, constants
         self._lists: dict[str, list] | None = None
@@ -45,6 +48,8 @@ class StepInfos(dict):
     def _build(self, agent: str) -> dict[str, Any]:
         lists = self._lists
         if lists is None:  # one tolist per column, the first time any info is read
+            if callable(self._cols):
+                self._cols = self._cols()
             lists = self._lists = {k: v.tolist() for k, v in self._cols.items()
                                    if k != "link_available"}
         i = self._ids[agent]

@@ -27,6 +27,7 @@ converted with one ``tolist`` each. Bad input raises ``envs.errors.BenchError`` 
 from __future__ import annotations
 
 import sys
+from functools import partial
 from typing import Any
 
 import gymnasium
@@ -242,17 +243,14 @@ class WarehouseParallelEnv(ParallelEnv):
     def _infos(self, names: list[str], progress: np.ndarray, goal_bonus: np.ndarray,
                collision_penalty: np.ndarray, time_penalty: np.ndarray,
                collision: np.ndarray, invalid: np.ndarray) -> StepInfos:
-        """Infos of agents ``names`` (keys ``INFO_KEYS``), built lazily from (N, ...)
-        columns of this step (``envs.step_infos``)."""
-        cells = self.layout.cells
-        pos, goal = self.core.pos[0], self.core.goal[0]
-        columns = {
-            "position": cells[pos], "goal": cells[goal], "group": self.groups,
-            "collision": collision, "at_goal": pos == goal, "invalid": invalid,
-            "progress": progress, "goal_bonus": goal_bonus,
-            "collision_penalty": collision_penalty, "time_penalty": time_penalty,
-            "link_available": self.links.T[self.groups],  # (N, Z): does z_i hear from z'
-        }
+        """Infos of agents ``names`` (keys ``INFO_KEYS``), built on first read from
+        copies of this step's (N,) arrays (``envs.step_infos``)."""
+        # Copies (a few hundred bytes): the infos must not change if the core or the
+        # channel ever reuse their arrays in place.
+        columns = partial(_info_columns, self.layout.cells, *(x.copy() for x in (
+            self.core.pos[0], self.core.goal[0])), self.groups, self.links.copy(),
+            *(x.copy() for x in (progress, goal_bonus, collision_penalty, time_penalty,
+                                 collision, invalid)))
         constants = {"payload_hier": self.channel.payload_hier,
                      "payload_dec": self.channel.payload_dec, "t": self.core.t}
         return StepInfos(names, self.agent_ids, columns, constants)
@@ -313,6 +311,21 @@ class WarehouseParallelEnv(ParallelEnv):
 
     def close(self) -> None:
         self.frames = []
+
+
+def _info_columns(cells: np.ndarray, pos: np.ndarray, goal: np.ndarray, groups: np.ndarray,
+                  links: np.ndarray, progress: np.ndarray, goal_bonus: np.ndarray,
+                  collision_penalty: np.ndarray, time_penalty: np.ndarray,
+                  collision: np.ndarray, invalid: np.ndarray) -> dict[str, np.ndarray]:
+    """The (N, ...) columns of ``StepInfos`` from cell indices pos/goal (N,), the cell
+    table (F, 2) and A_t (Z, Z)."""
+    return {
+        "position": cells[pos], "goal": cells[goal], "group": groups,
+        "collision": collision, "at_goal": pos == goal, "invalid": invalid,
+        "progress": progress, "goal_bonus": goal_bonus,
+        "collision_penalty": collision_penalty, "time_penalty": time_penalty,
+        "link_available": links.T[groups],  # (N, Z): does z_i hear from z'
+    }
 
 
 def _clone(space: spaces.Space) -> spaces.Space:

@@ -92,9 +92,15 @@ def test_warehouse_v0__infos_match_eager_core_values_after_steps():
         acts = {a: int(rng.integers(5)) for a in env.agents}
         obs, _, _, _, infos = env.step(acts)
         pos_then, links_then, t_then = env.core.pos.copy(), env.links.copy(), env.core.t
+        res_then = env._last
+        progress_then, collision_then = res_then.progress.copy(), res_then.collision.copy()
+    res_then.progress += 1.0  # a core reusing its arrays in place must not change infos
+    res_then.collision[:] = ~collision_then
     env.step(dict.fromkeys(env.agents, 4))  # later steps must not change earlier infos
     for a, info in infos.items():
         i = env.agent_ids[a]
         assert info["position"] == tuple(env.layout.cells[pos_then[0, i]])
         np.testing.assert_array_equal(info["link_available"], links_then[:, env.groups[i]])
         assert info["t"] == t_then == 5
+        assert info["progress"] == progress_then[0, i]
+        assert info["collision"] == collision_then[0, i]
