@@ -20,8 +20,9 @@ with ``"stay"`` it remains (Wait only) until the episode ends, so the agent set 
 for the whole episode. At the horizon every remaining agent is truncated.
 
 Observations and infos of all agents are built at once from the batched core: each
-agent's arrays are row views of one (N, ...) array per step, and the infos' columns are
-converted with one ``tolist`` each. Bad input raises ``envs.errors.BenchError`` (a
+agent's arrays are row views of one (N, ...) array per step, and ``infos`` is a dict whose
+per-agent dicts are built on first read from copies of the step's (N,) arrays
+(``envs.step_infos``). Bad input raises ``envs.errors.BenchError`` (a
 ``ValueError``) naming the agent or option and the value (``envs.pz_inputs``).
 """
 from __future__ import annotations
