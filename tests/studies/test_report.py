@@ -19,6 +19,8 @@ def _frame() -> pd.DataFrame:
         "value": [0.5, 0.7, 0.9, 0.1, np.nan],
         "success_rate": [0.5, 0.7, 0.9, 0.1, np.nan], "team_return": [1.0, 2.0, 3.0, 0.0, np.nan],
         "ref_size": [4, 4, 8, 8, 2], "search_radius": [1, 1, 2, 1, 0],
+        "intermediate_json": ['{"1": 0.2, "2": 0.5}', '{"1": 0.4, "2": 0.7}', '{"1": 0.3, "2": 0.9}',
+                              '{"1": 0.1}', "{}"],
     })
 
 
@@ -59,6 +61,8 @@ def test_build_study_report__writes_figures_markdown_and_html(tmp_path: Path) ->
     # replicates default to 2: only (4, 1) has two complete, unpruned ones; (8, 2) scores more once
     assert "ref_size=4, search_radius=1: mean objective 0.6000 over 2 replicates" in text
     assert "| 4 | 1 | 2 | 0 | 0 | 0.6000 | [-0.6706, 1.8706] |" in text  # t_{.975,1} * 0.1414 / sqrt 2
+    # update 1 vs final over the 3 complete trials: ranks (1,3,2) vs (1,2,3), rho = 1 - 6*2/24
+    assert "| 1 |  | 3 | 0.50 |" in text
     page = (tmp_path / "report" / "study.html").read_text()
     assert page.count("<table") == 3 and '<img src="study_curves.png"' in page
 def test_build_study_report__without_trials_is_an_error(tmp_path: Path) -> None:
