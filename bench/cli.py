@@ -206,9 +206,11 @@ def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
     episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
-    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>.gif)."),
+    out: Path | None = typer.Option(None, "--out", help="Output path (default: RUN/replays/<cell>-ep<K>.<format>)."),
+    fmt: str = typer.Option("gif", "--format", help="gif, or mp4 (needs the imageio-ffmpeg package)."),
+    fps: float = typer.Option(8.0, "--fps", min=0.5, help="Frames (steps) per second."),
 ) -> None:
-    """Render one evaluation episode of a cell as a GIF."""
+    """Render one evaluation episode of a cell as a captioned GIF or MP4, with a legend."""
     from bench.store import RunStore
 
     run_dir = _run_dir(run)
@@ -216,11 +218,13 @@ def replay(
     if cells is None or cell not in set(cells["cell_id"]):
         raise BenchError(f"cell {cell!r} is not in {str(run_dir / 'cells.parquet')!r}")
     try:
-        from reports.replay import write_replay
+        from reports.replay import replay_progress, write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
-    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}.gif"
-    typer.echo(str(write_replay(run_dir, cell, episode, target)))
+    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}.{fmt}"
+    with replay_progress() as progress:
+        path = write_replay(run_dir, cell, episode, target, fps=fps, fmt=fmt, progress=progress)
+    typer.echo(str(path))
 
 
 # -------------------------------------------------------------------- perf
