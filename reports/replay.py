@@ -32,14 +32,14 @@ from algorithms.base import Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.registry import method_class
 from bench.cells import Cell
-from reports.plotting import method_label
-from reports.replay_frames import LegendSpec, compose, legend_panel, links_row, replay_cell_px
 from bench.schema import EVAL_SCHEMA
 from bench.store import RunStore, load_checkpoint, read_table
 from envs.channel import LossProcess, comm_graph, group_assignment
 from envs.core import StepResult
 from envs.errors import BenchError
 from envs.render import render_rgb, write_gif
+from reports.plotting import method_label
+from reports.replay_frames import LegendSpec, compose, legend_panel, links_row, replay_cell_px
 
 CHECK_COLUMNS = ("team_return", "success_rate", "collision_rate", "steps")
 FORMATS = ("gif", "mp4")
@@ -241,7 +241,14 @@ def replay_progress() -> Iterator[Progress]:
 
         yield lines
         return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     tasks: dict[str, Any] = {}
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),

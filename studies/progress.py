@@ -40,7 +40,13 @@ class TuneBar:
 
     def __init__(self, requested: int) -> None:
         from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+        )
 
         self.progress = Progress(TextColumn("[bold]trials[/]"), BarColumn(), MofNCompleteColumn(),
                                  TextColumn("{task.fields[running]} running"), TimeElapsedColumn(),

@@ -49,7 +49,7 @@ def test_export__trials_round_trip_through_parquet(finished_study, tmp_path: Pat
     back = read_trials(path)
     pd.testing.assert_frame_equal(back, frame)
     assert sorted(zip(frame["ref_size"], frame["search_radius"], frame["replicate"], strict=True)) == [
-        (r, l, k) for r in (2, 32) for l in (0, 3) for k in (0, 1)]
+        (r, rad, k) for r in (2, 32) for rad in (0, 3) for k in (0, 1)]
     assert list(frame["state"]) == ["COMPLETE"] * 8
     assert frame["value"].notna().all() and (frame["last_step"] == 3).all()
     assert not list((tmp_path / "exp").glob(".*tmp"))  # atomic write left no temp file
