@@ -107,7 +107,8 @@ def landscape_figure(trials: pd.DataFrame) -> Built:
                 ax.add_patch(Rectangle((j, i), 1, 1, fill=False, hatch="///", edgecolor="C3", linewidth=0))
         ax.set_xlabel(PARAM_LABELS["ref_size"])
         ax.set_ylabel(PARAM_LABELS["search_radius"])
-        ax.set_title("Landscape: mean evaluation success rate (ok = complete, pr = pruned)")
+        ax.grid(False)
+        ax.set_title("Mean success rate (ok = complete, pr = pruned trials)")
         ax.legend(handles=[Patch(facecolor="0.93", edgecolor="C3", hatch="///", label="all trials pruned"),
                            Patch(facecolor="0.93", label="not run")],
                   loc="upper left", bbox_to_anchor=(0.0, -0.22), ncols=2, frameon=False)

@@ -1,5 +1,6 @@
 """write_replay re-runs one evaluation episode from the store and checkpoint and records
-it frame by frame (reports/replay.py). Runtime: about 3 s (PIBT on the tiny layout)."""
+it frame by frame (reports/replay.py), and the frames are readable: width, legend, caption,
+progress, MP4. Runtime: about 15 s (PIBT on the tiny layout)."""
 from __future__ import annotations
 
 from pathlib import Path
