@@ -222,3 +222,22 @@ def test_write_replay__mp4_has_one_frame_per_step(tmp_path):
     meta = next(reader)
     assert meta["size"][0] >= 800 and meta["size"][0] % 16 == 0
     assert sum(1 for _ in reader) == rows[3]["steps"] + 1
+
+
+def test_cli_replay__progress_on_stderr_and_mp4_error_is_one_line(tmp_path, capsys, monkeypatch):
+    from bench.cli import main
+    from bench.schema import SCHEMA_VERSION
+
+    cell, _ = _store(tmp_path)
+    RunStore(tmp_path).write_manifest({"schema_version": SCHEMA_VERSION})
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", "--run", str(tmp_path), "--cell", cell.cell_id, "--episode", "1"])
+    out = capsys.readouterr()
+    assert exc.value.code in (0, None), out.err
+    assert out.out.strip().endswith(f"{cell.cell_id}-ep1.gif")
+    assert "replay: drawing frames" in out.err and "replay: encoding gif 1/1" in out.err
+    monkeypatch.setitem(__import__("sys").modules, "imageio_ffmpeg", None)
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", "--run", str(tmp_path), "--cell", cell.cell_id, "--format", "mp4"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1 and "pip install imageio-ffmpeg" in err
