@@ -10,8 +10,13 @@ when all of these hold:
 3. across those complete trials, Spearman's rank correlation between the value at ``s`` and
    the final value is at least ``min_rho`` (``--prune-min-rho``, default 0.7): the step's
    ranking is shown, on this study's own trials, to predict the final ranking;
-4. the trial's value at ``s`` is below the median of the complete trials' values at ``s``
-   (Optuna's median rule).
+4. the trial's *configuration* is below the median of the complete trials' values at
+   ``s`` (Optuna's median rule, applied to configurations): its score is the mean of the
+   trial's value at ``s`` and the final values of the configuration's complete replicates.
+   For a first replicate this is the plain median rule; a later replicate of a
+   configuration that did well is not pruned for one weak seed, which would leave the
+   configuration without the replicates its mean needs (issue #16: the best
+   configuration's own replicate was pruned).
 
 The correlation is measured on complete trials only (pruned ones have no final value), a
 survivor sample whose restricted range tends to *lower* the correlation, so the gate errs
@@ -93,10 +98,17 @@ class PredictivePruner(BasePruner):
         median = float(np.median(at))
         if not (rho >= self.min_rho):  # NaN (no ranking information) never prunes
             return False, rho, len(at), median
-        return bool(value < median), rho, len(at), median
+        return bool(configuration_score(complete, trial, value) < median), rho, len(at), median
 
     def prune(self, study: optuna.Study, trial: FrozenTrial) -> bool:
         return self.decision(study, trial)[0]
+
+
+def configuration_score(complete: Sequence[FrozenTrial], trial: FrozenTrial, value: float) -> float:
+    """Mean of ``value`` (the trial at the current step) and the final values of the complete
+    trials with the same parameters (the configuration's other replicates)."""
+    finals = [float(t.values[0]) for t in complete if t.params == trial.params and t.values]
+    return float(np.mean([value, *finals]))
 
 
 def step_correlations(intermediate: Sequence[Mapping[int, float]], finals: Sequence[float]) -> list[dict[str, float]]:

@@ -90,3 +90,18 @@ def test_pruner__needs_enough_complete_trials() -> None:
     pruner = PredictivePruner(warmup_step=1, min_rho=0.0, n_startup=5)
     study = _study(FINALS[:4], {2: FINALS[:4]}, pruner)
     assert pruner.decision(study, _running(study, {2: 0.0}))[:3:2] == (False, 4)
+
+
+def test_pruner__keeps_a_weak_replicate_of_a_configuration_that_did_well() -> None:
+    pruner = PredictivePruner(warmup_step=1, min_rho=0.7, n_startup=5)
+    study = _study(FINALS, PREDICTIVE, pruner)  # all complete trials have ref_size 2; median 0.35 at step 2
+    study.add_trial(create_trial(state=TrialState.COMPLETE, value=0.9, params={"ref_size": 32},
+                                 distributions=DIST, intermediate_values={2: 0.9}))
+    study.enqueue_trial({"ref_size": 32})
+    weak = _running(study, {2: 0.2})  # 0.2 < median 0.35, but (0.2 + 0.9) / 2 = 0.55 > 0.35
+    assert weak.params == {"ref_size": 32}
+    prune, rho, n, median = pruner.decision(study, weak)
+    assert prune is False and median == pytest.approx(0.4)  # 7 complete: median of 0.1..0.6, 0.9
+    study.enqueue_trial({"ref_size": 16})
+    alone = _running(study, {2: 0.2})  # the same value without a good replicate: pruned
+    assert pruner.decision(study, alone)[0] is True
