@@ -156,7 +156,7 @@ def curves_figure(trials: pd.DataFrame, warmup: int | None = None) -> Built:
         ax.set_xlabel("training updates")
         ax.set_ylabel("intermediate objective")
         ax.set_title("Intermediate values (what the pruner sees)")
-        ax.legend(loc="lower right")
+        ax.legend(loc="best", framealpha=0.9)
         return Built(fig, [])
 
 
