@@ -75,7 +75,8 @@ def _redact(url: str) -> str:
 
 def open_study(name: str, storage: BaseStorage, directions: list[str], seed: int,
                pruner: optuna.pruners.BasePruner) -> optuna.Study:
-    """Create or load study ``name``; its sampler is a seeded TPE (constant liar, parallel).
+    """Create or load study ``name``; its sampler is a seeded TPE (constant liar, parallel),
+    consulted only by TPE searches (an exhaustive search enqueues every trial's parameters).
 
     The sampler seed also depends on how many trials the study already holds, so a
     resumed study does not replay the random start-up proposals of its first run.
