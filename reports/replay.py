@@ -206,6 +206,9 @@ def write_mp4(frames: list[np.ndarray], path: Path | str, fps: float = 8.0) -> P
         for f in frames:
             writer.send(np.ascontiguousarray(np.pad(f, ((0, ph - h), (0, pw - w), (0, 0)), constant_values=255)))
         writer.close()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a video is an ordinary file
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
