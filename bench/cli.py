@@ -214,10 +214,12 @@ def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
     episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
-    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>[-<mode>].gif)."),
+    out: Path | None = typer.Option(None, "--out", help="Output path (default: RUN/replays/<cell>-ep<K>[-<mode>].<format>)."),
     execution: str | None = typer.Option(None, "--execution", help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
+    fmt: str = typer.Option("gif", "--format", help="gif, or mp4 (needs the imageio-ffmpeg package)."),
+    fps: float = typer.Option(8.0, "--fps", min=0.5, help="Frames (steps) per second."),
 ) -> None:
-    """Render one evaluation episode of a cell, in one execution mode, as a GIF."""
+    """Render one evaluation episode of a cell, in one execution mode, as a captioned GIF or MP4."""
     from bench.store import RunStore
 
     run_dir = _run_dir(run)
@@ -225,12 +227,15 @@ def replay(
     if cells is None or cell not in set(cells["cell_id"]):
         raise BenchError(f"cell {cell!r} is not in {str(run_dir / 'cells.parquet')!r}")
     try:
-        from reports.replay import write_replay
+        from reports.replay import replay_progress, write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
     suffix = f"-{execution}" if execution else ""
-    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.gif"
-    typer.echo(str(write_replay(run_dir, cell, episode, target, execution=execution)))
+    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.{fmt}"
+    with replay_progress() as progress:
+        path = write_replay(run_dir, cell, episode, target, fps=fps, fmt=fmt, progress=progress,
+                            execution=execution)
+    typer.echo(str(path))
 
 
 # -------------------------------------------------------------------- perf

@@ -1,5 +1,6 @@
 """write_replay re-runs one evaluation episode from the store and checkpoint and records
-it frame by frame (reports/replay.py). Runtime: about 3 s (PIBT on the tiny layout)."""
+it frame by frame (reports/replay.py), and the frames are readable: width, legend, caption,
+progress, MP4. Runtime: about 15 s (PIBT on the tiny layout)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -145,3 +146,128 @@ def test_write_replay__replays_the_stored_episode_of_the_chosen_execution_mode(t
         replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / "x.gif", execution="sample@0.25")
     with pytest.raises(BenchError, match="unknown execution mode 'argmx'"):
         replay.write_replay(tmp_path, cell.cell_id, 1, tmp_path / "x.gif", execution="argmx")
+# ------------------------------------------------------------- readable frames (issue #16)
+def _recorder_on(layout_name: str, n: int = 8, z: int = 4, steps: int = 2, proposals: bool = True,
+                 links: bool = True) -> tuple[object, replay.Recorder, np.ndarray, np.ndarray]:
+    """A hand-made recording on a layout: robots on the first free cells, goals on the last."""
+    from envs.layouts import load_layout
+
+    layout = load_layout(layout_name)
+    adjacency = ~np.eye(z, dtype=bool)
+    rec = replay.Recorder(0, adjacency, has_proposals=proposals)
+    rec.goal = np.arange(len(layout.cells) - n, len(layout.cells))
+    for t in range(steps):
+        lost = np.zeros((z, z), bool)
+        lost[0, 1] = True
+        rec.steps.append(replay.Step(t, np.arange(n) + t, np.zeros(n, bool), np.ones(n, bool),
+                                     np.eye(1, n, 0, dtype=bool)[0], np.eye(1, n, 1, dtype=bool)[0],
+                                     (adjacency & ~lost) if links and t else None))
+    return layout, rec, np.arange(n) % z, adjacency
+
+
+def test_render_steps__movingai_frames_are_at_least_800_px_wide_with_the_legend_at_the_bottom():
+    from reports.replay_frames import LegendSpec, legend_panel
+
+    layout, rec, groups, adj = _recorder_on("warehouse-10-20-10-2-1")
+    frames = replay.render_steps(layout, rec, groups, adj, 60, "title")
+    assert frames[0].shape[1] >= 800 and frames[0].shape[0] >= 63 * 6
+    legend = legend_panel(frames[0].shape[1], LegendSpec(groups=4, links=True, corrections=True))
+    np.testing.assert_array_equal(frames[1][-legend.shape[0]:], legend)
+    tiny = replay.render_steps(*_recorder_on("tiny")[0:2], groups, adj, 60, "title")
+    assert tiny[0].shape[1] >= 800
+
+
+def test_legend__names_every_mark_the_frames_can_show():
+    from reports.replay_frames import LegendSpec, legend_items
+
+    full = [label for _, label in legend_items(LegendSpec(3, links=True, corrections=True), 12)]
+    assert full[:3] == ["group 0", "group 1", "group 2"]
+    for needle in ("goal", "finished", "collision", "safety filter", "inter-group links", "lost", "not an edge"):
+        assert any(needle in label for label in full), needle
+    plain = [label for _, label in legend_items(LegendSpec(3, links=False, corrections=False), 12)]
+    assert not any("safety filter" in label or "lost" in label for label in plain)
+
+
+def test_font__is_matplotlibs_dejavu_truetype():
+    from PIL import ImageFont
+
+    from reports.replay_frames import font
+
+    f = font(15)
+    assert isinstance(f, ImageFont.FreeTypeFont) and "DejaVuSans" in f.path
+
+
+def test_write_replay__caption_names_method_n_p_cell_episode_and_execution(tmp_path, monkeypatch):
+    cell, rows = _store(tmp_path)
+    captions = []
+    compose = replay.compose
+
+    def spy(caption, *args, **kwargs):
+        captions.append([text for text, _ in caption])
+        return compose(caption, *args, **kwargs)
+
+    monkeypatch.setattr(replay, "compose", spy)
+    replay.write_replay(tmp_path, cell.cell_id, 3, tmp_path / "r.gif")
+    title = captions[0][0]
+    for needle in ("PIBT", "N=6", "p=0.5", "Z=3", "tiny", f"cell {cell.cell_id}", "episode 3",
+                   "execution planner"):
+        assert needle in title, (needle, title)
+    assert captions[-1][1].startswith(f"t = {rows[3]['steps']}/40")
+    assert len(captions) == rows[3]["steps"] + 1
+
+
+def test_write_replay__reports_progress_of_every_phase(tmp_path, capsys):
+    cell, rows = _store(tmp_path)
+    calls = []
+    replay.write_replay(tmp_path, cell.cell_id, 3, tmp_path / "r.gif", progress=lambda *a: calls.append(a))
+    phases = [c[0] for c in calls]
+    assert phases[0] == "re-running the episode" and phases[-1] == "encoding gif"
+    frames = [c for c in calls if c[0] == "drawing frames"]
+    assert frames[-1][1:] == (rows[3]["steps"] + 1,) * 2 and [c[1] for c in frames] == list(range(1, len(frames) + 1))
+    with replay.replay_progress() as progress:  # not a terminal: plain lines on stderr
+        for i in range(9):
+            progress("drawing frames", i, 8)
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"replay: drawing frames {i}/8" for i in (0, 2, 4, 6, 8)]
+
+
+def test_write_replay__mp4_without_imageio_ffmpeg_is_one_clear_error(tmp_path, monkeypatch):
+    cell, _ = _store(tmp_path)
+    monkeypatch.setitem(__import__("sys").modules, "imageio_ffmpeg", None)  # import fails
+    calls = []
+    with pytest.raises(BenchError, match="--format mp4 needs the imageio-ffmpeg package.*use --format gif"):
+        replay.write_replay(tmp_path, cell.cell_id, 3, tmp_path / "r.mp4", fmt="mp4",
+                            progress=lambda *a: calls.append(a))
+    assert calls == []  # refused before re-running the episode
+    assert not list(tmp_path.glob("*.mp4")) and not list(tmp_path.glob(".*tmp*"))
+    with pytest.raises(BenchError, match="unknown replay format 'avi'"):
+        replay.write_replay(tmp_path, cell.cell_id, 3, tmp_path / "r.avi", fmt="avi")
+
+
+def test_write_replay__mp4_has_one_frame_per_step(tmp_path):
+    ffmpeg = pytest.importorskip("imageio_ffmpeg", reason="optional: MP4 output needs imageio-ffmpeg")
+    cell, rows = _store(tmp_path)
+    out = replay.write_replay(tmp_path, cell.cell_id, 3, tmp_path / "r.mp4", fmt="mp4")
+    reader = ffmpeg.read_frames(str(out))
+    meta = next(reader)
+    assert meta["size"][0] >= 800 and meta["size"][0] % 16 == 0
+    assert sum(1 for _ in reader) == rows[3]["steps"] + 1
+
+
+def test_cli_replay__progress_on_stderr_and_mp4_error_is_one_line(tmp_path, capsys, monkeypatch):
+    from bench.cli import main
+    from bench.schema import SCHEMA_VERSION
+
+    cell, _ = _store(tmp_path)
+    RunStore(tmp_path).write_manifest({"schema_version": SCHEMA_VERSION})
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", "--run", str(tmp_path), "--cell", cell.cell_id, "--episode", "1"])
+    out = capsys.readouterr()
+    assert exc.value.code in (0, None), out.err
+    assert out.out.strip().endswith(f"{cell.cell_id}-ep1.gif")
+    assert "replay: drawing frames" in out.err and "replay: encoding gif 1/1" in out.err
+    monkeypatch.setitem(__import__("sys").modules, "imageio_ffmpeg", None)
+    with pytest.raises(SystemExit) as exc:
+        main(["replay", "--run", str(tmp_path), "--cell", cell.cell_id, "--format", "mp4"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and err.count("\n") == 1 and "pip install imageio-ffmpeg" in err
