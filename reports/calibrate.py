@@ -213,3 +213,16 @@ def ci_coverage(sims: int = 2000, seed: int = 0, seed_counts: tuple[int, ...] = 
                      {"interval": "percentile bootstrap over seeds (replaced)", "distribution": dist,
                       "seeds": s, "coverage": b_hits / sims, "sims": sims}]
     return pd.DataFrame(rows)
+
+
+def calibration_report(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SEED_COUNTS,
+                       coverage_sims: int = 2000) -> dict:
+    """Everything ``bench calibrate --json`` prints: meta, calibration rows, CI coverage
+    rows, and whether every null rate is within ``null_limit``."""
+    cal = calibrate(sims, seed, seed_counts)
+    cov = ci_coverage(coverage_sims, seed)
+    return {"meta": {"sims": sims, "seed": seed, "alpha": ALPHA, "null_limit": round(null_limit(sims), 4),
+                     "seed_counts": list(seed_counts), "coverage_sims": coverage_sims,
+                     "train_episodes": TRAIN_EPISODES, "eval_episodes": EVAL_EPISODES, "ar1_phi": PHI},
+            "all_null_ok": bool(cal["null_ok"].all()),
+            "calibration": cal.to_dict("records"), "coverage": cov.to_dict("records")}
