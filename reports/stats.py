@@ -14,6 +14,7 @@ under pandas 3, so the seed bootstrap here is written out).
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -115,9 +116,7 @@ def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[floa
     a = _clean(x)
     if a.size == 0:
         return float("nan"), float("nan"), float("nan")
-    if a.size == 1:
-        return float(a[0]), float("nan"), float("nan")
-    t = t_test([a], [1.0], level=level)
+    t = t_test([a], [1.0], level=level)  # NaN bounds below 2 values
     return float(a.mean()), t.lo, t.hi
 
 
@@ -138,7 +137,7 @@ def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA
     means = np.stack([a.mean(axis=0), b.mean(axis=0)])
     variances = np.stack([a.var(axis=0, ddof=1), b.var(axis=0, ddof=1)])
     est, se, df = welch_parts(means, variances, np.array([len(a), len(b)]), np.array([1.0, -1.0]))
-    q = sps.t.ppf(1.0 - alpha / a.shape[1], np.where(np.isfinite(df), df, 1e9))
+    q = sps.t.ppf(1.0 - alpha / a.shape[1], df)  # df = inf: the normal quantile
     return est, est - q * se, est + q * se
 
 
@@ -207,11 +206,10 @@ def bootstrap_band(
     if c.ndim != 2 or c.shape[0] == 0:
         raise ValueError(f"curves must be (S, T) with S >= 1, got {c.shape}")
     mean = np.nanmean(c, axis=0)
-    if c.shape[0] == 1:
-        return mean, mean.copy(), mean.copy()
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, c.shape[0], size=(n_boot, c.shape[0]))
-    with np.errstate(all="ignore"):
+    with warnings.catch_warnings():  # a resample of only NaNs in a column: NaN, ignored below
+        warnings.simplefilter("ignore", RuntimeWarning)
         reps = np.nanmean(c[idx], axis=1)  # (n_boot, T)
     alpha = (1.0 - level) / 2.0
     lo, hi = np.nanquantile(reps, [alpha, 1.0 - alpha], axis=0)
@@ -226,7 +224,7 @@ def percentile_curve(x: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.nd
     pct_i = 100 (i + 0.5) / n the midpoint (Hazen) plotting position of the i-th smallest.
     """
     a = np.sort(_clean(x))
-    pct = 100.0 * (np.arange(a.size) + 0.5) / max(a.size, 1)
+    pct = 100.0 * (np.arange(a.size) + 0.5) / a.size  # empty stays empty
     return pct, a
 
 
@@ -243,8 +241,6 @@ def smooth(y: Sequence[float] | np.ndarray, window: int) -> np.ndarray:
     """Trailing moving average of (T,) ``y`` over ``window`` points (fewer at the start)."""
     a = np.asarray(y, dtype=np.float64).reshape(-1)
     w = max(1, int(window))
-    if a.size == 0 or w == 1:
-        return a.copy()
     c = np.concatenate([[0.0], np.cumsum(a)])
     k = np.arange(1, a.size + 1)
     start = np.maximum(k - w, 0)
