@@ -62,7 +62,7 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
     run_scope = any(k.scope == "run" for c in claims for k in c.checks)
     lines = ["# Claims of the paper's Sec. IV against this run", "",
              "Verdicts: " + ", ".join(f"**{v}**" for v in VERDICTS) + ". Tests take the seed as "
-             f"the unit (per-seed means, Welch / one-sample t, level 0.05); fewer than 3 seeds on a "
+             "the unit (per-seed means, Welch / one-sample t, level 0.05); fewer than 3 seeds on a "
              "side is **not enough seeds**, whatever the data.", ""]
     if calibration_link:
         lines += [f"How often each test says *supported* when the claim is false, and its power: "
