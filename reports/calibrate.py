@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from reports import claims as C
+from reports import verdicts as V
 from reports.stats import bootstrap_ci, mean_ci, zero_events_bound
 
 SEED_COUNTS = (3, 5, 10)
@@ -82,7 +83,7 @@ def sim_gap_widens(rng: np.random.Generator, s: int, effect: bool) -> str:
 def _ramp_curves(rng: np.random.Generator, s: int, drift_frac: float, gain: float = 5.0) -> np.ndarray:
     """(S, T): flat 0 over the first 20%, a ramp, then a last 20% window of mean G_s
     (G_s ~ N(gain, 1)) drifting by exactly drift_frac x G_s across it; AR(1) noise s.d. 1."""
-    t, w = TRAIN_EPISODES, int(C.FINAL_FRAC * TRAIN_EPISODES)
+    t, w = TRAIN_EPISODES, int(V.FINAL_FRAC * TRAIN_EPISODES)
     g = gain + rng.normal(0, 1.0, s)
     x = np.arange(w) - (w - 1) / 2.0
     last = g[:, None] + (drift_frac * g / w)[:, None] * x[None, :]
@@ -93,7 +94,7 @@ def _ramp_curves(rng: np.random.Generator, s: int, drift_frac: float, gain: floa
 def sim_convergence_at_tolerance(rng: np.random.Generator, s: int, effect: bool) -> str:
     """Null: still rising by exactly the tolerance (20% of the gain) over the last window.
     Effect: flat last window."""
-    c = _ramp_curves(rng, s, 0.0 if effect else C.CONV_REL_TOL)
+    c = _ramp_curves(rng, s, 0.0 if effect else V.CONV_REL_TOL)
     return C.claim_convergence(_train("hierarchical", 80, c), configs=[(80, 0.2)]).checks[0].verdict
 
 
@@ -120,7 +121,7 @@ def sim_above_ic3net_band(rng: np.random.Generator, s: int, effect: bool) -> str
     lower on its worst 30% (percentiles 10, 20 at the tolerance). Effect: no lower part."""
     q = np.sort(rng.normal(0, 0.2, EVAL_EPISODES))
     k = np.arange(EVAL_EPISODES)
-    shift = np.where(k < int(0.3 * EVAL_EPISODES), 0.3 if effect else -C.BAND_TOL, 0.3)
+    shift = np.where(k < int(0.3 * EVAL_EPISODES), 0.3 if effect else -V.BAND_TOL, 0.3)
     ic3 = 0.5 + q[None, :] + rng.normal(0, 0.05, (s, 1))
     hier = 0.5 + (q + shift)[None, :] + rng.normal(0, 0.05, (s, 1))
     ev = pd.concat([_eval("hierarchical", 40, {"success_rate": hier}),
@@ -139,7 +140,7 @@ def sim_no_collisions(rng: np.random.Generator, s: int, effect: bool) -> str:
 
 def sim_few_corrections(rng: np.random.Generator, s: int, effect: bool) -> str:
     """Seed mean correction rate N(8%, 1%) (null) or N(5%, 1%); episodes +- N(0, 1%)."""
-    m = (0.05 if effect else C.MAX_CORRECTION) + rng.normal(0, 0.01, (s, 1))
+    m = (0.05 if effect else V.MAX_CORRECTION) + rng.normal(0, 0.01, (s, 1))
     corr = m + rng.normal(0, 0.01, (s, EVAL_EPISODES))
     return C.claim_few_corrections(_eval("hierarchical", 40, {"correction_rate": corr}),
                                    configs=[(40, 0.2)]).checks[0].verdict
@@ -183,7 +184,7 @@ def calibrate(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SE
         for s in seed_counts:
             for effect in (False, True):
                 rng = np.random.default_rng(np.random.SeedSequence([seed, i, s, int(effect)]))
-                hits = sum(sc.sim(rng, s, effect) == C.SUPPORTED for _ in range(sims))
+                hits = sum(sc.sim(rng, s, effect) == V.SUPPORTED for _ in range(sims))
                 rate = hits / sims
                 rows.append({"test": sc.test, "truth": "effect" if effect else "null",
                              "scenario": sc.effect if effect else sc.name, "seeds": s, "sims": sims,

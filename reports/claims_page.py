@@ -9,7 +9,8 @@ from collections.abc import Sequence
 
 import pandas as pd
 
-from reports.claims import VERDICTS, Claim
+from reports.claims import Claim
+from reports.verdicts import VERDICTS
 
 CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test"]
 

@@ -1,6 +1,6 @@
 """Each claim's verdict on synthetic tables built to hold, built to fail, with too few
 seeds, per execution mode and at the run's own configurations (reports/claims.py,
-reports/claims_page.py). Runtime: about 5 s."""
+reports/verdicts.py, reports/claims_page.py). Runtime: about 5 s."""
 from __future__ import annotations
 
 import numpy as np
@@ -8,16 +8,7 @@ import pandas as pd
 import pytest
 
 from reports.claims import (
-    BY_CONSTRUCTION,
-    CONTRADICTED,
-    INCONCLUSIVE,
-    NOT_ENOUGH,
-    SUPPORTED,
     all_claims,
-    check_collisions,
-    check_corrections,
-    check_curves,
-    check_greater,
     claim_above_ic3net,
     claim_convergence,
     claim_few_corrections,
@@ -26,15 +17,26 @@ from reports.claims import (
     claim_lemma1,
     claim_no_collisions,
     claim_payload_ratio,
-    combine,
-    decide,
     final_means,
-    lemma1_bound,
     per_cell,
     with_execution,
 )
 from reports.claims_page import calibration_markdown, claims_frame, claims_markdown, claims_summary
 from reports.stats import t_test
+from reports.verdicts import (
+    BY_CONSTRUCTION,
+    CONTRADICTED,
+    INCONCLUSIVE,
+    NOT_ENOUGH,
+    SUPPORTED,
+    check_collisions,
+    check_corrections,
+    check_curves,
+    check_greater,
+    combine,
+    decide,
+    lemma1_bound,
+)
 from tests.reports.synthetic import frames, joined, smoke_specs
 
 KEYS = ["hier_above_dec", "gap_widens", "convergence", "above_ic3net", "no_collisions",
