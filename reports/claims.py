@@ -87,8 +87,17 @@ class Claim:
 
     @property
     def verdict(self) -> str:
-        """The verdict at the paper's configurations."""
+        """The verdict at the paper's configurations (every execution mode)."""
         return self.verdict_at("paper") or NOT_ENOUGH
+
+    def verdict_by_mode(self, scope: str = "paper") -> dict[str, str]:
+        """Combined verdict per execution mode of the checks of ``scope`` (modes in first
+        appearance order; "-" for checks without data)."""
+        modes: dict[str, list[str]] = {}
+        for c in self.checks:
+            if c.scope == scope:
+                modes.setdefault(c.execution, []).append(c.verdict)
+        return {m: combine(vs) for m, vs in modes.items()}
 
 
 def _g(x: float) -> str:

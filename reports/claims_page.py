@@ -24,12 +24,17 @@ def claims_frame(claims: Sequence[Claim]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=CHECK_COLUMNS)
 
 
+def _by_mode(c: Claim, scope: str = "paper") -> str:
+    return "; ".join(f"{m}: {v}" for m, v in c.verdict_by_mode(scope).items() if m != "-")
+
+
 def claims_summary(claims: Sequence[Claim]) -> pd.DataFrame:
-    """One row per claim: key, name, verdict at the paper's configurations, and at the
-    run's own ("" when the report was not built with ``--claims-at run``)."""
-    return pd.DataFrame([{"claim": c.key, "name": c.name, "verdict": c.verdict,
+    """One row per claim: key, name, verdict at the paper's configurations, the same per
+    execution mode ("argmax: supported; sample: inconclusive"), and the verdict at the
+    run's own configurations ("" when not built with ``--claims-at run``)."""
+    return pd.DataFrame([{"claim": c.key, "name": c.name, "verdict": c.verdict, "by_mode": _by_mode(c),
                           "verdict_run": c.verdict_at("run") or ""} for c in claims],
-                        columns=["claim", "name", "verdict", "verdict_run"])
+                        columns=["claim", "name", "verdict", "by_mode", "verdict_run"])
 
 
 def _esc(s: object) -> str:
@@ -68,11 +73,11 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
     if calibration_link:
         lines += [f"How often each test says *supported* when the claim is false, and its power: "
                   f"[calibration]({calibration_link}).", ""]
-    head = "| claim | name | verdict (paper configurations) |"
+    head = "| claim | name | verdict (paper configurations) | per execution mode |"
     lines += [head + (" verdict (run configurations) |" if run_scope else ""),
-              "|---|---|---|" + ("---|" if run_scope else "")]
+              "|---|---|---|---|" + ("---|" if run_scope else "")]
     for c in claims:
-        row = f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** |"
+        row = f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
         lines.append(row + (f" {c.verdict_at('run') or '-'} |" if run_scope else ""))
     for c in claims:
         lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*Paper:* {c.statement}", "",

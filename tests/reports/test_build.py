@@ -109,7 +109,7 @@ def test_build_report__missing_and_failed_cells_still_build_and_are_listed(tmp_p
     assert "| 80 | not run |" in t1 and "lacks: 80" in t1
     claims = (out / "claims.md").read_text()
     assert ("| [hier_above_dec](#hier_above_dec) | Hierarchical above decentralized (final training "
-            "reward) | **not enough seeds** |") in claims
+            "reward) | **not enough seeds** | training (sampled): not enough seeds |") in claims
     assert "| paper | N = 80, p = 0.2 | training (sampled) | not enough seeds | 0 seeds" in claims
 
 

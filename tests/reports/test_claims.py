@@ -210,6 +210,9 @@ def test_safety__per_execution_mode_with_the_measured_collision_rate():
     c = claim_no_collisions(ev, configs=[(40, 0.2)])
     assert [(k.execution, k.verdict) for k in c.checks] == [("argmax", CONTRADICTED), ("sample", SUPPORTED)]
     assert "collision rate 0.033%" in c.checks[0].numbers
+    assert c.verdict == CONTRADICTED
+    assert c.verdict_by_mode() == {"argmax": CONTRADICTED, "sample": SUPPORTED}
+    assert claims_summary([c])["by_mode"].item() == "argmax: contradicted; sample: supported"
     c = claim_few_corrections(ev, configs=[(40, 0.2)])
     assert [(k.execution, k.verdict) for k in c.checks] == [("argmax", SUPPORTED), ("sample", SUPPORTED)]
 
@@ -291,6 +294,8 @@ def test_claims_page__frame_summary_and_markdown(holding):
     assert f.loc[f["claim"] == "hier_above_dec", "execution"].unique().tolist() == ["training (sampled)"]
     s = claims_summary(claims)
     assert s["verdict"].tolist()[:6] == [SUPPORTED] * 6 and (s["verdict_run"] == "").all()
+    assert s["by_mode"].tolist()[0] == "training (sampled): supported"
+    assert s["by_mode"].tolist()[3] == "argmax vs sample: supported"
     md = claims_markdown(claims, "calibration.md")
     for key in KEYS:
         assert f"## {key}" in md
