@@ -130,8 +130,7 @@ def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA
     <= ``upper`` at every point). Per point a Welch t bound at level alpha / G.
     Needs S_a, S_b >= 2.
     """
-    a = np.asarray(a, dtype=np.float64)
-    b = np.asarray(b, dtype=np.float64)
+    a, b = np.asarray(a), np.asarray(b)
     if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or min(len(a), len(b)) < 2:
         raise ValueError(f"curves must be (S, G) with S >= 2 and equal G, got {a.shape} and {b.shape}")
     means = np.stack([a.mean(axis=0), b.mean(axis=0)])
@@ -234,16 +233,14 @@ def quantile_curve(x: Sequence[float] | np.ndarray, pct: np.ndarray) -> np.ndarr
     a = _clean(x)
     if a.size == 0:
         return np.full(np.shape(pct), np.nan)
-    return np.quantile(a, np.asarray(pct, dtype=np.float64) / 100.0, method="hazen")
+    return np.quantile(a, np.asarray(pct) / 100.0, method="hazen")
 
 
 def smooth(y: Sequence[float] | np.ndarray, window: int) -> np.ndarray:
     """Trailing moving average of (T,) ``y`` over ``window`` points (fewer at the start)."""
-    a = np.asarray(y, dtype=np.float64).reshape(-1)
-    w = max(1, int(window))
-    c = np.concatenate([[0.0], np.cumsum(a)])
-    k = np.arange(1, a.size + 1)
-    start = np.maximum(k - w, 0)
+    c = np.concatenate([[0.0], np.cumsum(y)])  # cumsum flattens; 0.0 makes it float
+    k = np.arange(1, c.size)
+    start = np.maximum(k - max(1, int(window)), 0)
     return (c[k] - c[start]) / (k - start)
 
 

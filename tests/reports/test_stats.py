@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from reports.stats import (
+    Convergence,
     CurveShape,
+    TTest,
     bootstrap_band,
     bootstrap_ci,
     convergence_test,
@@ -124,8 +126,8 @@ def test_simultaneous_band__bonferroni_over_points_worked_by_hand():
     np.testing.assert_allclose(diff, [1.0, 1.0])
     np.testing.assert_allclose(lo, [1 - half, 1 - half])
     np.testing.assert_allclose(hi, [1 + half, 1 + half])
-    for bad in ((a[:1], b), (a, b[:1]), (a[:, 0], b), (a, b[:, :1])):
-        with pytest.raises(ValueError):
+    for bad in ((a[:1], b), (a, b[:1]), (a[:, 0], b), (a, b[:, 0]), (a, b[:, :1])):
+        with pytest.raises(ValueError, match="equal G"):
             simultaneous_band(*bad)
     # a column without variance is exact (df infinite); alpha sets the width
     _, lo, _ = simultaneous_band(np.array([[1.0, 2.0], [1.0, 3.0]]), np.array([[0.0, 0.0], [0.0, 1.0]]))
@@ -220,7 +222,9 @@ def test_percentile_and_quantile_curves__tiny_array():
     np.testing.assert_allclose(val, [0.1, 0.2, 0.3, 0.4])
     q = quantile_curve([0.3, 0.1, 0.2, 0.4], np.array([0.0, 12.5, 25.0, 50.0, 87.5, 100.0]))
     np.testing.assert_allclose(q, [0.1, 0.1, 0.15, 0.25, 0.4, 0.4])
-    assert np.isnan(quantile_curve([], np.array([50.0]))).all()
+    empty = quantile_curve([], np.array([50.0, 60.0]))
+    assert empty.shape == (2,) and np.isnan(empty).all()
+    np.testing.assert_allclose(quantile_curve([0.0, 1.0], [50, 75]), [0.5, 1.0])  # integer percentiles
     pct, val = percentile_curve([np.nan])
     assert pct.size == 0 and val.size == 0
 
@@ -231,7 +235,9 @@ def test_smooth__trailing_mean():
     np.testing.assert_allclose(smooth([1, 2, 3], 0), [1, 2, 3])  # window at least 1
     np.testing.assert_allclose(smooth([1, 3], 5), [1.0, 2.0])
     assert smooth([], 3).size == 0
+    np.testing.assert_allclose(smooth(np.array([[1.0], [3.0]]), 2), [1.0, 2.0])  # a column is a curve
     assert smoothing_window(2000) == 100 and smoothing_window(10) == 1 and smoothing_window(200) == 10
+    assert smoothing_window(5000) == 100  # capped
 
 
 # ------------------------------------------------------------- convergence
@@ -302,3 +308,25 @@ def test_mean_ci__covers_the_mean_95_percent_at_three_seeds():
         _, lo, hi = mean_ci(rng.normal(1.0, 2.0, 3))
         hits += lo <= 1.0 <= hi
     assert abs(hits / 1000 - 0.95) < 0.02
+
+
+def _p(greater: float, less: float) -> TTest:
+    return TTest(0.0, 1.0, 2.0, -1.0, 1.0, greater, less)
+
+
+def _support(p_gain: float, p_not_rising: float, p_not_falling: float) -> Convergence:
+    return Convergence(_p(p_gain, 1.0), _p(1.0, p_not_rising), _p(p_not_falling, 1.0), 0.2, 40)
+
+
+def _contra(p_loss: float, p_rising: float, p_falling: float) -> Convergence:
+    return Convergence(_p(1.0, p_loss), _p(p_rising, 1.0), _p(1.0, p_falling), 0.2, 40)
+
+
+def test_convergence__significance_is_strictly_below_alpha():
+    # each part exactly at alpha (the others well below, or absent) is not significant
+    at = 0.05
+    for k in range(3):
+        sup = _support(*(at if i == k else 0.001 for i in range(3)))
+        assert not sup.supported(alpha=at) and sup.supported(alpha=at + 1e-9), k
+        con = _contra(*(at if i == k else 1.0 for i in range(3)))
+        assert not con.contradicted(alpha=at) and con.contradicted(alpha=at + 1e-9), k
