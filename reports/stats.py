@@ -183,10 +183,10 @@ def bootstrap_ci(
     a = _clean(x)
     if a.size == 0:
         return float("nan"), float("nan")
-    stat = statistic or (lambda m: m.mean(axis=-1))
+    stat = statistic or (lambda m: m.mean(axis=1))
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, a.size, size=(n_boot, a.size))
-    reps = np.asarray(stat(a[idx]), dtype=np.float64)
+    idx = rng.integers(a.size, size=(n_boot, a.size))
+    reps = np.asarray(stat(a[idx]))
     alpha = (1.0 - level) / 2.0
     lo, hi = np.quantile(reps, [alpha, 1.0 - alpha])
     return float(lo), float(hi)
@@ -206,7 +206,7 @@ def bootstrap_band(
         raise ValueError(f"curves must be (S, T) with S >= 1, got {c.shape}")
     mean = np.nanmean(c, axis=0)
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, c.shape[0], size=(n_boot, c.shape[0]))
+    idx = rng.integers(c.shape[0], size=(n_boot, c.shape[0]))
     with warnings.catch_warnings():  # a resample of only NaNs in a column: NaN, ignored below
         warnings.simplefilter("ignore", RuntimeWarning)
         reps = np.nanmean(c[idx], axis=1)  # (n_boot, T)
@@ -267,7 +267,7 @@ def curve_shape(rewards: Sequence[float] | np.ndarray, frac: float = 0.2,
     around 1600" of 2000, so the last 20% is where it should be flat). None when a
     window would hold fewer than ``min_window`` episodes.
     """
-    a = np.asarray(rewards, dtype=np.float64).reshape(-1)
+    a = np.asarray(rewards)
     w = int(np.floor(frac * a.size))
     if w < max(min_window, 2):
         return None
@@ -285,7 +285,7 @@ class Convergence:
     above: TTest  # E[drift - tol gain] vs 0: < 0 means not rising beyond tolerance
     below: TTest  # E[drift + tol gain] vs 0: > 0 means not falling beyond tolerance
     rel_tol: float
-    window: int
+    window: int  # the shortest window of the seeds' curves
 
     def supported(self, alpha: float = ALPHA) -> bool:
         """Improved and stable: an intersection-union test, each part at ``alpha``."""
@@ -311,4 +311,4 @@ def convergence_test(shapes: Sequence[CurveShape], rel_tol: float = 0.2) -> Conv
     d = np.array([s.drift for s in shapes])
     return Convergence(t_test([g], [1.0]), t_test([d - rel_tol * g], [1.0]),
                        t_test([d + rel_tol * g], [1.0]), rel_tol,
-                       shapes[0].window if shapes else 0)
+                       min((s.window for s in shapes), default=0))

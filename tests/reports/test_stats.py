@@ -5,6 +5,8 @@ cdf(t) = 1/2 + t / (2 sqrt(2 + t^2)) and the quantile t_p = (2p - 1) / sqrt(2 p 
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -157,7 +159,10 @@ def test_probability_of_improvement__worked_by_hand():
     assert probability_of_improvement([1.0, 2.0], [2.0, 3.0]) == 0.125  # one tie of four pairs
     assert probability_of_improvement([2.0], [2.0]) == 0.5
     assert np.isnan(probability_of_improvement([], [1.0]))
-    assert np.isnan(probability_of_improvement([1.0], [np.nan]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # decided here, not by a warning deep in scipy
+        assert np.isnan(probability_of_improvement([1.0], [np.nan]))
+        assert np.isnan(probability_of_improvement([], []))
 
 
 # ---------------------------------------------------------------- bootstrap
@@ -265,6 +270,7 @@ def test_convergence_test__worked_by_hand():
     assert r.gain.estimate == pytest.approx(5.0)
     assert r.above.estimate == pytest.approx(-1.0)
     assert r.above.p_less == pytest.approx(1 - t2_sf(-1.0 / np.sqrt(0.07 / 3)))
+    assert r.below.estimate == pytest.approx(1.0) and r.below.se == pytest.approx(0.1)
     assert r.below.p_greater == pytest.approx(t2_sf(10.0))
     assert r.supported() and not r.contradicted()
     # still rising: drifts 2 2.2 1.8 -> d - 0.2 g = 1.2 1.2 0.6 (mean 1, se 0.2, t = 5)
@@ -284,6 +290,7 @@ def test_convergence_test__worked_by_hand():
     assert not r.supported(alpha=0.001)
     assert not rising.contradicted(alpha=0.001)  # p = 0.0189
     assert convergence_test([]).window == 0
+    assert convergence_test([CurveShape(1.0, 0.0, 40), CurveShape(2.0, 0.0, 30)]).window == 30
 
 
 # -------------------------------------------------------------- simulation
