@@ -28,7 +28,8 @@ ALPHA = 0.05
 
 
 def _clean(x: Sequence[float] | np.ndarray) -> np.ndarray:
-    a = np.asarray(x, dtype=np.float64).reshape(-1)
+    """The finite values of ``x`` as a flat float array."""
+    a = np.asarray(x, dtype=np.float64)
     return a[np.isfinite(a)]
 
 
@@ -56,7 +57,7 @@ class TTest:
         return bool(np.isfinite(self.estimate))
 
 
-_NAN_TEST = TTest(*(float("nan"),) * 7)
+_NAN_TEST = TTest(*(np.nan,) * 7)
 
 
 def welch_parts(means: np.ndarray, variances: np.ndarray, counts: np.ndarray,
@@ -68,16 +69,14 @@ def welch_parts(means: np.ndarray, variances: np.ndarray, counts: np.ndarray,
     vectorized over (e.g. percentiles). df = (sum c_k)^2 / sum c_k^2 / (n_k - 1) with
     c_k = w_k^2 s_k^2 / n_k; inf where the standard error is 0.
     """
-    shape = (-1,) + (1,) * (np.ndim(means) - 1)
-    n = np.asarray(counts, dtype=np.float64).reshape(shape)
-    w = np.asarray(weights, dtype=np.float64).reshape(shape)
-    c = w**2 * np.asarray(variances, dtype=np.float64) / n
-    est = np.sum(w * np.asarray(means, dtype=np.float64), axis=0)
-    var = np.sum(c, axis=0)
-    denom = np.sum(c**2 / (n - 1.0), axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        df = np.where(denom > 0, var**2 / np.where(denom > 0, denom, 1.0), np.inf)
-    return est, np.sqrt(var), df
+    terms = list(zip(means, variances, counts, weights, strict=True))
+    c = [w * w * v / n for _, v, n, w in terms]
+    est = sum(w * m for m, _, _, w in terms)
+    var = sum(c)
+    denom = sum(ck * ck / (n - 1) for ck, (_, _, n, _) in zip(c, terms, strict=True))
+    with np.errstate(invalid="ignore"):  # 0 / 0 where nothing varies: df = inf below
+        df = np.where(denom > 0, var * var / denom, np.inf)
+    return np.asarray(est), np.sqrt(var), df
 
 
 def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[float],
@@ -115,7 +114,7 @@ def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[floa
     """
     a = _clean(x)
     if a.size == 0:
-        return float("nan"), float("nan"), float("nan")
+        return np.nan, np.nan, np.nan
     t = t_test([a], [1.0], level=level)  # NaN bounds below 2 values
     return float(a.mean()), t.lo, t.hi
 
@@ -144,7 +143,7 @@ def zero_events_bound(n: int, alpha: float = ALPHA) -> float:
     """Exact (Clopper-Pearson) one-sided upper 1 - alpha bound on an event probability
     after 0 events in ``n`` independent trials: 1 - alpha^(1/n) (about 3/n)."""
     if n < 1:
-        return float("nan")
+        return np.nan
     return float(1.0 - alpha ** (1.0 / n))
 
 
@@ -153,7 +152,7 @@ def iqm(x: Sequence[float] | np.ndarray) -> float:
     """Interquartile mean (25% trimmed from each end), rliable's ``aggregate_iqm``."""
     a = _clean(x)
     if a.size == 0:
-        return float("nan")
+        return np.nan
     return float(rly_metrics.aggregate_iqm(a[:, None]))
 
 
@@ -162,7 +161,7 @@ def probability_of_improvement(x: Sequence[float] | np.ndarray, y: Sequence[floa
     ``probability_of_improvement`` (Mann-Whitney U / (n_x n_y)). NaN if a side is empty."""
     a, b = _clean(x), _clean(y)
     if a.size == 0 or b.size == 0:
-        return float("nan")
+        return np.nan
     return float(rly_metrics.probability_of_improvement(a[:, None], b[:, None]))
 
 
@@ -182,7 +181,7 @@ def bootstrap_ci(
     """
     a = _clean(x)
     if a.size == 0:
-        return float("nan"), float("nan")
+        return np.nan, np.nan
     stat = statistic or (lambda m: m.mean(axis=1))
     rng = np.random.default_rng(seed)
     idx = rng.integers(a.size, size=(n_boot, a.size))
@@ -201,14 +200,14 @@ def bootstrap_band(
     replacement; returns (mean, lo, hi), each (T,). With S = 1 the band collapses onto
     the curve. NaN entries are ignored per column.
     """
-    c = np.asarray(curves, dtype=np.float64)
+    c = np.asarray(curves)
     if c.ndim != 2 or c.shape[0] == 0:
         raise ValueError(f"curves must be (S, T) with S >= 1, got {c.shape}")
     mean = np.nanmean(c, axis=0)
     rng = np.random.default_rng(seed)
     idx = rng.integers(c.shape[0], size=(n_boot, c.shape[0]))
     with warnings.catch_warnings():  # a resample of only NaNs in a column: NaN, ignored below
-        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.simplefilter("ignore")
         reps = np.nanmean(c[idx], axis=1)  # (n_boot, T)
     alpha = (1.0 - level) / 2.0
     lo, hi = np.nanquantile(reps, [alpha, 1.0 - alpha], axis=0)

@@ -95,13 +95,17 @@ def test_t_test__no_variance_is_decided_exactly_and_too_few_values_give_nan():
     assert not t_test([[1.0], [1.0, 2.0]], [1, -1]).valid
     assert not t_test([], []).valid
     assert not t_test([[1.0, np.nan], [1.0, 2.0]], [1, -1]).valid  # NaNs are dropped first
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="same length"):
         t_test([[1.0, 2.0]], [1.0, -1.0])
+    t = t_test([[0.5, 0.5, 0.5]], [1.0])  # exact and positive, however small
+    assert (t.p_greater, t.p_less) == (0.0, 1.0)
 
 
 def test_welch_parts__vectorized_over_columns():
-    est, se, df = welch_parts(np.array([[1.0, 2.0], [0.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]),
-                              np.array([3, 3]), np.array([1.0, -1.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a column without variance is not a numerical accident
+        est, se, df = welch_parts(np.array([[1.0, 2.0], [0.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]),
+                                  np.array([3, 3]), np.array([1.0, -1.0]))
     np.testing.assert_allclose(est, [1.0, 2.0])
     np.testing.assert_allclose(se, [np.sqrt(2 / 3), 0.0])
     assert df[0] == pytest.approx(4.0) and np.isinf(df[1])
@@ -112,6 +116,8 @@ def test_mean_ci__is_the_t_interval_and_handles_small_samples():
     half = t2_ppf(0.975) / np.sqrt(3)
     assert (m, lo, hi) == (2.0, pytest.approx(2 - half), pytest.approx(2 + half))
     assert lo < hi
+    m, lo, hi = mean_ci([1.0, 2.0, 3.0], level=0.9)
+    assert lo == pytest.approx(2 - t2_ppf(0.95) / np.sqrt(3))
     m, lo, hi = mean_ci([4.0])
     assert m == 4.0 and np.isnan(lo) and np.isnan(hi)
     assert all(np.isnan(mean_ci([])))
@@ -151,6 +157,7 @@ def test_iqm__worked_by_hand():
     # sorted: 1 2 3 4 6 7 8 100; drop 2 from each end -> 3 4 6 7 -> 20 / 4 = 5
     assert iqm([1, 2, 3, 4, 100, 6, 7, 8]) == 5.0
     assert iqm([5, 1, 4, 2, 3]) == 3.0  # one dropped from each end
+    assert iqm([7.0]) == 7.0
     assert np.isnan(iqm([]))
 
 
@@ -204,8 +211,10 @@ def test_bootstrap_band__collapses_spans_and_is_seeded():
     np.testing.assert_array_equal(hi, [2.0, 4.0])
     mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.2)
     assert (lo[0], hi[0]) == (0.5, 0.5)
+    mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.4)  # 30/70% quantiles
+    assert (lo[0], hi[0]) == (0.5, 0.5)
     rng = np.random.default_rng(0)
-    curves = rng.normal(size=(5, 4))
+    curves = rng.normal(size=(30, 4))
     _, lo1, _ = bootstrap_band(curves, seed=1)
     np.testing.assert_array_equal(bootstrap_band(curves, seed=1)[1], lo1)
     assert not np.array_equal(bootstrap_band(curves, seed=2)[1], lo1)
@@ -216,7 +225,7 @@ def test_bootstrap_band__collapses_spans_and_is_seeded():
     mean, lo, hi = bootstrap_band(np.array([[0.0, np.nan], [2.0, 4.0]]))
     assert mean[1] == 4.0 and lo[1] == 4.0  # NaNs ignored per column
     for bad in (np.zeros((0, 3)), np.zeros(3)):
-        with pytest.raises(ValueError):
+        with pytest.raises(ValueError, match=r"\(S, T\)"):
             bootstrap_band(bad)
 
 
@@ -232,6 +241,7 @@ def test_percentile_and_quantile_curves__tiny_array():
     np.testing.assert_allclose(quantile_curve([0.0, 1.0], [50, 75]), [0.5, 1.0])  # integer percentiles
     pct, val = percentile_curve([np.nan])
     assert pct.size == 0 and val.size == 0
+    assert percentile_curve([3, 1, 2])[1].dtype == np.float64  # integers become floats
 
 
 def test_smooth__trailing_mean():
