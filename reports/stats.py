@@ -70,10 +70,10 @@ def welch_parts(means: np.ndarray, variances: np.ndarray, counts: np.ndarray,
     c_k = w_k^2 s_k^2 / n_k; inf where the standard error is 0.
     """
     terms = list(zip(means, variances, counts, weights, strict=True))
-    c = [w * w * v / n for _, v, n, w in terms]
+    c = [(w * w * v / n, n) for _, v, n, w in terms]  # (c_k, n_k)
     est = sum(w * m for m, _, _, w in terms)
-    var = sum(c)
-    denom = sum(ck * ck / (n - 1) for ck, (_, _, n, _) in zip(c, terms, strict=True))
+    var = sum(ck for ck, _ in c)
+    denom = sum(ck * ck / (n - 1) for ck, n in c)
     with np.errstate(invalid="ignore"):  # 0 / 0 where nothing varies: df = inf below
         df = np.where(denom > 0, var * var / denom, np.inf)
     return np.asarray(est), np.sqrt(var), df
@@ -271,8 +271,8 @@ def curve_shape(rewards: Sequence[float] | np.ndarray, frac: float = 0.2,
     if w < max(min_window, 2):
         return None
     first, last = a[:w], a[a.size - w:]
-    x = np.arange(w, dtype=np.float64) - (w - 1) / 2.0
-    slope = float(np.dot(x, last - last.mean()) / np.dot(x, x))
+    x = np.arange(w) - (w - 1) / 2.0  # centred: the OLS slope is x.y / x.x
+    slope = float(np.dot(x, last) / np.dot(x, x))
     return CurveShape(float(last.mean() - first.mean()), slope * w, w)
 
 

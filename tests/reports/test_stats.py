@@ -66,6 +66,12 @@ def test_t_test__level_sets_the_interval_width():
     assert (t.lo, t.hi) == (pytest.approx(2 - half), pytest.approx(2 + half))
 
 
+def test_t_test__weights_scale_estimate_and_error():
+    t = t_test([[1.0, 2.0, 3.0]], [2.0])  # 2 x mean, 2 x se, the same t
+    assert (t.estimate, t.se, t.df) == (pytest.approx(4.0), pytest.approx(2 / np.sqrt(3)), pytest.approx(2.0))
+    assert t.p_greater == pytest.approx(t2_sf(2 * np.sqrt(3)))
+
+
 def test_t_test__welch_two_samples_worked_by_hand():
     # means 2 and 6, variances 1 and 4, n = 3: c = 1/3, 4/3; se^2 = 5/3;
     # df = (5/3)^2 / ((1/9 + 16/9) / 2) = 50/17
@@ -95,7 +101,7 @@ def test_t_test__no_variance_is_decided_exactly_and_too_few_values_give_nan():
     assert not t_test([[1.0], [1.0, 2.0]], [1, -1]).valid
     assert not t_test([], []).valid
     assert not t_test([[1.0, np.nan], [1.0, 2.0]], [1, -1]).valid  # NaNs are dropped first
-    with pytest.raises(ValueError, match="same length"):
+    with pytest.raises(ValueError, match="^samples and weights must have the same length$"):
         t_test([[1.0, 2.0]], [1.0, -1.0])
     t = t_test([[0.5, 0.5, 0.5]], [1.0])  # exact and positive, however small
     assert (t.p_greater, t.p_less) == (0.0, 1.0)
@@ -109,6 +115,10 @@ def test_welch_parts__vectorized_over_columns():
     np.testing.assert_allclose(est, [1.0, 2.0])
     np.testing.assert_allclose(se, [np.sqrt(2 / 3), 0.0])
     assert df[0] == pytest.approx(4.0) and np.isinf(df[1])
+    with pytest.raises(ValueError):  # one weight per sample
+        welch_parts(np.zeros(2), np.ones(2), np.array([3, 3, 3]), np.ones(2))
+    with pytest.raises(ValueError):
+        welch_parts(np.zeros(2), np.ones(2), np.array([3, 3]), np.ones(3))
 
 
 def test_mean_ci__is_the_t_interval_and_handles_small_samples():
