@@ -80,6 +80,14 @@ def test_build_report__two_seeds_never_print_supported(paper_run):
     build_report(run)
 
 
+def test_build_report__claims_page_links_the_calibration_table(paper_run):
+    _, out = paper_run
+    assert "[calibration](calibration.md)" in (out / "claims.md").read_text()
+    cal = (out / "calibration.md").read_text()
+    assert "| no_collisions | null |" in cal and "**NO**" not in cal
+    assert (out / "calibration.json").exists()
+
+
 def test_build_report__is_deterministic(paper_run):
     run, out = paper_run
     before = {n: (out / n).read_text() for n in ("summary.csv", "claims.md", "table1_safety.csv")}
