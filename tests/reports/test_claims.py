@@ -158,6 +158,13 @@ def test_above_ic3net__crossing_curves_are_contradicted_despite_a_higher_mean():
     assert v == CONTRADICTED and "10th percentile" in nums and "Bonferroni" in test
     v, _, _ = check_curves(list(ic3 + 0.2), list(ic3))
     assert v == SUPPORTED
+    # higher on its best 70% of episodes, 0.05 lower on its worst 30%: the mean is clearly
+    # higher but the band cannot exclude "more than 0.05 below" there: inconclusive
+    q = np.sort(rng.normal(0, 0.2, 20))
+    shift = np.where(np.arange(20) < 6, -0.05, 0.3)
+    v, nums, _ = check_curves(list(0.5 + q + shift + rng.normal(0, 0.05, (4, 1))),
+                              list(0.5 + q + rng.normal(0, 0.05, (4, 1))))
+    assert v == INCONCLUSIVE and "at the 10th percentile" in nums
     v, _, _ = check_curves(list(ic3 - 0.04), list(ic3))  # within tolerance but lower mean
     assert v == CONTRADICTED
     v, _, _ = check_curves(list(ic3), list(ic3 + rng.normal(0, 0.01, ic3.shape)))
@@ -167,10 +174,12 @@ def test_above_ic3net__crossing_curves_are_contradicted_despite_a_higher_mean():
 
 def test_above_ic3net__one_check_per_shared_execution_mode():
     rng = np.random.default_rng(1)
-    parts = [_ev(m, rng.uniform(0, 1, (3, 10)) + (0.5 if m == "hierarchical" else 0.0), mode=x)
+    lift = {"argmax": 0.5, "sample": -0.5, "sample@0.5": 0.0}  # hierarchical minus IC3Net
+    parts = [_ev(m, rng.uniform(0, 0.2, (3, 10)) + (lift[x] if m == "hierarchical" else 0.0), mode=x)
              for m in ("hierarchical", "ic3net") for x in ("argmax", "sample", "sample@0.5")]
     c = claim_above_ic3net(pd.concat(parts), configs=[(40, 0.2)])
     assert [k.execution for k in c.checks] == ["argmax", "sample", "sample@0.5"]
+    assert [k.verdict for k in c.checks] == [SUPPORTED, CONTRADICTED, INCONCLUSIVE]
     # a store without the column: each method in its old default mode
     old = pd.concat([_ev("hierarchical", rng.uniform(0.5, 1, (3, 10))), _ev("ic3net", rng.uniform(0, 0.5, (3, 10)))])
     c = claim_above_ic3net(old, configs=[(40, 0.2)])
