@@ -195,9 +195,15 @@ def _run_dir(run: Path | None) -> Path:
     return run
 
 
+class ClaimsAt(str, Enum):
+    paper = "paper"
+    run = "run"
+
+
 @app.command()
 def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
+    claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at", help="Check claims at the paper's configurations only, or also at the run's own."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/."""
     run_dir = _run_dir(run)
@@ -205,7 +211,7 @@ def report(
         from reports.build import build_report
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
-    out = build_report(run_dir)
+    out = build_report(run_dir, claims_at=claims_at.value)
     typer.echo(f"report: {out / 'index.html'}  (also index.md, figures, tables, claims.md)")
 
 
@@ -236,6 +242,36 @@ def replay(
         path = write_replay(run_dir, cell, episode, target, fps=fps, fmt=fmt, progress=progress,
                             execution=execution)
     typer.echo(str(path))
+
+
+@app.command()
+def calibrate(
+    sims: int = typer.Option(1000, "--sims", min=10, help="Simulations per test, scenario and seed count."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the simulations."),
+    coverage_sims: int = typer.Option(2000, "--coverage-sims", min=10, help="Simulations for the CI coverage table."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
+    out: Path | None = typer.Option(None, "--out", help="Also write the JSON here (e.g. RUN/report/calibration.json)."),
+) -> None:
+    """Rate of `supported` of every claim test under the null (must be <= 5% + MC error)
+    and its power under a stated effect, at 3, 5 and 10 seeds; exit 1 if a null rate is too high."""
+    import pandas as pd
+
+    from reports.calibrate import calibration_report
+
+    rep = calibration_report(sims, seed, coverage_sims=coverage_sims)
+    text = json.dumps(rep, indent=2)
+    if out is not None:
+        from bench.store import atomic_file
+
+        with atomic_file(out) as fh:
+            fh.write(text.encode())
+    if as_json:
+        typer.echo(text)
+    else:
+        _print_frame(pd.DataFrame(rep["calibration"]), f"bench calibrate ({sims} sims, null limit {rep['meta']['null_limit']})")
+        _print_frame(pd.DataFrame(rep["coverage"]), "coverage of 95% intervals over seeds")
+    if not rep["all_null_ok"]:
+        raise typer.Exit(1)
 
 
 # -------------------------------------------------------------------- perf

@@ -7,18 +7,22 @@ an interrupted rebuild never leaves a half-written file. Deterministic: bootstra
 generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
-.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.md, index.md, index.html.
+.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.{md,csv}, calibration.{json,md} (the
+calibration of the claim tests), index.md, index.html.
 """
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from reports.claims import all_claims, claims_markdown
+from reports.claims import all_claims
+from reports.claims_page import calibration_markdown, claims_frame, claims_markdown
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
@@ -75,10 +79,29 @@ def _study_entries(run_dir: Path, out: Path) -> list[Entry]:
     return entries
 
 
-def build_report(run_dir: Path | str) -> Path:
+CALIBRATION = Path(__file__).with_name("calibration.json")  # `bench calibrate --out`, committed
+
+
+def _calibration(out: Path) -> str | None:
+    """``calibration.md`` from ``<report>/calibration.json`` (copied from the packaged
+    table when absent); returns its name for the claims page, None without a table."""
+    cached = out / "calibration.json"
+    if not cached.exists() and CALIBRATION.exists():
+        _atomic(cached, lambda tmp: shutil.copyfile(CALIBRATION, tmp))
+    if not cached.exists():
+        return None
+    rep = json.loads(cached.read_text(encoding="utf-8"))
+    import pandas as pd
+
+    write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta")))
+    return "calibration.md"
+
+
+def build_report(run_dir: Path | str, claims_at: str = "paper") -> Path:
     """Rebuild ``<run_dir>/report/`` from the store; returns that directory (holding
     ``index.html``). Missing or failed cells are listed, never fatal; a run directory
-    without ``cells.parquet`` is a ``BenchError``."""
+    without ``cells.parquet`` is a ``BenchError``. ``claims_at="run"`` also checks the
+    claims at the run's own configurations."""
     store = load_store(run_dir)
     out = Path(run_dir) / REPORT_DIR
     train, evals = store.train, store.eval
@@ -111,9 +134,11 @@ def build_report(run_dir: Path | str) -> Path:
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
                          ("summary.md", "summary.csv")))
 
-    claims = all_claims(train, evals)
-    write_text(out / "claims.md", claims_markdown(claims))
-    entries.append(Entry("Claims of Sec. IV", ("claims.md",)))
+    claims = all_claims(train, evals, at=claims_at, cells=store.cells)
+    cal = _calibration(out)
+    write_text(out / "claims.md", claims_markdown(claims, cal))
+    write_text(out / "claims.csv", claims_frame(claims).to_csv(index=False))
+    entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ())))
 
     entries += _study_entries(Path(run_dir), out)
 
