@@ -107,6 +107,7 @@ class Controller:
     fixed_ref: np.ndarray | None = None  # (Z, B) r imposed at every step (probes and tests)
     uniform_ref: bool = False  # r drawn uniformly from R_z instead of from mu (probes)
     trace: dict[str, Any] | None = None  # a dict: ``decide`` stores the step's intermediates
+    resample_gen: torch.Generator | None = None  # resample_on_fallback at argmax execution
 
 
 class HierarchicalMethod(Method):
@@ -154,6 +155,10 @@ class HierarchicalMethod(Method):
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
         if greedy and p.execution == "sample":  # never touch the training stream
             ctrl.gen = torch.Generator().manual_seed(int(batch.rng.integers(2**62)))
+        if greedy and p.resample_on_fallback:  # derived from the batch seed, no draw from its rng
+            seq = batch.rng.bit_generator.seed_seq
+            child = np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, 0x5E5A))
+            ctrl.resample_gen = torch.Generator().manual_seed(int(child.generate_state(1, np.uint64)[0] >> 2))
         if not greedy:
             b, n, zz = core.batch, core.n, self.env.groups
             slots, links = self.gs.n_slots, self.gs.neighbors.shape[1]
@@ -213,7 +218,8 @@ class HierarchicalMethod(Method):
                                present=present, link_msgs=link_msgs, avail=avail, lost=lost)
         if p.safety_filter:
             self._apply_filter(core, cells, present, controlled, proposed, logp, dec,
-                               resample=greedy and p.resample_on_fallback, gen=gen, trace=state.trace)
+                               resample=greedy and p.resample_on_fallback, gen=state.resample_gen,
+                               trace=state.trace)
         if state.buffer is not None:
             state.buffer.add(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
                              ref=ref.numpy().T, ref_new=np.broadcast_to(ref_new, ref.shape).T,
@@ -293,7 +299,7 @@ class HierarchicalMethod(Method):
         if resample and res.fallback.any():  # one fresh sample from pi, filtered again
             fb = np.flatnonzero(res.fallback)
             logits = torch.from_numpy(lp[fb])
-            redo = sample_categorical(logits, False, gen if gen is not None else self.torch_gen).numpy()
+            redo = sample_categorical(logits, False, gen if gen is not None else self.torch_gen).numpy()  # (F, n)
             prop[fb] = np.where(ctl[fb], redo, WAIT)
             again = self.filter(pos[fb], occ[fb], ctl[fb], prop[fb], lp[fb], blocked[fb])
             res.actions[fb], res.fallback[fb] = again.actions, again.fallback
