@@ -18,6 +18,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
 from reports.claims import all_claims, claims_markdown
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
@@ -109,6 +110,13 @@ def build_report(run_dir: Path | str) -> Path:
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
     entries.append(Entry("Summary of every configuration (method x N x p)", ("summary.md", "summary.csv")))
+
+    ablation = ablation_frame(evals, store.cells)
+    if len(ablation):  # runs of the ablation grid
+        write_text(out / "ablation.md", ablation_markdown(
+            ablation, component_values(evals, store.cells), setting(store.cells)))
+        write_text(out / "ablation.csv", ablation.to_csv(index=False))
+        entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv")))
 
     claims = all_claims(train, evals)
     write_text(out / "claims.md", claims_markdown(claims))
