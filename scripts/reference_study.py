@@ -77,6 +77,7 @@ def main() -> None:
                 rec.update(gradient_agreement(m, seed=2000 + it))
             f.write(json.dumps(rec) + "\n")
             f.flush()
+    torch.save(m.state_dict(), out.with_suffix(".pt"))  # for further probes
 
 
 if __name__ == "__main__":
