@@ -121,7 +121,7 @@ ABLATION_VARIANTS = (
     Variant("per-robot fallback", "hierarchical", {"fallback": "per_robot"},
             "alg:safety_filter line 12: joint Wait -> only offending robots wait"),
     Variant("resample on fallback", "hierarchical", {"resample_on_fallback": True},
-            "Sec. III-E argmax execution -> a group that fell back samples once more"),
+            "eq:local_deterministic_control: argmax execution -> a fallen-back group samples once from pi"),
     Variant("no reference", "hierarchical", {}, "eq:reference_policy: |R_z| = 1 (r carries nothing)",
             ref_size=1),
     Variant("oracle messages", "hierarchical", {"messages": "oracle"},
