@@ -9,6 +9,13 @@ then run the safety filter (Algorithm 1) to get the executed U_t^z.
 Training (``update``, see ``training.py``): the centralized critic V_omega on the global
 state gives the team advantage, used for both policy levels (eq:losses), Adam; the GRU
 predictors are trained with their own supervised loss and optimizer (eq:gru_pred_loss).
+
+Variants (parameters, defaults are the paper's; docs/decisions.md "Variants"): what fills
+lost links (``messages``), the fallback (``fallback``), resampling a fallen-back group at
+argmax execution (``resample_on_fallback``) and the reference layer's open choices
+(``ref_hold``, ``ref_lr``, ``ref_entropy_coef``, ``ref_embed_scale``). For probes and
+tests the controller can fix r or draw it uniformly, and record each step's
+intermediates (``Controller.trace``).
 """
 from __future__ import annotations
 
