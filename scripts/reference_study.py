@@ -17,8 +17,8 @@ import torch
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.hierarchical.method import HierarchicalMethod
-from algorithms.hierarchical.training import policy_update
 from algorithms.hierarchical.reference_probe import probe_reference
+from algorithms.hierarchical.training import policy_update
 from envs.config import EnvConfig
 from envs.layouts import PAPER_MAP
 
@@ -36,7 +36,8 @@ def gradient_agreement(m: HierarchicalMethod, seed: int, pairs: int = 2) -> dict
         with torch.no_grad():
             state, _ = c.run(batch, greedy=False)
         policy_update(c, state.buffer)
-        flat = lambda mod: torch.cat([q.grad.reshape(-1) for q in mod.parameters() if q.grad is not None])
+        def flat(mod: torch.nn.Module) -> torch.Tensor:
+            return torch.cat([q.grad.reshape(-1) for q in mod.parameters() if q.grad is not None])
         return flat(c.reference), flat(c.local)
     out: dict[str, list[float]] = {"cos_mu": [], "cos_pi": [], "norm_mu_over_pi": []}
     for j in range(pairs):

@@ -63,7 +63,7 @@ def test_fallback_variant__keeps_moves_where_joint_wait_stops_the_group() -> Non
     batch_a = EpisodeBatch(joint.env, 3, batch_rng(2, 0, 0), joint.layout)
     batch_b = EpisodeBatch(per.env, 3, batch_rng(2, 0, 0), per.layout)
     moved = falls = 0
-    for (ta, da, *_), (tb, db, *_) in zip(rollout(joint, batch_a, True), rollout(per, batch_b, True)):
+    for (ta, da, *_), (tb, db, *_) in zip(rollout(joint, batch_a, True), rollout(per, batch_b, True), strict=False):
         fb = tb["filter_fallback"]  # (B, Z)
         falls += int(fb.sum())
         moving = db.actions != WAIT  # (B, N)
