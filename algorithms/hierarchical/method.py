@@ -97,6 +97,9 @@ class HierarchicalParams(MethodParams):
     ref_entropy_coef: float | None = Field(
         None, ge=0, description="entropy bonus on mu (None: entropy_coef)")
     ref_embed_scale: float = Field(0.5, ge=0, description="init std of the reference embedding in pi")
+    ref_advantage: Literal["team", "group"] = Field(
+        "team", description="advantage weighing log mu(r^z): the team's (eq:advantage) or group z's "
+        "own return minus its share n_z/N of V")
 
 
 @dataclass
@@ -176,6 +179,7 @@ class HierarchicalMethod(Method):
                 "action_mask": ((n, N_ACTIONS), np.bool_),
                 "ref": ((zz,), np.int64),
                 "ref_new": ((zz,), np.bool_),
+                "group_reward": ((zz,), np.float32),
                 "proposed": ((n,), np.int64),
                 "critic": ((n, CRITIC_FEATURES), np.float32),
                 "msgs": ((zz, slots, MSG_DIM), np.float32),
@@ -265,6 +269,10 @@ class HierarchicalMethod(Method):
 
     def observe(self, batch: EpisodeBatch, state: Controller, result: Any) -> None:
         if state.buffer is not None:
+            # Group z's part of eq:reward: its robots' terms over N (sums to the team reward).
+            terms = result.progress + result.goal_bonus + result.collision_penalty + result.time_penalty
+            state.buffer.data["group_reward"][state.buffer.t] = (
+                self.gs.gather(terms, fill=0.0).sum(-1) / self.env.n_robots)
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- helpers

@@ -132,3 +132,16 @@ def test_variant_params_are_validated() -> None:
     for bad in ({"messages": "truth"}, {"fallback": "none"}, {"ref_hold": 0}, {"ref_lr": 0.0}):
         with pytest.raises(BenchError, match=next(iter(bad))):
             HierarchicalMethod(env, bad)
+
+
+def test_ref_advantage_group__group_rewards_sum_to_the_team_reward_and_weigh_mu() -> None:
+    m = dense(ref_advantage="group", horizon=15)
+    batch = EpisodeBatch(m.env, 3, batch_rng(5, 0, 0), m.layout)
+    list(rollout(m, batch, False))
+    buf = m._last_state.buffer
+    gr = buf.data["group_reward"][: buf.t]
+    assert np.allclose(gr.sum(-1), buf.rewards[: buf.t], atol=1e-5)
+    assert (np.abs(gr).sum(0) > 0).all()  # every group's share is recorded
+    team, group = dense(horizon=15).train_iteration(), dense(ref_advantage="group", horizon=15).train_iteration()
+    assert np.isfinite(group[0]["actor_loss"]) and group[0]["actor_loss"] != team[0]["actor_loss"]
+    assert group[0]["critic_loss"] == team[0]["critic_loss"]  # only mu's weights change
