@@ -147,7 +147,9 @@ def ablation_markdown(frame: pd.DataFrame, components: list[dict[str, object]], 
              "Each variant changes one design choice of the paper's method (the `departs` column "
              "names the paper line); `decentralized` is the baseline. Mean over seeds of the "
              f"per-seed evaluation mean, [95% bootstrap CI over {unit}]. Evaluation as configured "
-             "by the run (argmax at both levels unless the cell says otherwise).", "",
+             "by the run (argmax at both levels unless the cell says otherwise). The summary, "
+             "Table I and the claims of this run pool every hierarchical variant together; read "
+             "the variants here.", "",
              "| variant | seeds | eval episodes | " + " | ".join(HEADERS) + " | departs from |",
              "|" + "---|" * (len(HEADERS) + 4)]
     for r in frame.itertuples(index=False):
