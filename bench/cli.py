@@ -33,6 +33,7 @@ class GridName(str, Enum):
     smoke = "smoke"
     paper = "paper"
     full = "full"
+    ablation = "ablation"
 
 
 class Suite(str, Enum):
@@ -62,7 +63,7 @@ def _root(
 # --------------------------------------------------------------------- run
 @app.command()
 def run(
-    grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full."),
+    grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full, ablation (hierarchical variants)."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="User grid (TOML or YAML): a base cell and list-valued axes."),
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1 (default: paper 3, full 3, smoke 1; a verdict needs 3)."),
     out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
@@ -79,7 +80,7 @@ def run(
     from bench.store import RunStore
 
     if (grid is None) == (grid_file is None):
-        raise BenchError("give exactly one of --grid {smoke,paper,full} or --grid-file PATH")
+        raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
     g = get_grid(grid.value, seeds) if grid is not None else load_grid_file(grid_file, seeds)
     out_dir = out if out is not None else Path("results") / g.name
     store = RunStore(out_dir)

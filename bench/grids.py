@@ -1,4 +1,5 @@
-"""Named grids of cells: ``smoke`` (CI), ``paper`` (Fig. 1-3, Table I), ``full`` (SPEC 4).
+"""Named grids of cells: ``smoke`` (CI), ``paper`` (Fig. 1-3, Table I), ``full`` (SPEC 4),
+``ablation`` (the hierarchical method's components, issue 18).
 
 A grid is a deduplicated, ordered tuple of cells. ``--seeds K`` replicates every
 configuration over seeds 0..K-1; ``paper`` runs 3 seeds by default (the fewest a claim's
@@ -111,8 +112,61 @@ def full(seeds: int = 3) -> Grid:
                 _cells(specs, seeds))
 
 
-BUILTIN: dict[str, Callable[..., Grid]] = {"smoke": smoke, "paper": paper, "full": full}
-DEFAULT_SEEDS = {"smoke": 1, "paper": 3, "full": 3}
+@dataclass(frozen=True)
+class Variant:
+    """One arm of the ablation: a method with hyperparameter overrides and the paper line
+    it departs from (docs/decisions.md "Variants of the hierarchical method")."""
+
+    label: str
+    method: str
+    params: dict[str, Any]
+    departs: str
+    ref_size: int = 8
+
+
+# Issue 18: the hierarchical method's design choices, one at a time, and the baseline.
+ABLATION_VARIANTS = (
+    Variant("paper", "hierarchical", {}, "none (the paper's method, defaults of docs/decisions.md)"),
+    Variant("shared parameters", "hierarchical", {"share_params": True},
+            "Sec. II: psi_z, theta_z, eta_z per group -> one set for all groups"),
+    Variant("per-robot fallback", "hierarchical", {"fallback": "per_robot"},
+            "alg:safety_filter line 12: joint Wait -> only offending robots wait"),
+    Variant("resample on fallback", "hierarchical", {"resample_on_fallback": True},
+            "eq:local_deterministic_control: argmax execution -> a fallen-back group samples once from pi"),
+    Variant("no reference", "hierarchical", {}, "eq:reference_policy: |R_z| = 1 (r carries nothing)",
+            ref_size=1),
+    Variant("oracle messages", "hierarchical", {"messages": "oracle"},
+            "eq:interaction_state_estimate: ground truth on lost links (predictor upper bound)"),
+    Variant("last-received messages", "hierarchical", {"messages": "last"},
+            "eq:recurrent_predictor: no GRU, the last received message on lost links"),
+    Variant("held reference", "hierarchical", {"ref_hold": 10, "ref_entropy_coef": 0.0},
+            "eq:reference_policy: r drawn every step -> held 10 steps, no entropy bonus on mu"),
+    Variant("decentralized", "decentralized", {}, "the baseline of Sec. IV (no hierarchy, no filter)"),
+)
+ABLATION_SETTINGS: dict[str, Any] = dict(
+    n_robots=40, loss_p=0.2, layout=PAPER_MAP, episodes=1000, horizon=300, eval_episodes=100, groups=4,
+    search_radius=2, c_max=500,
+)
+
+
+def ablation_specs(**overrides: Any) -> list[dict[str, Any]]:
+    """One cell spec per ablation variant; ``overrides`` replace ``ABLATION_SETTINGS``
+    (a ``params`` override is merged under each variant's own params)."""
+    base = {**ABLATION_SETTINGS, **overrides}
+    common = base.pop("params", {})
+    return [dict(base, method=v.method, ref_size=v.ref_size, params={**common, **v.params})
+            for v in ABLATION_VARIANTS]
+
+
+def ablation(seeds: int = 3) -> Grid:
+    """The hierarchical method's components one at a time at N=40, p=0.2 on the MovingAI
+    map (1000 episodes of 300 steps), and the decentralized baseline (issue 18)."""
+    return Grid("ablation", "hierarchical variants + decentralized, N=40, p=0.2, MovingAI map, "
+                "1000 episodes x 300 steps", _cells(ablation_specs(), seeds))
+
+
+BUILTIN: dict[str, Callable[..., Grid]] = {"smoke": smoke, "paper": paper, "full": full, "ablation": ablation}
+DEFAULT_SEEDS = {"smoke": 1, "paper": 3, "full": 3, "ablation": 3}
 
 
 def get_grid(name: str, seeds: int | None = None) -> Grid:

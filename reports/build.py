@@ -21,6 +21,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
 from reports.claims import all_claims
 from reports.claims_page import calibration_markdown, claims_frame, claims_markdown
 from reports.fig1_training import fig1_training
@@ -133,6 +134,13 @@ def build_report(run_dir: Path | str, claims_at: str = "paper") -> Path:
     write_text(out / "summary.csv", summary.to_csv(index=False))
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
                          ("summary.md", "summary.csv")))
+
+    ablation = ablation_frame(evals, store.cells)
+    if len(ablation):  # runs of the ablation grid
+        write_text(out / "ablation.md", ablation_markdown(
+            ablation, component_values(evals, store.cells), setting(store.cells)))
+        write_text(out / "ablation.csv", ablation.to_csv(index=False))
+        entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv")))
 
     claims = all_claims(train, evals, at=claims_at, cells=store.cells)
     cal = _calibration(out)

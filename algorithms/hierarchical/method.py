@@ -2,19 +2,25 @@
 
 Per step and for every group z of B episodes at once (no loop over groups or robots):
 receive S_t^z over the lossy channel, update the GRU predictors and complete S-hat^z
-(eq:predictor_input..eq:interaction_state_collection), pick the reference r ~ mu_psi_z
-and the joint control U~ ~ pi_theta_z in the run's execution mode (both levels alike:
-sampled in training; argmax, sampled or tempered in evaluation, algorithms/common/
-execution.py), then run the safety filter (Algorithm 1) to get the executed U_t^z.
+(eq:predictor_input..eq:interaction_state_collection), sample (training) or take the
+argmax (execution) of the reference r ~ mu_psi_z and the joint control U~ ~ pi_theta_z,
+then run the safety filter (Algorithm 1) to get the executed U_t^z.
 
 Training (``update``, see ``training.py``): the centralized critic V_omega on the global
 state gives the team advantage, used for both policy levels (eq:losses), Adam; the GRU
 predictors are trained with their own supervised loss and optimizer (eq:gru_pred_loss).
+
+Variants (parameters, defaults are the paper's; docs/decisions.md "Variants"): what fills
+lost links (``messages``), the fallback (``fallback``), resampling a fallen-back group at
+argmax execution (``resample_on_fallback``) and the reference layer's open choices
+(``ref_hold``, ``ref_lr``, ``ref_entropy_coef``, ``ref_embed_scale``). For probes and
+tests the controller can fix r or draw it uniformly, and record each step's
+intermediates (``Controller.trace``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import torch
@@ -22,8 +28,9 @@ from pydantic import Field
 
 from algorithms.base import Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
-from algorithms.common.execution import ActionChoice
+from algorithms.common.execution import ActionChoice, sample_categorical
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
+from algorithms.hierarchical.fallback import offenders_wait
 from algorithms.hierarchical.messages import (
     CTRL,
     MSG_DIM,
@@ -73,6 +80,25 @@ class HierarchicalParams(MethodParams):
     share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
     normalize_advantage: bool = Field(True, description="scale the team advantage by its batch RMS")
     update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
+    # Variants beyond the paper (docs/decisions.md "Variants"; defaults are the paper's).
+    messages: Literal["predicted", "oracle", "last"] = Field(
+        "predicted", description="S-hat on lost links: GRU prediction (paper), ground truth "
+        "(oracle upper bound) or the last received message (no predictor)")
+    fallback: Literal["joint", "per_robot"] = Field(
+        "joint", description="when no candidate is admissible: joint Wait (Alg. 1 line 12) or "
+        "only the offending robots wait")
+    resample_on_fallback: bool = Field(
+        False, description="argmax execution: a group that fell back samples a new proposal once "
+        "and is filtered again")
+    ref_hold: int = Field(1, ge=1, description="steps a sampled reference r is held (paper: 1, "
+                          "r is drawn every step)")
+    ref_lr: float | None = Field(None, gt=0, description="Adam learning rate of mu (None: lr)")
+    ref_entropy_coef: float | None = Field(
+        None, ge=0, description="entropy bonus on mu (None: entropy_coef)")
+    ref_embed_scale: float = Field(0.5, ge=0, description="init std of the reference embedding in pi")
+    ref_advantage: Literal["team", "group"] = Field(
+        "team", description="advantage weighing log mu(r^z): the team's (eq:advantage) or group z's "
+        "own return minus its share n_z/N of V")
 
 
 @dataclass
@@ -84,6 +110,12 @@ class Controller:
     pred: PredictorState | None = None
     buffer: RolloutBuffer | None = None
     running: np.ndarray | None = None  # (B,) episodes running before the current step
+    t: int = 0  # steps decided so far
+    ref: torch.Tensor | None = None  # (Z, B) reference in force (held for ``ref_hold`` steps)
+    fixed_ref: np.ndarray | None = None  # (Z, B) r imposed at every step (probes and tests)
+    uniform_ref: bool = False  # r drawn uniformly from R_z instead of from mu (probes)
+    trace: dict[str, Any] | None = None  # a dict: ``decide`` stores the step's intermediates
+    resample_gen: torch.Generator | None = None  # resample_on_fallback at argmax execution
 
 
 class HierarchicalMethod(Method):
@@ -100,10 +132,18 @@ class HierarchicalMethod(Method):
         self.d_nbr = neighbor_patch_size(p.obs_radius)
         self.reference = ReferencePolicy(pz, z, self.d_own + self.d_nbr, p.hidden, p.ref_size)
         self.local = LocalPolicy(pz, z, self.d_own, p.hidden, p.ref_size, p.obs_radius)
+        if p.ref_embed_scale != 0.5:  # LocalPolicy initializes it with std 0.5
+            with torch.no_grad():
+                self.local.ref_embed.mul_(p.ref_embed_scale / 0.5)
         self.predictor = GroupPredictor(pz, z, self.layout.shape, p.predictor_hidden, p.predictor_embed)
         self.critic = CentralCritic(p.hidden)
-        self.opt_policy = torch.optim.Adam(
-            list(self.reference.parameters()) + list(self.local.parameters()), lr=p.lr)
+        if p.ref_lr is None:  # one group: checkpoints keep the optimizer layout of the default
+            self.opt_policy = torch.optim.Adam(
+                list(self.reference.parameters()) + list(self.local.parameters()), lr=p.lr)
+        else:
+            self.opt_policy = torch.optim.Adam([
+                {"params": list(self.reference.parameters()), "lr": p.ref_lr},
+                {"params": list(self.local.parameters())}], lr=p.lr)
         self.opt_critic = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.opt_predictor = torch.optim.Adam(self.predictor.parameters(), lr=p.predictor_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max)
@@ -121,6 +161,10 @@ class HierarchicalMethod(Method):
         p: HierarchicalParams = self.params  # type: ignore[assignment]
         core = batch.core
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
+        if choice.mode.greedy and p.resample_on_fallback:  # derived from the batch seed, no draw from its rng
+            seq = batch.rng.bit_generator.seed_seq
+            child = np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, 0x5E5A))
+            ctrl.resample_gen = torch.Generator().manual_seed(int(child.generate_state(1, np.uint64)[0] >> 2))
         if choice.training:
             b, n, zz = core.batch, core.n, self.env.groups
             slots, links = self.gs.n_slots, self.gs.neighbors.shape[1]
@@ -130,6 +174,8 @@ class HierarchicalMethod(Method):
                 "controlled": ((n,), np.bool_),
                 "action_mask": ((n, N_ACTIONS), np.bool_),
                 "ref": ((zz,), np.int64),
+                "ref_new": ((zz,), np.bool_),
+                "group_reward": ((zz,), np.float32),
                 "proposed": ((n,), np.int64),
                 "critic": ((n, CRITIC_FEATURES), np.float32),
                 "msgs": ((zz, slots, MSG_DIM), np.float32),
@@ -139,6 +185,7 @@ class HierarchicalMethod(Method):
         return ctrl
 
     def decide(self, batch: EpisodeBatch, state: Controller, choice: ActionChoice) -> Decision:
+        p: HierarchicalParams = self.params  # type: ignore[assignment]
         core, gs = batch.core, self.gs
         state.running = ~core.ended
         # Channel and predictor: S_t^z, A_t^{z',z} -> S-hat_t^z.
@@ -147,8 +194,7 @@ class HierarchicalMethod(Method):
         link_msgs = gs.links(own_msgs)  # (B, Z, K, n, D)
         if state.pred is None:
             state.pred = initial_state(self.predictor, link_msgs)
-        with torch.no_grad():
-            m_hat = rollout_step(self.predictor, state.pred, link_msgs, avail, own_msgs)
+        m_hat = self._complete_messages(state.pred, link_msgs, avail, own_msgs)
         sender_slots = gs.slot_valid[np.maximum(gs.neighbors, 0)] & gs.link_valid[..., None]  # (Z, K, n)
         present = (m_hat[..., PRESENT] > 0.5) & sender_slots[None]
         cells = self.snap(m_hat[..., POS])  # (B, Z, K, n)
@@ -161,24 +207,67 @@ class HierarchicalMethod(Method):
         nbr = neighbor_patches(state.patch, gs, cells, present, heading)
         controlled = ~core.done & state.running[:, None]
         action_mask = self.layout.move_valid[core.pos]
+        ref_in, ref_new = self._reference_input(
+            state, core.batch, choice.gen if choice.gen is not None else self.torch_gen)
         with torch.no_grad():
-            ref, _, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=None,
-                                               choice=choice)
+            ref, ref_logp, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=ref_in,
+                                                      choice=choice)
             proposed_g = choice(logp)  # (Z, B, n), the same mode as r
+        state.ref, state.t = ref, state.t + 1
         proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
 
         dec = Decision(actions=proposed, proposed=proposed, payload=float(state.channel.payload_hier),
                        pred_sq_err=sq_err, pred_count=n_lost)
-        if self.params.safety_filter:  # type: ignore[attr-defined]
-            self._apply_filter(core, cells, present, controlled, proposed, logp, dec)
+        if state.trace is not None:
+            state.trace.update(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
+                               ref=ref, ref_logp=ref_logp, logp=logp, m_hat=m_hat, cells=cells,
+                               present=present, link_msgs=link_msgs, avail=avail, lost=lost)
+        if p.safety_filter:
+            self._apply_filter(core, cells, present, controlled, proposed, logp, dec,
+                               resample=choice.mode.greedy and p.resample_on_fallback, gen=state.resample_gen,
+                               trace=state.trace)
         if state.buffer is not None:
             state.buffer.add(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
-                             ref=ref.numpy().T, proposed=proposed, critic=critic_features(core),
+                             ref=ref.numpy().T, ref_new=np.broadcast_to(ref_new, ref.shape).T,
+                             proposed=proposed, critic=critic_features(core),
                              msgs=own_msgs, avail=avail, age=state.pred.age)
         return dec
 
+    def _complete_messages(self, pred: PredictorState, link_msgs: np.ndarray, avail: np.ndarray,
+                           own_msgs: np.ndarray) -> np.ndarray:
+        """M-hat (B, Z, K, n, D) (eq:interaction_state_estimate): received messages on delivered
+        links; on lost links the GRU prediction (paper), the ground truth (``messages="oracle"``,
+        an upper bound for any predictor) or the last received message (``"last"``)."""
+        mode = self.params.messages  # type: ignore[attr-defined]
+        if mode == "predicted":
+            with torch.no_grad():
+                return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs)
+        pred.age = np.where(avail, 0, pred.age + 1)  # the memory rollout_step keeps, no GRU
+        pred.mem = np.where(avail[..., None, None], link_msgs, pred.mem)
+        return link_msgs.copy() if mode == "oracle" else pred.mem.copy()
+
+    def _reference_input(self, state: Controller, batch: int, gen: torch.Generator,
+                         ) -> tuple[torch.Tensor | None, np.ndarray]:
+        """The r to impose this step, or None to draw r from mu; and whether r is new (Z, 1).
+
+        A drawn r is held for ``ref_hold`` steps (paper: 1). Probes may fix r or draw it
+        uniformly; a fixed or uniform r is never counted as mu's decision."""
+        z, k = self.env.groups, self.params.ref_size  # type: ignore[attr-defined]
+        if state.fixed_ref is not None:
+            return torch.as_tensor(np.asarray(state.fixed_ref, dtype=np.int64)), np.zeros((z, 1), bool)
+        if state.uniform_ref:
+            return torch.randint(k, (z, batch), generator=gen), np.zeros((z, 1), bool)
+        hold = self.params.ref_hold  # type: ignore[attr-defined]
+        if state.ref is not None and state.t % hold != 0:
+            return state.ref, np.zeros((z, 1), bool)
+        return None, np.ones((z, 1), bool)
+
     def observe(self, batch: EpisodeBatch, state: Controller, result: Any) -> None:
         if state.buffer is not None:
+            # Group z's part of eq:reward: its robots' terms over N (sums to the team reward).
+            terms = result.progress + result.goal_bonus + result.collision_penalty + result.time_penalty
+            state.buffer.data["group_reward"][state.buffer.t] = (
+                self.gs.gather(terms, fill=0.0).sum(-1) / self.env.n_robots)
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- helpers
@@ -192,8 +281,7 @@ class HierarchicalMethod(Method):
                        choice: ActionChoice | None = None,
                        ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
-        (M, N), action_mask (M, N, 5). Picks r with ``choice`` (default: a training sample)
-        when ``ref`` is None. Returns r (Z, M),
+        (M, N), action_mask (M, N, 5). Samples r when ``ref`` is None. Returns r (Z, M),
         log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)."""
         feats_u = self.group_major(own).to(torch.float32)
         feats_r = torch.cat([feats_u, self.group_major(nbr).to(torch.float32)], dim=-1)
@@ -205,15 +293,33 @@ class HierarchicalMethod(Method):
         return ref, ref_logp, self.local(feats_u, mask, ref, amask)
 
     def _apply_filter(self, core: Any, cells: np.ndarray, present: np.ndarray, controlled: np.ndarray,
-                      proposed: np.ndarray, logp: torch.Tensor, dec: Decision) -> None:
+                      proposed: np.ndarray, logp: torch.Tensor, dec: Decision, resample: bool = False,
+                      gen: torch.Generator | None = None, trace: dict[str, Any] | None = None) -> None:
+        """Algorithm 1 for every (episode, group); the variants ``fallback="per_robot"`` and
+        ``resample_on_fallback`` (argmax execution only) act on the groups that fell back."""
         gs, b, z = self.gs, core.batch, self.env.groups
         g = b * z
         blocked = self.filter.blocked_cells(cells.reshape(g, -1), present.reshape(g, -1))
-        res = self.filter(
-            gs.gather(core.pos).reshape(g, -1), gs.gather(core.occupying, fill=False).reshape(g, -1),
-            gs.gather(controlled, fill=False).reshape(g, -1), gs.gather(proposed, fill=WAIT).reshape(g, -1),
-            logp.numpy().swapaxes(0, 1).reshape(g, -1, N_ACTIONS).astype(np.float64), blocked,
-        )
+        pos = gs.gather(core.pos).reshape(g, -1)
+        occ = gs.gather(core.occupying, fill=False).reshape(g, -1)
+        ctl = gs.gather(controlled, fill=False).reshape(g, -1)
+        lp = logp.numpy().swapaxes(0, 1).reshape(g, -1, N_ACTIONS).astype(np.float64)
+        prop = gs.gather(proposed, fill=WAIT).reshape(g, -1)
+        res = self.filter(pos, occ, ctl, prop, lp, blocked)
+        if resample and res.fallback.any():  # one fresh sample from pi, filtered again
+            fb = np.flatnonzero(res.fallback)
+            logits = torch.from_numpy(lp[fb])
+            redo = sample_categorical(logits, 1.0, gen if gen is not None else self.torch_gen).numpy()  # (F, n)
+            prop[fb] = np.where(ctl[fb], redo, WAIT)
+            again = self.filter(pos[fb], occ[fb], ctl[fb], prop[fb], lp[fb], blocked[fb])
+            res.actions[fb], res.fallback[fb] = again.actions, again.fallback
+            res.examined[fb] += again.examined
+        if self.params.fallback == "per_robot" and res.fallback.any():  # type: ignore[attr-defined]
+            fb = np.flatnonzero(res.fallback)
+            res.actions[fb] = offenders_wait(self.layout.next_cell, self.layout.move_valid, pos[fb],
+                                             occ[fb], ctl[fb], prop[fb], blocked[fb])
+        if trace is not None:
+            trace.update(blocked=blocked.reshape(b, z, -1), filter_fallback=res.fallback.reshape(b, z))
         dec.actions = np.where(controlled, gs.scatter(res.actions.reshape(b, z, -1), core.n), WAIT)
         dec.candidates = res.examined.reshape(b, z).sum(1)
         dec.filter_calls = res.called.reshape(b, z).sum(1)
@@ -233,5 +339,8 @@ class HierarchicalMethod(Method):
     def update(self, state: Controller) -> dict[str, float]:
         assert state.buffer is not None
         losses = policy_update(self, state.buffer)
-        losses.update(predictor_update(self, state.buffer))
+        if self.params.messages == "predicted":  # type: ignore[attr-defined]  # else unused
+            losses.update(predictor_update(self, state.buffer))
+        else:
+            losses["predictor_loss"] = float("nan")
         return losses

@@ -20,7 +20,7 @@ import numpy as np
 import torch
 from torch.utils.checkpoint import checkpoint
 
-from algorithms.common.trainer import RolloutBuffer, team_advantage
+from algorithms.common.trainer import RolloutBuffer, mc_returns, team_advantage
 from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
@@ -45,8 +45,13 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
         values = method.critic(crit, t_frac)
     adv, ret, _, n = team_advantage(values, rewards, running, p.normalize_advantage)
     tt, bb = np.nonzero(running)
-    n_group = torch.tensor(float(max(1, method.group_major(d["controlled"][tt, bb], False).any(-1).sum())))
+    groups_on = method.group_major(d["controlled"][tt, bb], False).any(-1).numpy() & d["ref_new"][tt, bb].T
+    n_group = torch.tensor(float(max(1, groups_on.sum())))  # group-steps where mu drew r
     n_robot = torch.tensor(float(max(1, d["controlled"][tt, bb].sum())))
+    ref_coef = p.entropy_coef if p.ref_entropy_coef is None else p.ref_entropy_coef
+    adv_r = adv[..., None].expand(-1, -1, method.env.groups)  # (T, B, Z) weight of log mu(r^z)
+    if p.ref_advantage == "group":
+        adv_r = group_advantage(method, values, d["group_reward"], running, p.normalize_advantage)
 
     method.opt_policy.zero_grad(set_to_none=True)
     method.opt_critic.zero_grad(set_to_none=True)
@@ -60,16 +65,17 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
             d["own"][r_t, r_b], d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref=ref)
         mask = method.group_major(ctl, fill=False)  # (Z, M, n)
         active = mask.any(-1)  # groups with a robot to steer
+        decided = active & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))  # mu drew r
         u = method.group_major(d["proposed"][r_t, r_b], fill=WAIT)
         lp_u = (logp.gather(-1, u.unsqueeze(-1)).squeeze(-1) * mask).sum(-1)  # log pi(U~ | w)
-        lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * active  # log mu(r | o)
-        logp_row = (lp_r + lp_u).sum(0)  # (M,) every group's levels, same team advantage
-        actor = -(adv[r_t, r_b] * logp_row).sum() / n  # eq:losses (L_r + L_l)
-        ent_r = (_entropy(ref_logp) * active).sum() / n_group
+        lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * decided  # log mu(r | o)
+        actor = -((adv[r_t, r_b] * lp_u.sum(0)).sum()  # eq:losses (L_l + L_r)
+                  + (adv_r[r_t, r_b].T * lp_r).sum()) / n
+        ent_r = (_entropy(ref_logp) * decided).sum() / n_group
         ent_u = (_entropy(logp) * mask).sum() / n_robot
         v = method.critic(crit[r_t, r_b], t_frac[r_t, r_b])
         critic = ((v - ret[r_t, r_b]) ** 2).sum() / n  # eq:losses (L_V)
-        (actor - p.entropy_coef * (ent_r + ent_u) + critic).backward()
+        (actor - ref_coef * ent_r - p.entropy_coef * ent_u + critic).backward()
         for key, val in zip(sums, (actor, critic, ent_r, ent_u), strict=True):
             sums[key] += float(val.detach())
     params = [q for g in method.opt_policy.param_groups for q in g["params"]]
@@ -79,6 +85,22 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
     method.opt_critic.step()
     sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
     return sums
+
+
+def group_advantage(method: HierarchicalMethod, values: torch.Tensor, group_reward: np.ndarray,
+                    running: np.ndarray, normalize: bool) -> torch.Tensor:
+    """(T, B, Z) per-group advantage for the reference (``ref_advantage="group"``, a departure
+    from eq:advantage): group z's Monte-Carlo return of its own reward share minus the
+    team value scaled by its share of the robots, n_z / N; RMS-normalized over running steps."""
+    t, b, z = group_reward.shape
+    g = mc_returns(group_reward.reshape(t, b * z)).reshape(t, b, z)
+    share = torch.from_numpy(method.gs.slot_valid.sum(1) / method.env.n_robots).to(torch.float32)
+    adv = (g - values[..., None] * share).detach()
+    mask = torch.from_numpy(running.astype(np.float32))[..., None]
+    if normalize:
+        rms = torch.sqrt(((adv * mask) ** 2).sum() / (mask.sum() * z).clamp_min(1.0)).clamp_min(1e-6)
+        adv = adv / rms
+    return adv * mask
 
 
 def predictor_targets(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, torch.Tensor]:

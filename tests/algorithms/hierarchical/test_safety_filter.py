@@ -233,3 +233,108 @@ def test_safety_filter__large_groups_match_reference(seed: int) -> None:
                 BIG, p, o, c, u, lp, npos, np.ones(len(npos), bool), 2, c_max)
             assert out.examined[k] == examined and bool(out.fallback[k]) == fallback
             assert (out.actions[k, : len(p)] == want).all()
+
+
+OPEN = from_ascii(
+    """
+......
+......
+......
+......
+""",
+    name="filter-test-open",
+)
+
+
+def clump_case(rng: np.random.Generator):
+    """4..6 robots packed in a 3x3 block of an open floor, proposals that collide with each
+    other and neighbours placed next to the block: proposals violate (1)-(4) for several
+    robots at once, so deviation-3 candidates are examined and many of them clash among
+    the changed robots (same new cell or a swap) or leave conflicting pairs of the
+    proposal among them."""
+    n = int(rng.integers(4, 7))
+    r0, c0 = int(rng.integers(0, 2)), int(rng.integers(0, 4))
+    block = [OPEN.cell_index[r0 + dr, c0 + dc] for dr in range(3) for dc in range(3)]
+    cells = rng.choice(block, size=n, replace=False)
+    prop = rng.integers(0, N_ACTIONS, size=n)
+    logp = np.log(rng.dirichlet(np.ones(N_ACTIONS), size=n))
+    outside = np.setdiff1d(np.arange(OPEN.n_free), block)
+    nbr = rng.choice(outside, size=int(rng.integers(0, 3)), replace=False)
+    return cells, prop, logp, nbr
+
+
+def run_cases(filt: SafetyFilter, cases, layout: Layout = OPEN):
+    g, n_max = len(cases), max(len(c[0]) for c in cases)
+    r = max(max(len(c[3]) for c in cases), 1)
+    pos = np.zeros((g, n_max), np.int64)
+    occ = np.zeros((g, n_max), bool)
+    prop, logp = np.full((g, n_max), WAIT), np.zeros((g, n_max, N_ACTIONS))
+    nbr, nbr_on = np.zeros((g, r), np.int64), np.zeros((g, r), bool)
+    for k, (p, u, lp, npos) in enumerate(cases):
+        m = len(p)
+        pos[k, :m], occ[k, :m], prop[k, :m], logp[k, :m] = p, True, u, lp
+        nbr[k, : len(npos)], nbr_on[k, : len(npos)] = npos, True
+    return filt(pos, occ, occ, prop, logp, filt.blocked_cells(nbr, nbr_on))
+
+
+def test_safety_filter__deviation3_with_clashes_matches_reference() -> None:
+    """Packed groups at radius 3: the vectorized level-3 search (clash accumulation over
+    every pair of changed robots, the swap test, the proposal's conflicting pairs among the
+    changed robots) agrees with the enumerator, and level 3 is where many cases resolve."""
+    rng = np.random.default_rng(7)
+    cases = [clump_case(rng) for _ in range(150)]
+    filt = SafetyFilter(OPEN, 3, 10**6)
+    out = run_cases(filt, cases)
+    at_level3 = 0
+    for k, (p, u, lp, npos) in enumerate(cases):
+        on = np.ones(len(p), bool)
+        want, examined, fallback, _ = reference_filter(OPEN, p, on, on, u, lp, npos, on[: len(npos)], 3, 10**9)
+        assert out.examined[k] == examined and bool(out.fallback[k]) == fallback, k
+        assert (out.actions[k, : len(p)] == want).all(), k
+        at_level3 += int(not fallback and (want != u).sum() == 3)
+    assert at_level3 >= 10
+
+
+def test_safety_filter__deviation3_hand_made_swap_and_same_cell() -> None:
+    """Robots A, B, C on (1,1), (1,2), (1,3) under a wall all propose Up (invalid): all
+    three must change, so only deviation 3 can succeed. Per robot pi(Right, Wait, Down) =
+    (.5, .3, .1) for A and pi(Left, Wait, Right or Down) = (.5, .3, .1) for B and C. By
+    score the level-3 candidates run (R,L,L) .125: A-B swap and A, C on (1,2); then at .075
+    (W,L,L), (R,W,L), (R,L,W): B onto A's cell, A onto B's, the A-B swap; then at .045
+    (W,W,L), (W,L,W), (R,W,W): one robot onto a waiting one's cell; then (W,W,W) .027, the
+    winner: 1 + 60 (levels 1-2) + 8 candidates examined."""
+    layout = from_ascii("@@@@@@\n......\n......", name="hand3")
+    ci = layout.cell_index
+    pos = np.array([[ci[1, 1], ci[1, 2], ci[1, 3]]])
+    prop = np.array([[0, 0, 0]])  # Up into the wall: condition (1) fails for all three
+    probs = np.array([[0.05, 0.1, 0.05, 0.5, 0.3],  # A: Up, Down, Left, Right, Wait
+                      [0.05, 0.05, 0.5, 0.1, 0.3],  # B
+                      [0.05, 0.1, 0.5, 0.05, 0.3]])  # C
+    logp = np.log(probs)[None]
+    on = np.ones((1, 3), bool)
+    filt = SafetyFilter(layout, 3, 10**6)
+    out = filt(pos, on, on, prop, logp, np.zeros((1, layout.n_free), bool))
+    assert out.actions[0].tolist() == [WAIT, WAIT, WAIT] and not out.fallback[0]
+    assert out.examined[0] == 1 + 3 * 4 + 3 * 16 + 8
+    want, examined, fallback, _ = reference_filter(layout, pos[0], on[0], on[0], prop[0], logp[0], [], [], 3, 10**9)
+    assert (want == out.actions[0]).all() and examined == out.examined[0] and not fallback
+
+
+def test_safety_filter__too_many_candidates_guard(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Level 3 over m = 4 robots enumerates C(4,3) 4^3 = 256 candidates per group: a limit
+    of exactly 256 runs, 255 is a BenchError naming the count, deviation and group size."""
+    import algorithms.hierarchical.safety_filter as sf
+    from envs.errors import BenchError
+
+    rng = np.random.default_rng(3)
+    while True:  # a 4-robot clump whose search reaches deviation 3
+        case = clump_case(rng)
+        if len(case[0]) == 4 and run_cases(SafetyFilter(OPEN, 2, 10**6), [case]).fallback[0] \
+                and not run_cases(SafetyFilter(OPEN, 3, 10**6), [case]).fallback[0]:
+            break
+    filt = SafetyFilter(OPEN, 3, 10**6)
+    monkeypatch.setattr(sf, "MAX_LEVEL_CANDIDATES", 256)
+    assert not run_cases(filt, [case]).fallback[0]
+    monkeypatch.setattr(sf, "MAX_LEVEL_CANDIDATES", 255)
+    with pytest.raises(BenchError, match=r"256 candidates at deviation 3 for 4 robots"):
+        run_cases(filt, [case])
