@@ -22,6 +22,10 @@ from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
 
+# Largest horizon T a cell may ask for: 20x the paper's 500 steps (Sec. IV). Rollout arrays
+# grow with T x N x batch, so T = 10**12 would fail at run time with MemoryError instead.
+MAX_HORIZON = 10_000
+
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
 
@@ -29,7 +33,9 @@ SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
 class Cell(BaseModel):
     """A frozen experiment config; every field is validated, ``cell_id`` hashes them all."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # strict: `n_robots = true` or `horizon = 2.5` is an error, not 1 or 2 (a number is a
+    # number, a flag is a flag); an integer is still accepted where a float is expected.
+    model_config = ConfigDict(frozen=True, extra="forbid", strict=True)
 
     method: str = Field(description="registered method name (algorithms/registry.py)")
     n_robots: int = Field(ge=1, le=10_000, description="team size N")
@@ -44,7 +50,7 @@ class Cell(BaseModel):
     )
     layout: str = Field("auto", description="'auto' (preset sized for N), a preset or a .map path")
     episodes: int = Field(2000, ge=0, description="training episodes (0: evaluate the initialization)")
-    horizon: int = Field(500, ge=1, description="maximum episode length T")
+    horizon: int = Field(500, ge=1, le=MAX_HORIZON, description="maximum episode length T")
     eval_episodes: int = Field(100, ge=1, description="greedy evaluation episodes")
     on_goal: Literal["remove", "stay"] = Field("remove", description="robots at their goal leave / stay")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field("bernoulli", description="loss process")
@@ -100,7 +106,11 @@ class Cell(BaseModel):
             layout = load_layout(self.layout)
         except BenchError as exc:
             raise BenchError(f"invalid cell: layout: {exc}") from None
-        region = len(main_region(layout))
+        try:
+            region = len(main_region(layout))
+        except BenchError as exc:  # no free cell at all
+            raise BenchError(f"invalid cell: layout: {exc}; {self.n_robots} robots need at least "
+                             f"{self.n_robots + (self.n_robots == 1)} connected free cells") from None
         if self.n_robots > region or (self.n_robots == region == 1):
             raise BenchError(
                 f"invalid cell: n_robots: {self.n_robots} robots do not fit layout "

@@ -8,15 +8,20 @@
 
 Every write is atomic: a temporary file in the same directory (its name starts with '.',
 which pyarrow's dataset reader ignores), flush + fsync, ``os.replace``, fsync of the
-directory. Crash consistency of training rows: a part covering episodes [a, b) is written
+directory. Files get the permissions the umask gives (like ``open``), not mkstemp's 0600.
+Tables and checkpoints are serialized in memory first, so a full disk is always a plain
+``OSError(ENOSPC)`` of the write, turned into ``DiskFull`` (a BenchError) naming the file;
+the temp file is removed and the previous version stays in place. Crash consistency of training rows: a part covering episodes [a, b) is written
 *before* the checkpoint at episode b; on resume, parts starting at or beyond the
 checkpoint's episode counter are deleted, so rows are never duplicated or lost.
 """
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
-import shutil
+import re
 import tempfile
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -39,22 +44,52 @@ from envs.errors import BenchError
 
 CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
+CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/cells.py: 12 hex digits of SHA-256
+NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+
+
+class DiskFull(BenchError):
+    """The disk (or quota) filled up while the bench wrote ``path``; nothing stored was damaged."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = str(path)
+        super().__init__(f"disk full while writing {self.path}; nothing stored was damaged; "
+                         "free space and rerun to resume")
+
+
+def is_disk_full(exc: BaseException) -> bool:
+    return isinstance(exc, OSError) and exc.errno in NO_SPACE
+
+
+def file_mode() -> int:
+    """0666 minus the process umask: what ``open(path, "w")`` would create."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
 
 
 @contextmanager
 def atomic_file(path: Path) -> Iterator[IO[bytes]]:
-    """Write ``path`` atomically: temp file in the same dir, fsync, os.replace, dir fsync."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    """Write ``path`` atomically: temp file in the same dir, fsync, os.replace, dir fsync.
+
+    A full disk (ENOSPC/EDQUOT) raises ``DiskFull`` naming ``path``; the old file is kept.
+    """
+    tmp = ""
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
         with os.fdopen(fd, "wb") as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, file_mode())
         os.replace(tmp, path)
-    except BaseException:
-        with _suppress_oserror():
-            os.unlink(tmp)
+    except BaseException as exc:
+        if tmp:
+            with _suppress_oserror():
+                os.unlink(tmp)
+        if is_disk_full(exc):
+            raise DiskFull(path) from None
         raise
     _fsync_dir(path.parent)
 
@@ -77,8 +112,10 @@ def _fsync_dir(path: Path) -> None:
 
 
 def write_table(path: Path, table: pa.Table) -> None:
+    sink = pa.BufferOutputStream()  # serialize first: the only disk write is fh.write
+    pq.write_table(table, sink)
     with atomic_file(path) as fh:
-        pq.write_table(table, fh)
+        fh.write(sink.getvalue().to_pybytes())
 
 
 def read_table(path: Path, expected: pa.Schema) -> pa.Table:
@@ -125,11 +162,21 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     """
     import torch
 
+    import pickle
+
     path = Path(path)
     try:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise BenchError(f"checkpoint {str(path)!r} does not exist") from None
+    except pickle.UnpicklingError as exc:  # weights_only refused a global: say so, not torch's advice
+        found = re.search(r"Unsupported global: GLOBAL (\S+)", str(exc))
+        what = f" ({found.group(1)})" if found else ""
+        raise BenchError(
+            f"refusing checkpoint {str(path)!r}: it holds pickled Python objects{what}, and the "
+            "bench loads only tensors and plain data (weights_only=True) so that no code from a "
+            "results folder is executed; it was not written by this bench"
+        ) from None
     except Exception as exc:  # torch raises many types for truncated or foreign files
         raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
@@ -302,8 +349,10 @@ class RunStore:
         """Atomically save ``payload`` (tensors and plain data) to checkpoints/<cell_id>.pt."""
         import torch
 
+        buf = io.BytesIO()  # serialize first: a full disk fails in fh.write, not in torch's zip writer
+        torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, buf)
         with atomic_file(self.ckpt_path(cell_id)) as fh:
-            torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, fh)
+            fh.write(buf.getbuffer())
 
     def read_checkpoint(self, cell_id: str) -> dict[str, Any] | None:
         path = self.ckpt_path(cell_id)
@@ -311,22 +360,76 @@ class RunStore:
 
     # ------------------------------------------------------------- cleanup
     def remove_temp_files(self) -> int:
-        """Delete leftovers of interrupted atomic writes ('.<name>.*.tmp')."""
+        """Delete leftovers of interrupted atomic writes of bench files ('.<name>.*.tmp')."""
         n = 0
-        for d in (self.root, self.train_dir, self.eval_dir, self.ckpt_dir):
-            if not d.is_dir():
-                continue
-            for p in d.rglob(".*.tmp"):
+        for p in self.bench_files():
+            if _temp_target(p.name):
                 with _suppress_oserror():
                     p.unlink()
                     n += 1
         return n
 
-    def wipe(self) -> None:
-        """Delete everything the bench wrote in this run directory (for --fresh)."""
-        for sub in (self.train_dir, self.eval_dir, self.ckpt_dir):
-            if sub.is_dir():
-                shutil.rmtree(sub)
-        for f in (self.cells_path, self.manifest_path):
-            if f.exists():
-                f.unlink()
+    def bench_files(self) -> list[Path]:
+        """Files of this run directory that the bench itself writes (and only those).
+
+        manifest.json, cells.parquet, train/<cell_id>/part-<k>.parquet,
+        eval/<cell_id>.parquet, checkpoints/<cell_id>.pt (cell_id: 12 hex digits) and the
+        temp files ('.<name>.<random>.tmp') of interrupted writes of these. Anything else,
+        and anything behind a symlink, is the user's.
+        """
+        def plain(d: Path) -> list[tuple[Path, str]]:
+            """(file, the name it stands for: its own, or a temp file's target) in ``d``."""
+            if not d.is_dir() or d.is_symlink():
+                return []
+            return [(p, _temp_target(p.name) or p.name) for p in d.iterdir() if p.is_file() and not p.is_symlink()]
+
+        out = [p for p, name in plain(self.root) if name in ("manifest.json", "cells.parquet")]
+        if self.train_dir.is_dir() and not self.train_dir.is_symlink():
+            for d in self.train_dir.iterdir():
+                if CELL_ID_RE.fullmatch(d.name):
+                    out += [p for p, name in plain(d) if _is_part(name)]
+        for d, suffix in ((self.eval_dir, ".parquet"), (self.ckpt_dir, ".pt")):
+            out += [p for p, name in plain(d)
+                    if name.endswith(suffix) and CELL_ID_RE.fullmatch(name.removesuffix(suffix))]
+        return sorted(out)
+
+    def check_fresh(self) -> None:
+        """BenchError unless --fresh may run here: the directory does not exist, is empty,
+        or is a bench run directory (has manifest.json). Nothing else is ever wiped."""
+        if not self.root.is_dir() or self.manifest_path.is_file():
+            return
+        if any(self.root.iterdir()):
+            raise BenchError(
+                f"--fresh: {str(self.root)!r} has files but no manifest.json, so it is not a bench "
+                "run directory; refusing to delete anything in it (choose another --out)"
+            )
+
+    def wipe(self) -> list[Path]:
+        """Delete the files the bench wrote here (``bench_files``) for --fresh; other files and
+        the folders holding them stay. Returns the deleted files."""
+        files = self.bench_files()
+        for p in files:
+            p.unlink()
+        for p in files:  # train/<cell_id>/ first, then train/, eval/, checkpoints/ (never the root)
+            if p.parent != self.root:
+                _rmdir_if_empty(p.parent)
+        for d in (self.train_dir, self.eval_dir, self.ckpt_dir):
+            _rmdir_if_empty(d)
+        return files
+
+
+def _is_part(name: str) -> bool:
+    mid = name[len(PART_PREFIX):-len(PART_SUFFIX)]
+    return name.startswith(PART_PREFIX) and name.endswith(PART_SUFFIX) and mid.isdigit()
+
+
+def _temp_target(name: str) -> str:
+    """The target of an atomic_file temp name '.<target>.<random>.tmp', else ''."""
+    if not (name.startswith(".") and name.endswith(".tmp") and name.count(".") >= 3):
+        return ""
+    return name[1:].rsplit(".", 2)[0]
+
+
+def _rmdir_if_empty(d: Path) -> None:
+    if d.is_dir() and not d.is_symlink() and not any(d.iterdir()):
+        d.rmdir()
