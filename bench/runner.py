@@ -198,9 +198,10 @@ class _Run:
                             self._collect(ref, slots)
                 else:
                     time.sleep(0.05)
+                self.ctx.check_head()
                 self._emit("tick", None)
         finally:
-            if slots:
+            if slots and not self.ctx.lost:  # a lost cluster has no workers left to release
                 release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
             self.progress.close()
