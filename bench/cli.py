@@ -202,15 +202,51 @@ def _run_dir(run: Path | None) -> Path:
 @app.command()
 def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
+    out: Path | None = typer.Option(None, "--out", help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
 ) -> None:
-    """Rebuild every figure and table of a run from its Parquet store into RUN/report/."""
+    """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
+    Warns naming every done cell whose stored rows are incomplete."""
+    import os
+
     run_dir = _run_dir(run)
+    target = out if out is not None else run_dir / "report"
+    if out is None and not _writable(target):
+        raise BenchError(f"run directory {str(run_dir)!r} is read-only; write the report elsewhere "
+                         "with --out DIR")
     try:
         from reports.build import build_report
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
-    out = build_report(run_dir)
-    typer.echo(f"report: {out / 'index.html'}  (also index.md, figures, tables, claims.md)")
+    from bench.completeness import incomplete_cells
+    from bench.store import RunStore
+
+    store = RunStore(run_dir)
+    cells = store.read_cells()
+    if cells is not None:
+        for cid, gap in incomplete_cells(store, cells).items():
+            typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
+                       "rerun `bench run` to complete it", err=True)
+    try:
+        built = build_report(run_dir, out)
+    except PermissionError as exc:
+        hint = "; write the report elsewhere with --out DIR" if out is None else ""
+        raise BenchError(f"cannot write the report: {exc.filename or target}: permission denied{hint}") from None
+    except OSError as exc:
+        if exc.errno != getattr(os, "EROFS", 30):
+            raise
+        hint = "; write the report elsewhere with --out DIR" if out is None else ""
+        raise BenchError(f"cannot write the report: {exc.filename or target}: read-only file system{hint}") from None
+    typer.echo(f"report: {built / 'index.html'}  (also index.md, figures, tables, claims.md)")
+
+
+def _writable(path: Path) -> bool:
+    """Whether ``path`` (or its nearest existing parent) is a writable directory."""
+    import os
+
+    p = path
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    return p.is_dir() and os.access(p, os.W_OK | os.X_OK)
 
 
 @app.command()
