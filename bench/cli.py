@@ -76,7 +76,7 @@ def run(
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
     from bench.grid_files import check_run_name, load_grid_file
     from bench.grids import get_grid
-    from bench.runner import Terminated, sigterm_as_interrupt
+    from bench.runner import sigterm_as_interrupt, sigterm_received
     from bench.store import RunStore
 
     if (grid is None) == (grid_file is None):
@@ -102,8 +102,10 @@ def run(
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv)
-    except Terminated:
-        raise typer.Exit(143) from None
+    except KeyboardInterrupt:
+        if sigterm_received():
+            raise typer.Exit(143) from None
+        raise
     for cid, why in summary.rerun.items():
         typer.echo(f"bench: warning: cell {cid} was done but {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "

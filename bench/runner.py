@@ -63,7 +63,17 @@ EventHook = Callable[[str, CellState], None]
 
 
 class Terminated(KeyboardInterrupt):
-    """SIGTERM to the driver: handled like Ctrl-C (checkpoints kept, rerun resumes), exit 143."""
+    """SIGTERM to the driver: handled like Ctrl-C (checkpoints kept, rerun resumes), exit 143.
+
+    Ray turns an exception raised by a signal handler inside ``ray.wait``/``ray.get`` into
+    a plain KeyboardInterrupt, so ``sigterm_received()`` is what tells the two apart."""
+
+
+_SIGTERM_RECEIVED: list[bool] = [False]
+
+
+def sigterm_received() -> bool:
+    return _SIGTERM_RECEIVED[0]
 
 
 @contextmanager
@@ -71,6 +81,7 @@ def sigterm_as_interrupt() -> Iterator[None]:
     """While active, SIGTERM raises ``Terminated`` in the main thread (replacing the handler
     ``ray.init`` installs, which exits mid-write with a crash dump)."""
     def handler(signum: int, frame: Any) -> None:
+        _SIGTERM_RECEIVED[0] = True
         raise Terminated()
 
     try:
