@@ -186,7 +186,11 @@ def test_disk_full__at_start_and_in_report_is_one_line_exit_2(
     assert code == 2
     _one_line(err, "disk full while writing", "report", "free space and rerun")
     assert snapshot(out) == before
-    # at start: the run directory cannot be created (fresh folder, nothing to run yet)
+    # at start: the run directory cannot be created (Ray is not needed to get there)
+    import bench.runner
+    from bench.ray_cluster import RayContext
+
+    monkeypatch.setattr(bench.runner, "connect", lambda *a, **k: RayContext(False, "none", 1))
     monkeypatch.setattr(Path, "mkdir", _enospc)
     code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(tmp_path / "new"))
     assert code == 2
