@@ -57,8 +57,15 @@ class DiskFull(BenchError):
                          "free space and rerun to resume")
 
 
-def is_disk_full(exc: BaseException) -> bool:
-    return isinstance(exc, OSError) and exc.errno in NO_SPACE
+def is_disk_full(exc: BaseException | None) -> bool:
+    """ENOSPC/EDQUOT, also when a writer turned it into another error while cleaning up
+    (matplotlib's PDF writer raises AttributeError during the failed write's handling)."""
+    seen = 0
+    while exc is not None and seen < 10:
+        if isinstance(exc, OSError) and exc.errno in NO_SPACE:
+            return True
+        exc, seen = exc.__cause__ or exc.__context__, seen + 1
+    return False
 
 
 def file_mode() -> int:
