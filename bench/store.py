@@ -176,13 +176,19 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise BenchError(f"checkpoint {str(path)!r} does not exist") from None
-    except pickle.UnpicklingError as exc:  # weights_only refused a global: say so, not torch's advice
+    except pickle.UnpicklingError as exc:
+        # Never pass on torch's text: it advises weights_only=False, which would execute code
+        # from a results folder. A refused global is named; anything else is corruption.
         found = re.search(r"Unsupported global: GLOBAL (\S+)", str(exc))
-        what = f" ({found.group(1)})" if found else ""
+        if found is None:
+            tail = str(exc).partition("WeightsUnpickler error:")[2]
+            why = next((ln.strip() for ln in tail.splitlines() if ln.strip()), "not a torch file")
+            raise BenchError(f"corrupt checkpoint {str(path)!r}: {why[:200]}") from None
         raise BenchError(
-            f"refusing checkpoint {str(path)!r}: it holds pickled Python objects{what}, and the "
-            "bench loads only tensors and plain data (weights_only=True) so that no code from a "
-            "results folder is executed; it was not written by this bench"
+            f"refusing checkpoint {str(path)!r}: it holds a pickled Python object "
+            f"({found.group(1)}), and the bench loads only tensors and plain data "
+            "(weights_only=True) so that no code from a results folder is executed; it was not "
+            "written by this bench"
         ) from None
     except Exception as exc:  # torch raises many types for truncated or foreign files
         raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None

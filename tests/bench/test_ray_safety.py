@@ -15,8 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bench import ray_cluster
-from bench.ray_cluster import _is_auth_failure, connect, secure_token_file
+from bench.ray_cluster import _is_auth_failure, secure_token_file
 from bench.store import RunStore
 from tests.bench.conftest import REPO, cli_argv, toy_spec, write_grid_file
 
@@ -121,29 +120,42 @@ def _loopback(ip: str) -> bool:
     return ip.startswith("127.") or ip in ("::1", "::ffff:127.0.0.1") or ip.startswith("::ffff:127.")
 
 
+EMBEDDED = """
+import json, os, sys, time
+sys.path.insert(0, {repo!r})
+import ray
+from bench.ray_cluster import connect, CLUSTER_MODE_ENV
+from tests.bench.test_ray_safety import _listeners, _ray_pids
+ctx = connect(None, 1)
+@ray.remote
+def ping():
+    return 1
+assert ray.get(ping.remote()) == 1  # a worker process is up and listening too
+time.sleep(1.0)
+found = _listeners(_ray_pids(os.getpid()))
+env_left = os.environ.get(CLUSTER_MODE_ENV)
+ctx.shutdown()
+print(json.dumps({{"found": found, "env_left": env_left}}))
+"""
+
+
 @pytest.mark.slow
-def test_embedded_ray__every_listener_is_on_loopback_and_the_token_is_private(token_home: Path) -> None:
-    import ray
+def test_embedded_ray__every_listener_is_on_loopback_and_the_token_is_private(tmp_path: Path) -> None:
+    import json
+    import sys
 
-    if ray.is_initialized():
-        pytest.skip("another Ray session is active in this process")
-    ctx = connect(None, 1)
-    try:
-        @ray.remote
-        def ping() -> int:
-            return 1
-
-        assert ray.get(ping.remote()) == 1  # a worker process is up and listening too
-        time.sleep(1.0)
-        found = _listeners(_ray_pids(os.getpid()))
-    finally:
-        ctx.shutdown()
-    names = {Path(f"/proc/{pid}/comm").read_text().strip() if Path(f"/proc/{pid}").exists() else "?"
-             for _, _, pid in found}
-    assert len(found) >= 3, (found, names)  # GCS, raylet, driver and worker at least
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("RAY_AUTH", "RAY_ADDRESS"))}
+    env["HOME"] = str(tmp_path)  # its own token file; Ray caches the token per process, hence a subprocess
+    proc = subprocess.run([sys.executable, "-c", EMBEDDED.format(repo=str(REPO))], cwd=REPO, env=env,
+                          capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout.strip().splitlines()[-1])
+    found = data["found"]
+    assert len(found) >= 4, found  # GCS, raylet, driver and worker at least
     assert all(_loopback(ip) for ip, _, _ in found), found
-    assert stat.S_IMODE(token_home.stat().st_mode) == 0o600
-    assert os.environ.get(ray_cluster.CLUSTER_MODE_ENV) is None  # restored after start-up
+    assert data["env_left"] is None  # cluster mode restored after start-up
+    token = tmp_path / ".ray" / "auth_token"
+    assert stat.S_IMODE(token.stat().st_mode) == 0o600 and len(token.read_text()) == 64
 
 
 @pytest.fixture
