@@ -6,32 +6,28 @@
     <run>/eval/<cell_id>.parquet   written once, after every evaluation chunk
     <run>/checkpoints/<cell_id>.pt
 
-Every write is atomic: a temporary file in the same directory (its name starts with '.',
-which pyarrow's dataset reader ignores), flush + fsync, ``os.replace``, fsync of the
-directory. Files get the permissions the umask gives (like ``open``), not mkstemp's 0600.
-Tables and checkpoints are serialized in memory first, so a full disk is always a plain
-``OSError(ENOSPC)`` of the write, turned into ``DiskFull`` (a BenchError) naming the file;
-the temp file is removed and the previous version stays in place. Crash consistency of training rows: a part covering episodes [a, b) is written
+Every write is atomic (bench/atomic.py: temp file, fsync, rename; permissions from the
+umask; a full disk is one ``DiskFull`` line naming the file, the old file kept). Tables
+and checkpoints are serialized in memory first, so the only disk write is one ``write``
+of the temp file. Crash consistency of training rows: a part covering episodes [a, b) is written
 *before* the checkpoint at episode b; on resume, parts starting at or beyond the
 checkpoint's episode counter are deleted, so rows are never duplicated or lost.
 """
 from __future__ import annotations
 
-import errno
 import io
 import json
 import os
 import re
-import tempfile
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from bench.atomic import DiskFull, _suppress_oserror, atomic_file, file_mode, is_disk_full
 from bench.schema import (
     CELLS_SCHEMA,
     EVAL_SCHEMA,
@@ -42,80 +38,12 @@ from bench.schema import (
 )
 from envs.errors import BenchError
 
+__all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full", "load_checkpoint",
+           "read_meta", "read_table", "write_table"]
+
 CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
 CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/cells.py: 12 hex digits of SHA-256
-NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
-
-
-class DiskFull(BenchError):
-    """The disk (or quota) filled up while the bench wrote ``path``; nothing stored was damaged."""
-
-    def __init__(self, path: str | Path) -> None:
-        self.path = str(path)
-        super().__init__(f"disk full while writing {self.path}; nothing stored was damaged; "
-                         "free space and rerun to resume")
-
-
-def is_disk_full(exc: BaseException | None) -> bool:
-    """ENOSPC/EDQUOT, also when a writer turned it into another error while cleaning up
-    (matplotlib's PDF writer raises AttributeError during the failed write's handling)."""
-    seen = 0
-    while exc is not None and seen < 10:
-        if isinstance(exc, OSError) and exc.errno in NO_SPACE:
-            return True
-        exc, seen = exc.__cause__ or exc.__context__, seen + 1
-    return False
-
-
-def file_mode() -> int:
-    """0666 minus the process umask: what ``open(path, "w")`` would create."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-@contextmanager
-def atomic_file(path: Path) -> Iterator[IO[bytes]]:
-    """Write ``path`` atomically: temp file in the same dir, fsync, os.replace, dir fsync.
-
-    A full disk (ENOSPC/EDQUOT) raises ``DiskFull`` naming ``path``; the old file is kept.
-    """
-    tmp = ""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, file_mode())
-        os.replace(tmp, path)
-    except BaseException as exc:
-        if tmp:
-            with _suppress_oserror():
-                os.unlink(tmp)
-        if is_disk_full(exc):
-            raise DiskFull(path) from None
-        raise
-    _fsync_dir(path.parent)
-
-
-@contextmanager
-def _suppress_oserror() -> Iterator[None]:
-    try:
-        yield
-    except OSError:
-        pass
-
-
-def _fsync_dir(path: Path) -> None:
-    with _suppress_oserror():
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
 
 
 def write_table(path: Path, table: pa.Table) -> None:
@@ -167,9 +95,9 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     Keys: format, schema_version, cell (canonical cell JSON), method, episodes_done,
     wall_s, peak_mem_mb, attempts, state (the method's state_dict).
     """
-    import torch
-
     import pickle
+
+    import torch
 
     path = Path(path)
     try:

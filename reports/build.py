@@ -23,7 +23,6 @@ from matplotlib.figure import Figure
 
 from bench.completeness import incomplete_cells
 from bench.store import DiskFull, RunStore, file_mode, is_disk_full
-
 from reports.claims import all_claims, claims_markdown
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
