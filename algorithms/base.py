@@ -3,12 +3,14 @@
 A method is built from an environment config, its hyperparameters (a pydantic model,
 ``Params``) and a seed. It exposes:
 
-* ``begin(batch, greedy)`` -> a controller state for B episodes (recurrent states, loss
-  processes, rollout storage); ``decide(batch, state, greedy)`` -> a ``Decision`` for
-  the current step. The shared loops below drive these.
-* ``evaluate(chunk, seed)`` -> one metric row per evaluation episode of that chunk
-  (greedy at every level, SPEC 3 "Execution"); chunks are fixed-size, so evaluation
-  fans out over workers and gives the same rows in any split.
+* ``begin(batch, choice)`` -> a controller state for B episodes (recurrent states, loss
+  processes, rollout storage when ``choice.training``); ``decide(batch, state, choice)`` ->
+  a ``Decision`` for the current step, its controls picked by ``choice(logits)`` (argmax or
+  a sample, algorithms/common/execution.py). The shared loops below drive these.
+* ``evaluate(chunk, seed, execution)`` -> one metric row per evaluation episode of that
+  chunk in one execution mode (``argmax``, ``sample``, ``sample@T``; ``planner`` for a
+  planner); every mode sees the same scenarios and loss draws; chunks are fixed-size, so
+  evaluation fans out over workers and gives the same rows in any split.
 * ``train_iteration()`` -> one update from ``batch_episodes`` fresh episodes; returns one
   row per episode (learned methods; a planner returns no rows and learns nothing).
 * ``state_dict()`` / ``load_state_dict()`` -> tensors and plain data only (parameters,
@@ -19,12 +21,12 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from algorithms.common.episodes import (
     EVAL_STREAM,
@@ -34,9 +36,20 @@ from algorithms.common.episodes import (
     EpisodeStats,
     batch_rng,
 )
+from algorithms.common.execution import (
+    ARGMAX,
+    DEFAULT_TEMPERATURES,
+    PLANNER,
+    ActionChoice,
+    execution_modes,
+    parse_execution,
+    sample_categorical,
+)
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout
+
+__all__ = ["ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
 
 
 class MethodParams(BaseModel):
@@ -46,6 +59,16 @@ class MethodParams(BaseModel):
 
     batch_episodes: int = Field(8, ge=1, description="episodes per training update (batched in one process)")
     eval_chunk: int = Field(10, ge=1, description="evaluation episodes per chunk (the unit of fan-out)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_execution(cls, data: Any) -> Any:
+        """The former ``execution`` parameter: every mode is now evaluated (say so clearly)."""
+        if isinstance(data, Mapping) and "execution" in data:
+            raise ValueError("execution is not a method parameter: every learned cell is evaluated "
+                             "in argmax, sample and sample@T (cell field eval_temperatures); pick one "
+                             "mode with `bench eval --execution`")
+        return data
 
 
 class Method(ABC):
@@ -63,7 +86,7 @@ class Method(ABC):
         self.iterations = 0  # training updates done
         self.episodes_done = 0
         torch.manual_seed(self.seed)  # initial weights: a pure function of the seed
-        self.torch_gen = torch.Generator().manual_seed(self.seed + 1)  # action sampling
+        self.torch_gen = torch.Generator().manual_seed(self.seed + 1)  # training action samples
 
     @classmethod
     def parse_params(cls, params: Mapping[str, Any]) -> MethodParams:
@@ -74,39 +97,63 @@ class Method(ABC):
 
     # ------------------------------------------------------------- controller
     @abstractmethod
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> Any:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> Any:
         """Controller state for the episodes of ``batch`` (called once, before step 0)."""
 
     @abstractmethod
-    def decide(self, batch: EpisodeBatch, state: Any, greedy: bool) -> Decision:
-        """Controls for the current step of every episode of ``batch``."""
+    def decide(self, batch: EpisodeBatch, state: Any, choice: ActionChoice) -> Decision:
+        """Controls for the current step of every episode of ``batch``, picked by ``choice``."""
 
     def observe(self, batch: EpisodeBatch, state: Any, result: Any) -> None:
         """Hook after each environment step (training methods store rewards here)."""
         return None
 
     # ------------------------------------------------------------------ loops
-    def run(self, batch: EpisodeBatch, greedy: bool) -> tuple[Any, list[dict[str, float]]]:
+    def run(self, batch: EpisodeBatch, choice: ActionChoice) -> tuple[Any, list[dict[str, float]]]:
         """Run every episode of ``batch`` to its end; returns (state, metric rows)."""
         core = batch.core
         stats = EpisodeStats(core.batch, core.n, self.env.d_m)
-        state = self.begin(batch, greedy)
+        state = self.begin(batch, choice)
         while batch.running:
             running = ~core.ended
-            dec = self.decide(batch, state, greedy)
+            dec = self.decide(batch, state, choice)
             res = core.step(dec.actions)
             stats.add(running, res, dec)
             self.observe(batch, state, res)
         return state, stats.finish(core.done)
 
-    def evaluate(self, chunk: int, seed: int | None = None) -> list[dict[str, float]]:
-        """Greedy rows for evaluation chunk ``chunk`` (episodes chunk*eval_chunk + k)."""
+    @classmethod
+    def execution_modes(cls, temperatures: Iterable[float] = DEFAULT_TEMPERATURES) -> tuple[str, ...]:
+        """This method's evaluation modes: argmax, sample, sample@T (learned) or planner."""
+        return execution_modes(cls.learned, temperatures)
+
+    def execution_choice(self, execution: str | None, seed: int, chunk: int) -> ActionChoice:
+        """The ``ActionChoice`` of mode ``execution`` (None: argmax, or planner) for a chunk;
+        BenchError for a mode this method does not have."""
+        name = execution if execution is not None else (ARGMAX if self.learned else PLANNER)
+        mode = parse_execution(name, where=f"{self.name} execution")
+        if (mode.name == PLANNER) == self.learned:
+            allowed = "argmax, sample or sample@T" if self.learned else "planner"
+            raise BenchError(f"{self.name} execution: mode {mode.name!r} does not apply to "
+                             f"{'a learned method' if self.learned else 'a planner'}; use {allowed}")
+        return ActionChoice.evaluate(mode.name, seed, chunk)
+
+    def evaluate(self, chunk: int, seed: int | None = None, execution: str | None = None,
+                 ) -> list[dict[str, Any]]:
+        """Rows of evaluation chunk ``chunk`` (episodes chunk*eval_chunk + k) in mode
+        ``execution`` (default argmax, planner for a planner); each row names its mode
+        (``execution``) and its scenario (``scenario``, a hash of starts and goals)."""
         size = self.params.eval_chunk
-        rng = batch_rng(self.seed if seed is None else seed, EVAL_STREAM, chunk)
+        seed = self.seed if seed is None else int(seed)
+        choice = self.execution_choice(execution, seed, chunk)
+        batch = EpisodeBatch(self.env, size, batch_rng(seed, EVAL_STREAM, chunk), self.layout)
+        scenarios = batch.scenario_hashes()
         with torch.no_grad():
-            _, rows = self.run(EpisodeBatch(self.env, size, rng, self.layout), greedy=True)
+            _, rows = self.run(batch, choice)
         for k, row in enumerate(rows):
             row["episode"] = chunk * size + k
+            row["execution"] = choice.name
+            row["scenario"] = scenarios[k]
         return rows
 
     def train_iteration(self) -> list[dict[str, float]]:
@@ -117,7 +164,7 @@ class Method(ABC):
         rng = batch_rng(self.seed, TRAIN_STREAM, self.iterations)
         batch = EpisodeBatch(self.env, self.params.batch_episodes, rng, self.layout)
         with torch.no_grad():
-            state, rows = self.run(batch, greedy=False)
+            state, rows = self.run(batch, ActionChoice.train(self.torch_gen))
         losses = self.update(state)
         wall = (time.perf_counter() - t0) / len(rows)
         for k, row in enumerate(rows):
@@ -155,14 +202,6 @@ class Method(ABC):
         torch.set_rng_state(state["torch_global"])
         for key, mod in self.modules().items():
             mod.load_state_dict(state[key])
-
-
-def sample_categorical(logits: torch.Tensor, greedy: bool, gen: torch.Generator) -> torch.Tensor:
-    """Argmax (execution) or a sample (training) from logits (..., K) -> (...) int64."""
-    if greedy:
-        return logits.argmax(dim=-1)
-    probs = torch.softmax(logits.reshape(-1, logits.shape[-1]).double(), dim=-1)
-    return torch.multinomial(probs, 1, generator=gen).reshape(logits.shape[:-1])
 
 
 def masked_logits(logits: torch.Tensor, mask: np.ndarray | torch.Tensor) -> torch.Tensor:

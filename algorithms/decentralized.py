@@ -23,17 +23,18 @@ received from all other robots over lossy all-to-all links, without the group hi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.base import Method, MethodParams, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask,
@@ -41,7 +42,6 @@ from algorithms.common.robot_obs import (
     own_features,
     own_history,
 )
-from algorithms.common.sampling import action_stream
 from algorithms.common.trainer import (
     CRITIC_FEATURES,
     CentralCritic,
@@ -67,8 +67,6 @@ class DecentralizedParams(MethodParams):
     entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
     action_path: bool = Field(True, description="linear action-aligned logit path, as the hierarchical policy's")
-    execution: Literal["argmax", "sample"] = Field(
-        "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
     search_radius: int = Field(2, ge=0, description="safety filter search radius L (with the filter)")
     c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max (with the filter)")
@@ -116,8 +114,6 @@ class DecentralizedState:
     buffer: RolloutBuffer | None
     running: np.ndarray  # (B,) episodes running before the current step
     collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
-    greedy: bool  # argmax actions (else sampled from ``gen``)
-    gen: torch.Generator
 
 
 class DecentralizedMethod(Method):
@@ -141,12 +137,12 @@ class DecentralizedMethod(Method):
                 "actor_opt": self.actor_opt, "critic_opt": self.critic_opt}
 
     # ------------------------------------------------------------- controller
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> DecentralizedState:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> DecentralizedState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
         loss = LossProcess.from_config((b, n, n), env, batch.rng)
         buffer = None
-        if not greedy:
+        if choice.training:
             buffer = RolloutBuffer(env.horizon, b, {
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "actions": ((n,), np.int64), "active": ((n,), bool),
@@ -154,8 +150,7 @@ class DecentralizedMethod(Method):
             })
         state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
                                    PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
-                                   np.zeros((b, n), dtype=bool),
-                                   *action_stream(batch, greedy, p.execution == "sample", self.torch_gen))
+                                   np.zeros((b, n), dtype=bool))
         return state
 
     def observe_robots(self, state: DecentralizedState) -> np.ndarray:
@@ -164,13 +159,13 @@ class DecentralizedMethod(Method):
         return np.concatenate([own_features(core, state.patch), own_history(core, state.collided),
                                state.board.features()], axis=-1)
 
-    def decide(self, batch: EpisodeBatch, state: DecentralizedState, greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: DecentralizedState, choice: ActionChoice) -> Decision:
         core = batch.core
         state.board.receive()
         obs = self.observe_robots(state)
         mask = action_mask(core)
         logits = self.actor(torch.from_numpy(obs), torch.from_numpy(mask))
-        actions = sample_categorical(logits, state.greedy, state.gen).numpy()
+        actions = choice(logits).numpy()
         state.running = ~core.ended
         if state.buffer is not None:
             state.buffer.add(obs=obs, mask=mask, actions=actions,

@@ -41,9 +41,10 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.base import Method, MethodParams, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask,
@@ -51,7 +52,6 @@ from algorithms.common.robot_obs import (
     own_features,
     own_history,
 )
-from algorithms.common.sampling import action_stream
 from algorithms.common.trainer import RolloutBuffer, mc_returns
 from algorithms.common.value_norm import ValueNorm
 from envs.actions import N_ACTIONS
@@ -81,8 +81,6 @@ class IC3NetParams(MethodParams):
     action_path: bool = Field(
         False, description="add the linear action-aligned progress path of the other methods (not IC3Net's)")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
-    execution: Literal["argmax", "sample"] = Field(
-        "sample", description="evaluation controls: sampled (docs/decisions.md; the IC3Net reference samples) or argmax")
 
 
 def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> torch.Tensor:
@@ -144,8 +142,6 @@ class IC3NetState:
     gate: np.ndarray  # (B, N) bool, talk at the next step (sampled at this one)
     collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
     running: np.ndarray  # (B,)
-    greedy: bool
-    gen: torch.Generator
 
 
 class IC3NetMethod(Method):
@@ -165,12 +161,12 @@ class IC3NetMethod(Method):
         return {"policy": self.policy, "optimizer": self.optimizer}
 
     # ------------------------------------------------------------- controller
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> IC3NetState:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> IC3NetState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
         loss = LossProcess.from_config((b, n, n), env, batch.rng)
         buffer = None
-        if not greedy:
+        if choice.training:
             buffer = RolloutBuffer(env.horizon, b, {
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
@@ -179,8 +175,7 @@ class IC3NetMethod(Method):
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
-                           np.zeros((b, n), dtype=bool), ~core.ended,
-                           *action_stream(batch, greedy, p.execution == "sample", self.torch_gen))
+                           np.zeros((b, n), dtype=bool), ~core.ended)
 
     def links(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
         """(B, N_send, N_recv) bool: L_t = g^j g^i a^j a^i A_t[j, i], j != i (see module)."""
@@ -198,7 +193,7 @@ class IC3NetMethod(Method):
         k = (state.gate & alive).sum(axis=1).astype(np.float64)
         return k * (k - 1) * self.params.hidden * self.params.comm_passes
 
-    def decide(self, batch: EpisodeBatch, state: IC3NetState, greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: IC3NetState, choice: ActionChoice) -> Decision:
         core, p = batch.core, self.params
         alive = ~core.done  # (B, N)
         links = self.links(state, alive)
@@ -212,8 +207,8 @@ class IC3NetMethod(Method):
             torch.from_numpy(alive_n), state.hc)
         if p.value_norm:
             values = self.policy.value_norm.denormalize(values)
-        actions = sample_categorical(logits, state.greedy, state.gen).numpy()
-        gates = sample_categorical(gate_logits, state.greedy, state.gen).numpy()
+        actions = choice(logits).numpy()
+        gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
         if p.gate != "learned":
             gates = np.full_like(gates, int(p.gate == "open"))
         state.gate = gates.astype(bool)

@@ -32,6 +32,7 @@ import numpy as np
 
 from algorithms.base import Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from envs.actions import WAIT
 from envs.config import EnvConfig
 from envs.core import StepResult
@@ -137,7 +138,7 @@ class PIBTMethod(Method):
         self._nxt_occ = [FREE] * f  # scratch occupancy lists, left all-FREE between uses
         self._now_occ = [FREE] * f
 
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> PIBTState:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> PIBTState:
         rng = batch.rng.spawn(1)[0]
         return PIBTState(rng=rng, priority=initial_priority(batch.core.dist, rng))
 
@@ -156,7 +157,7 @@ class PIBTMethod(Method):
         order = np.argsort(key, axis=-1, kind="stable")
         return np.take_along_axis(nxt, order, axis=-1), nxt
 
-    def decide(self, batch: EpisodeBatch, state: PIBTState, greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: PIBTState, choice: ActionChoice) -> Decision:
         core = batch.core
         cand, nxt = self.candidates(batch, state.rng)
         prio_order = np.argsort(-state.priority, axis=1, kind="stable")

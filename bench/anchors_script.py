@@ -2,13 +2,13 @@
 
 Reads one JSON object on stdin::
 
-    {"cases": [{"sim": "pogema" | "rware", "layout": "wh100", "grid": ["..#.", ...],
+    {"cases": [{"sim": "pogema" | "pogema_pettingzoo" | "rware", "layout": "wh100", "grid": ["..#.", ...],
                 "n_agents": 100, "steps": 500, "target_seconds": 1.0, "seed": 0}, ...]}
 
 ``grid`` rows use ``.`` for free and ``#`` for blocked cells. Prints one JSON list on
 stdout, one record per case. Like ``bench/perf_env.py`` for our core: episodes of
 ``steps`` steps with uniformly random actions drawn before the clock starts, each from an
-untimed reset, until ``target_seconds`` of stepping have been timed. Imports nothing from
+untimed reset, until ``target_seconds`` of stepping (CPU seconds) have been timed. Imports nothing from
 this project: it runs with POGEMA's pinned numpy/pydantic/gymnasium.
 """
 from __future__ import annotations
@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 
+CLOCK = time.process_time  # CPU seconds, as bench/perf_env.py times our rows
+
 
 def timed_episodes(env, case: dict, convert) -> tuple[int, float]:
     """(timed steps, timed seconds) over fresh episodes until the time target is met."""
@@ -28,30 +30,69 @@ def timed_episodes(env, case: dict, convert) -> tuple[int, float]:
     while total_time < case["target_seconds"] or total_steps == 0:
         env.reset(seed=case["seed"] + episode)
         actions = [convert(a) for a in rng.integers(0, 5, size=(steps, n)).tolist()]
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         for a in actions:
             env.step(a)
-        total_time += time.perf_counter() - t0
+        total_time += CLOCK() - t0
         total_steps += steps
         episode += 1
     return total_steps, total_time
 
 
+COLLISION_SYSTEM = "soft"  # ours = POGEMA soft without lowest-index-wins (docs/decisions.md)
+
+
+def pogema_config(case: dict):
+    from pogema import GridConfig
+
+    return GridConfig(
+        map="\n".join(case["grid"]), num_agents=case["n_agents"], seed=case["seed"],
+        max_episode_steps=case["steps"] + 1, obs_radius=5, on_target="finish",
+        collision_system=COLLISION_SYSTEM,
+    )
+
+
 def time_pogema(case: dict) -> dict:
     import pogema
-    from pogema import GridConfig, pogema_v0
+    from pogema import pogema_v0
 
-    n, steps = case["n_agents"], case["steps"]
-    config = GridConfig(
-        map="\n".join(case["grid"]), num_agents=n, seed=case["seed"],
-        max_episode_steps=steps + 1, obs_radius=5, on_target="finish",
-        collision_system="block_both",
-    )
-    env = pogema_v0(grid_config=config)
+    env = pogema_v0(grid_config=pogema_config(case))
     done, secs = timed_episodes(env, case, lambda a: a)
     return dict(
         version=pogema.__version__, steps=done, seconds=secs,
-        settings="pogema_v0, obs_radius=5, on_target=finish, collision_system=block_both",
+        settings=f"pogema_v0, obs_radius=5, on_target=finish, collision_system={COLLISION_SYSTEM}",
+    )
+
+
+def time_pogema_pettingzoo(case: dict) -> dict:
+    """POGEMA's own PettingZoo wrapper, driven like ours in bench/perf_env.py: one dict of
+    all N agents' actions per step, episodes stopped when no agent is left."""
+    import pogema
+    from pogema.integrations.pettingzoo import parallel_env
+
+    env = parallel_env(pogema_config(case))
+    names = env.possible_agents
+    n, steps = case["n_agents"], case["steps"]
+    rng = np.random.default_rng(case["seed"])
+    total_steps, total_time, episode = 0, 0.0, 0
+    while total_time < case["target_seconds"] or total_steps == 0:
+        env.reset(seed=case["seed"] + episode)
+        actions = [dict(zip(names, a, strict=True))
+                   for a in rng.integers(0, 5, size=(steps, n)).tolist()]
+        t0 = CLOCK()
+        done = 0
+        for a in actions:
+            if not env.agents:
+                break
+            env.step(a)
+            done += 1
+        total_time += CLOCK() - t0
+        total_steps += done
+        episode += 1
+    return dict(
+        version=pogema.__version__, steps=total_steps, seconds=total_time,
+        settings=f"pogema.integrations.pettingzoo.parallel_env, obs_radius=5, on_target=finish, "
+                 f"collision_system={COLLISION_SYSTEM}",
     )
 
 
@@ -93,7 +134,8 @@ def main() -> None:
     request = json.load(sys.stdin)
     out = []
     for case in request["cases"]:
-        timer = {"pogema": time_pogema, "rware": time_rware}[case["sim"]]
+        timer = {"pogema": time_pogema, "pogema_pettingzoo": time_pogema_pettingzoo,
+                 "rware": time_rware}[case["sim"]]
         rec = timer(case)
         env_steps = rec["steps"] / rec["seconds"]
         out.append(dict(

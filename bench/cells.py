@@ -2,7 +2,9 @@
 
 A cell fixes everything that determines its numbers: the method and its hyperparameters,
 the team size N, the loss probability p, the seed, the grouping Z, the safety-filter
-settings (|R_z|, L, C_max), the layout and the budgets. ``cell_id`` is the first 12 hex
+settings (|R_z|, L, C_max), the layout, the budgets and the evaluation temperatures
+(every learned cell is evaluated in argmax, sample and sample@T for each T of
+``eval_temperatures``: ``Cell.execution_modes``). ``cell_id`` is the first 12 hex
 digits of the SHA-256 of the canonical JSON (sorted keys, no spaces) of all fields, so
 the same config always maps to the same rows of the store, whatever grid it came from.
 """
@@ -16,6 +18,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from algorithms.base import MethodParams
+from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import METHODS, method_class
 from envs.config import EnvConfig
 from envs.errors import BenchError
@@ -33,25 +36,30 @@ SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
 class Cell(BaseModel):
     """A frozen experiment config; every field is validated, ``cell_id`` hashes them all."""
 
-    # strict: `n_robots = true` or `horizon = 2.5` is an error, not 1 or 2 (a number is a
-    # number, a flag is a flag); an integer is still accepted where a float is expected.
-    model_config = ConfigDict(frozen=True, extra="forbid", strict=True)
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
+    # strict=True on numbers and flags: `n_robots = true` or `horizon = 2.5` is an error, not 1
+    # or 2 (a number is a number, a flag is a flag); an int is still accepted for a float.
     method: str = Field(description="registered method name (algorithms/registry.py)")
-    n_robots: int = Field(ge=1, le=10_000, description="team size N")
-    loss_p: float = Field(ge=0.0, le=1.0, description="inter-group message loss probability p")
-    seed: int = Field(0, ge=0, lt=2**31, description="root of every random stream of the cell")
-    groups: int = Field(4, ge=1, description="number of fixed groups Z")
-    ref_size: int = Field(8, ge=1, description="abstract references per group |R_z|")
-    search_radius: int = Field(2, ge=0, description="safety-filter search radius L")
-    c_max: int = Field(500, ge=1, description="safety-filter candidate budget C_max")
+    n_robots: int = Field(ge=1, le=10_000, strict=True, description="team size N")
+    loss_p: float = Field(ge=0.0, le=1.0, strict=True, description="inter-group message loss probability p")
+    seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
+    groups: int = Field(4, ge=1, strict=True, description="number of fixed groups Z")
+    ref_size: int = Field(8, ge=1, strict=True, description="abstract references per group |R_z|")
+    search_radius: int = Field(2, ge=0, strict=True, description="safety-filter search radius L")
+    c_max: int = Field(500, ge=1, strict=True, description="safety-filter candidate budget C_max")
     safety_filter: bool = Field(
-        False, description="safety filter on (default: True for hierarchical, else False)"
+        False, strict=True, description="safety filter on (default: True for hierarchical, else False)"
     )
     layout: str = Field("auto", description="'auto' (preset sized for N), a preset or a .map path")
-    episodes: int = Field(2000, ge=0, description="training episodes (0: evaluate the initialization)")
-    horizon: int = Field(500, ge=1, le=MAX_HORIZON, description="maximum episode length T")
-    eval_episodes: int = Field(100, ge=1, description="greedy evaluation episodes")
+    episodes: int = Field(2000, ge=0, strict=True,
+                          description="training episodes (0: evaluate the initialization)")
+    horizon: int = Field(500, ge=1, le=MAX_HORIZON, strict=True, description="maximum episode length T")
+    eval_episodes: int = Field(100, ge=1, strict=True, description="evaluation episodes (per execution mode)")
+    eval_temperatures: tuple[float, ...] = Field(
+        DEFAULT_TEMPERATURES,
+        description="temperatures T != 1 of the tempered evaluation modes sample@T (learned methods; "
+                    "argmax and sample are always evaluated)")
     on_goal: Literal["remove", "stay"] = Field("remove", description="robots at their goal leave / stay")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field("bernoulli", description="loss process")
     params: dict[str, Any] = Field(default_factory=dict, description="method hyperparameter overrides")
@@ -76,6 +84,11 @@ class Cell(BaseModel):
         if name not in METHODS:
             raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
         return name
+
+    @field_validator("eval_temperatures")
+    @classmethod
+    def _temperatures(cls, temps: tuple[float, ...]) -> tuple[float, ...]:
+        return check_temperatures(temps)
 
     @model_validator(mode="after")
     def _check(self) -> Cell:
@@ -150,6 +163,15 @@ class Cell(BaseModel):
         except ValidationError as exc:
             raise BenchError(_one_line(f"cell params ({self.method})", exc)) from None
 
+    def execution_modes(self) -> tuple[str, ...]:
+        """Evaluation modes of the cell, in order: argmax, sample, sample@T (learned), or
+        planner (a planner such as PIBT)."""
+        try:
+            cls = method_class(self.method)
+        except ImportError as exc:
+            raise BenchError(f"method {self.method!r} cannot be imported: {exc}") from None
+        return cls.execution_modes(self.eval_temperatures)
+
     def method_path(self) -> str:
         """'module:Class' of the method, so workers import it without the driver's registry."""
         return METHODS[self.method]
@@ -162,7 +184,7 @@ class Cell(BaseModel):
             "ref_size": self.ref_size, "search_radius": self.search_radius, "c_max": self.c_max,
             "safety_filter": self.safety_filter, "layout": self.layout, "episodes": self.episodes,
             "horizon": self.horizon, "eval_episodes": self.eval_episodes, "on_goal": self.on_goal,
-            "loss_model": self.loss_model,
+            "loss_model": self.loss_model, "executions": ",".join(self.execution_modes()),
             "params_json": json.dumps(self.method_params().model_dump(mode="json"), sort_keys=True),
             "config_json": self.canonical_json(),
         }

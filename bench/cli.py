@@ -64,7 +64,7 @@ def _root(
 def run(
     grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="User grid (TOML or YAML): a base cell and list-valued axes."),
-    seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1."),
+    seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1 (default: paper 3, full 3, smoke 1; a verdict needs 3)."),
     out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
     address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
     workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
@@ -122,7 +122,8 @@ def grids(
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Count with K seeds instead of each grid's default."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="Also list a user grid file."),
 ) -> None:
-    """List the grids with their cell counts and estimated cost (cell-hours on one core)."""
+    """List the grids with their cell counts (configurations x seeds) and cost (cell-hours on
+    one core, every seed and every evaluation mode counted)."""
     from rich.console import Console
     from rich.table import Table
 
@@ -130,8 +131,9 @@ def grids(
     from bench.grid_files import load_grid_file
     from bench.grids import BUILTIN, get_grid
 
-    table = Table(title=f"grids (cost: {costs.LABEL}, (episodes+eval)*horizon*N / agent-steps per s)")
-    for col in ("grid", "cells", "methods", "N", "p", "seeds", "cell-hours"):
+    table = Table(title=f"grids (cost: {costs.LABEL}, (episodes + eval episodes x modes) x horizon x N "
+                        "/ agent-steps per s, summed over cells = configurations x seeds)")
+    for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "cell-hours"):
         table.add_column(col)
     listed = [get_grid(name, seeds) for name in BUILTIN]
     if grid_file is not None:
@@ -140,7 +142,7 @@ def grids(
         ns = sorted({c.n_robots for c in g.cells})
         ps = sorted({c.loss_p for c in g.cells})
         table.add_row(g.name, str(len(g)), ",".join(g.methods), ",".join(map(str, ns)),
-                      ",".join(map(str, ps)), str(len({c.seed for c in g.cells})),
+                      ",".join(map(str, ps)), str(g.configurations), str(g.seeds),
                       f"{costs.grid_cell_hours(g.cells):.3g}")
     console = Console(width=None if sys.stdout.isatty() else 140)  # logs: no truncated cells
     console.print(table)
@@ -159,28 +161,34 @@ def eval_(
     episodes: int = typer.Option(10, "--episodes", min=1, help="Evaluation episodes."),
     seed: int | None = typer.Option(None, "--seed", min=0, help="Seed (default: the checkpoint's, else 0)."),
     horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T (default: the checkpoint's, else 500)."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics and every episode) instead of a table."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics per mode and every episode) instead of a table."),
+    execution: str | None = typer.Option(None, "--execution", help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode of the cell)."),
 ) -> None:
-    """Evaluate one method (its own execution mode: argmax or sampled); print the eval metrics."""
+    """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
+    pibt) on the same scenarios; print the eval metrics, one column per mode."""
     from bench.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
-                            episodes, seed, horizon)
+                            episodes, seed, horizon, execution=execution)
     means = summarize(rows)
     if as_json:
         typer.echo(json.dumps({"cell": json.loads(cell.canonical_json()), "checkpoint": str(checkpoint or ""),
-                               "mean": _jsonable(means), "episodes": [_jsonable(r) for r in rows]}, indent=2))
+                               "executions": list(means),
+                               "mean": {m: _jsonable(v) for m, v in means.items()},
+                               "episodes": [_jsonable(r) for r in rows]}, indent=2))
         return
     from rich.console import Console
     from rich.table import Table
 
     src = f"checkpoint {checkpoint}" if checkpoint else "untrained initialization"
+    per_mode = len(rows) // max(len(means), 1)
     table = Table(title=f"{cell.method} N={cell.n_robots} p={cell.loss_p} layout={cell.layout} "
-                        f"seed={cell.seed}, {len(rows)} episodes, {src}")
-    table.add_column("metric")
-    table.add_column("mean", justify="right")
-    for k, v in means.items():
-        table.add_row(k, "nan" if math.isnan(v) else f"{v:.4g}")
+                        f"seed={cell.seed}, {per_mode} episodes per mode (same scenarios), {src}")
+    table.add_column("metric (mean)")
+    for mode in means:
+        table.add_column(mode, justify="right")
+    for k in next(iter(means.values()), {}):
+        table.add_row(k, *("nan" if math.isnan(v[k]) else f"{v[k]:.4g}" for v in means.values()))
     Console().print(table)
 
 
@@ -201,10 +209,16 @@ def _run_dir(run: Path | None) -> Path:
     return run
 
 
+class ClaimsAt(str, Enum):
+    paper = "paper"
+    run = "run"
+
+
 @app.command()
 def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
     out: Path | None = typer.Option(None, "--out", help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
+    claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at", help="Check claims at the paper's configurations only, or also at the run's own."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
     Warns naming every done cell whose stored rows are incomplete."""
@@ -229,7 +243,7 @@ def report(
             typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
                        "rerun `bench run` to complete it", err=True)
     try:
-        built = build_report(run_dir, out)
+        built = build_report(run_dir, out, claims_at=claims_at.value)
     except PermissionError as exc:
         hint = "; write the report elsewhere with --out DIR" if out is None else ""
         raise BenchError(f"cannot write the report: {exc.filename or target}: permission denied{hint}") from None
@@ -256,9 +270,12 @@ def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
     episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
-    out: Path | None = typer.Option(None, "--out", help="Output GIF path (default: RUN/replays/<cell>-ep<K>.gif)."),
+    out: Path | None = typer.Option(None, "--out", help="Output path (default: RUN/replays/<cell>-ep<K>[-<mode>].<format>)."),
+    execution: str | None = typer.Option(None, "--execution", help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
+    fmt: str = typer.Option("gif", "--format", help="gif, or mp4 (needs the imageio-ffmpeg package)."),
+    fps: float = typer.Option(8.0, "--fps", min=0.5, help="Frames (steps) per second."),
 ) -> None:
-    """Render one evaluation episode of a cell as a GIF."""
+    """Render one evaluation episode of a cell, in one execution mode, as a captioned GIF or MP4."""
     from bench.store import RunStore
 
     run_dir = _run_dir(run)
@@ -266,11 +283,45 @@ def replay(
     if cells is None or cell not in set(cells["cell_id"]):
         raise BenchError(f"cell {cell!r} is not in {str(run_dir / 'cells.parquet')!r}")
     try:
-        from reports.replay import write_replay
+        from reports.replay import replay_progress, write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
-    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}.gif"
-    typer.echo(str(write_replay(run_dir, cell, episode, target)))
+    suffix = f"-{execution}" if execution else ""
+    target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.{fmt}"
+    with replay_progress() as progress:
+        path = write_replay(run_dir, cell, episode, target, fps=fps, fmt=fmt, progress=progress,
+                            execution=execution)
+    typer.echo(str(path))
+
+
+@app.command()
+def calibrate(
+    sims: int = typer.Option(1000, "--sims", min=10, help="Simulations per test, scenario and seed count."),
+    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the simulations."),
+    coverage_sims: int = typer.Option(2000, "--coverage-sims", min=10, help="Simulations for the CI coverage table."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
+    out: Path | None = typer.Option(None, "--out", help="Also write the JSON here (e.g. RUN/report/calibration.json)."),
+) -> None:
+    """Rate of `supported` of every claim test under the null (must be <= 5% + MC error)
+    and its power under a stated effect, at 3, 5 and 10 seeds; exit 1 if a null rate is too high."""
+    import pandas as pd
+
+    from reports.calibrate import calibration_report
+
+    rep = calibration_report(sims, seed, coverage_sims=coverage_sims)
+    text = json.dumps(rep, indent=2)
+    if out is not None:
+        from bench.store import atomic_file
+
+        with atomic_file(out) as fh:
+            fh.write(text.encode())
+    if as_json:
+        typer.echo(text)
+    else:
+        _print_frame(pd.DataFrame(rep["calibration"]), f"bench calibrate ({sims} sims, null limit {rep['meta']['null_limit']})")
+        _print_frame(pd.DataFrame(rep["coverage"]), "coverage of 95% intervals over seeds")
+    if not rep["all_null_ok"]:
+        raise typer.Exit(1)
 
 
 # -------------------------------------------------------------------- perf

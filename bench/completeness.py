@@ -7,8 +7,10 @@ expected counts come from the cell config alone, in ONE function, ``expected_row
 * training: a learned method runs ceil(episodes / batch_episodes) updates of
   batch_episodes episodes and keeps every row (docs/results-schema.md); a planner (PIBT,
   ``learned = False``) or ``episodes = 0`` has none;
-* evaluation: ``eval_episodes`` rows per execution mode the cell is evaluated in (one mode
-  today; a change that evaluates in several modes adjusts ``eval_modes`` here and nothing else).
+* evaluation: ``eval_episodes`` rows per execution mode the cell is evaluated in
+  (``Cell.execution_modes()``: argmax, sample, sample@T for a learned method; planner for
+  PIBT), i.e. ``eval_episodes x n_modes``. bench/plan.py ``eval_complete`` additionally
+  checks that every (mode, episode) pair is present.
 
 Stored counts are read from the Parquet footers (no row data is loaded).
 """
@@ -32,31 +34,32 @@ class RowCounts:
     eval: int
 
 
-def eval_modes(method: str, params: Mapping[str, Any]) -> int:
-    """Execution modes a done cell is evaluated in (each gives eval_episodes rows)."""
-    return 1
-
-
-def expected_rows(method: str, episodes: int, eval_episodes: int, params: Mapping[str, Any]) -> RowCounts:
-    """Rows a done cell of this config has in train/ and eval/ (the single source of truth)."""
+def expected_rows(method: str, episodes: int, eval_episodes: int, params: Mapping[str, Any],
+                  n_modes: int) -> RowCounts:
+    """Rows a done cell of this config has in train/ and eval/ (the single source of truth);
+    ``n_modes``: how many execution modes it is evaluated in."""
     from algorithms.registry import method_class
 
     learned = bool(getattr(method_class(method), "learned", True))
     batch = max(int(params.get("batch_episodes", 1)), 1)
     train = math.ceil(episodes / batch) * batch if learned and episodes > 0 else 0
-    return RowCounts(train, int(eval_episodes) * eval_modes(method, params))
+    return RowCounts(train, int(eval_episodes) * int(n_modes))
 
 
 def expected_for_cell(cell: Any) -> RowCounts:
     """``expected_rows`` of a ``bench.cells.Cell``."""
     params = cell.method_params().model_dump(mode="json")
-    return expected_rows(cell.method, cell.episodes, cell.eval_episodes, params)
+    return expected_rows(cell.method, cell.episodes, cell.eval_episodes, params, len(cell.execution_modes()))
 
 
 def expected_for_row(row: Mapping[str, Any]) -> RowCounts:
-    """``expected_rows`` of a cells.parquet row (its ``params_json`` holds the resolved params)."""
+    """``expected_rows`` of a cells.parquet row (``params_json``: the resolved params;
+    ``executions``: its comma-separated evaluation modes)."""
     params = json.loads(str(row.get("params_json") or "{}"))
-    return expected_rows(str(row["method"]), int(row["episodes"]), int(row["eval_episodes"]), params)
+    modes = [m for m in str(row.get("executions") or "").split(",") if m]
+    if not modes:
+        raise ValueError("no executions recorded")
+    return expected_rows(str(row["method"]), int(row["episodes"]), int(row["eval_episodes"]), params, len(modes))
 
 
 def _num_rows(path: Any) -> int:

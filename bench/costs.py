@@ -1,7 +1,10 @@
 """Cost estimates of cells and grids, from throughput constants kept in one place.
 
-cost (core-seconds) = (training episodes + evaluation episodes) * horizon * N
-                      / agent-steps per second on one core
+cost (core-seconds) = (training episodes + evaluation episodes * execution modes)
+                      * horizon * N / agent-steps per second on one core
+
+(a learned cell is evaluated in every execution mode: argmax, sample and sample@T per
+temperature; a planner in one.)
 
 This is an upper bound on the simulated agent-steps (episodes end early when every robot
 has arrived) and ignores Ray start-up and checkpoint writes. The constants below come from
@@ -42,9 +45,10 @@ def rate(method: str, phase: str, n_robots: int) -> float:
 
 
 def cell_agent_steps(cell: Cell) -> tuple[float, float]:
-    """(training, evaluation) agent-steps of a cell at most: episodes * horizon * N."""
+    """(training, evaluation) agent-steps of a cell at most: episodes * horizon * N, the
+    evaluation episodes counted once per execution mode."""
     per_episode = float(cell.horizon * cell.n_robots)
-    return cell.episodes * per_episode, cell.eval_episodes * per_episode
+    return cell.episodes * per_episode, cell.eval_episodes * len(cell.execution_modes()) * per_episode
 
 
 def cell_seconds(cell: Cell) -> float:

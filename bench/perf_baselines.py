@@ -24,6 +24,7 @@ import torch
 
 from algorithms.base import Method
 from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from envs.layouts import preset_for
 
 PAPER_EPISODES, PAPER_HORIZON, PAPER_EVAL_EPISODES = 2000, 500, 100
@@ -39,7 +40,7 @@ def time_training(method: Method, iterations: int = 1) -> dict[str, float]:
         batch = EpisodeBatch(method.env, method.params.batch_episodes, rng, method.layout)
         t0 = time.perf_counter()
         with torch.no_grad():
-            state, rows = method.run(batch, greedy=False)
+            state, rows = method.run(batch, ActionChoice.train(method.torch_gen))
         t1 = time.perf_counter()
         method.update(state)
         t2 = time.perf_counter()

@@ -6,12 +6,21 @@ with r = 5 like POGEMA's default view) on the presets ``wh{N}`` and on the real 
 map, for B = 1 and B = 64 episodes. Actions are uniform over 0..4 and drawn before the
 clock starts; each timed segment is one episode of ``steps`` steps from a fresh
 (untimed) reset, repeated until ``target_seconds`` of stepping have been timed, so robots
-reaching goals do not thin out the floor as a long random walk would.
+reaching goals do not thin out the floor as a long random walk would. ``seconds`` are
+CPU seconds of the measuring process (``time.process_time``; single-threaded numpy with
+OMP_NUM_THREADS=1), for ours and the anchors alike, so other jobs on a shared machine
+do not count as our time.
+
+Mode ``pettingzoo`` times our PettingZoo adapter ``envs.warehouse_v0`` (B = 1, patch
+radius 5): the step with every agent's observation, mask, reward, flags and infos.
 
 Anchors (one env, B = 1) run on the same grids in ``.anchors-venv`` (``make anchors``):
-POGEMA ``pogema_v0`` (11x11 observations, ``on_target="finish"``) and RWARE's
-``Warehouse`` with blocked cells as shelves. ``vs_pogema`` is a row's agent-steps/s over
-POGEMA's on the same layout and N. Without the anchor venv the table holds our rows and
+POGEMA ``pogema_v0`` (11x11 observations, ``on_target="finish"``, collision system
+``soft``, the closest to ours: ours is POGEMA soft without its lowest-index-wins rule for
+contested cells, docs/decisions.md), POGEMA's PettingZoo wrapper (mode ``pettingzoo``,
+same settings) and RWARE's ``Warehouse`` with blocked cells as shelves. ``vs_pogema`` is
+a row's agent-steps/s over POGEMA's on the same layout and N (PettingZoo rows over
+POGEMA's PettingZoo wrapper). Without the anchor venv the table holds our rows and
 a note saying why the anchors are missing.
 
     .venv/bin/python -m bench.perf_env           # markdown table, then JSON
@@ -33,12 +42,16 @@ from envs.core import WarehouseCore
 from envs.layouts import MAPS_DIR, Layout, load_layout, preset_for
 from envs.observations import PatchExtractor, robot_features
 from envs.scenarios import sample_scenarios
+from envs.warehouse_v0 import parallel_env
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
 ANCHORS_PY = ROOT / ".anchors-venv" / "bin" / "python"
 ANCHORS_SCRIPT = Path(__file__).resolve().with_name("anchors_script.py")
 OBS_RADIUS = 5
+# CPU seconds of this process: on a shared machine other load does not count, and the
+# anchor script (another process) is timed the same way.
+CLOCK = time.process_time
 COLUMNS = [
     "sim", "mode", "layout", "n_robots", "batch", "steps", "seconds", "env_steps_per_s",
     "agent_steps_per_s", "vs_pogema", "version", "note",
@@ -61,7 +74,7 @@ def time_core(
         if patch is not None:
             patch = PatchExtractor(core, OBS_RADIUS)
         actions = rng.integers(0, 5, size=(steps, batch, n))
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         if patch is None:
             for a in actions:
                 core.step(a)
@@ -69,8 +82,39 @@ def time_core(
             for a in actions:
                 core.step(a)
                 robot_features(core, patch)
-        total_time += time.perf_counter() - t0
+        total_time += CLOCK() - t0
         total_steps += steps
+    return total_steps, total_time
+
+
+def time_pettingzoo(
+    layout: Layout, n: int, steps: int, target_seconds: float, seed: int = 0,
+) -> tuple[int, float]:
+    """(timed steps, timed seconds) through ``warehouse_v0.parallel_env`` (B = 1).
+
+    What a user of the PettingZoo API pays per step: the core step, observations
+    (radius ``OBS_RADIUS``, as POGEMA's) with action masks, rewards, terminations and
+    infos for every live agent. Each step's action dict holds all N agents (finished
+    agents' actions are ignored, as POGEMA's wrapper does), drawn before the clock.
+    """
+    env = parallel_env(n_robots=n, layout=layout, horizon=steps, obs_radius=OBS_RADIUS)
+    rng = np.random.default_rng(seed)
+    names = env.possible_agents
+    total_steps, total_time, episode = 0, 0.0, 0
+    while total_time < target_seconds or total_steps == 0:
+        env.reset(seed=seed + episode)
+        actions = [dict(zip(names, a, strict=True))
+                   for a in rng.integers(0, 5, size=(steps, n)).tolist()]
+        t0 = CLOCK()
+        done = 0
+        for a in actions:
+            if not env.agents:
+                break
+            env.step(a)
+            done += 1
+        total_time += CLOCK() - t0
+        total_steps += done
+        episode += 1
     return total_steps, total_time
 
 
@@ -84,7 +128,7 @@ def run_anchors(
         dict(sim=sim, layout=layout.name, n_agents=n, steps=steps, seed=seed,
              target_seconds=target_seconds,
              grid=["".join("#" if o else "." for o in row) for row in layout.obstacles])
-        for layout, n in cases for sim in ("pogema", "rware")
+        for layout, n in cases for sim in ("pogema", "pogema_pettingzoo", "rware")
     ]}
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     proc = subprocess.run(
@@ -96,7 +140,9 @@ def run_anchors(
         return [], f"anchors failed (exit {proc.returncode}): {last}"
     rows = json.loads(proc.stdout)
     for row in rows:
-        row["mode"], row["note"] = "env", row.pop("settings")
+        row["mode"] = "pettingzoo" if row["sim"] == "pogema_pettingzoo" else "env"
+        row["sim"] = row["sim"].replace("_pettingzoo", "")
+        row["note"] = row.pop("settings")
     return rows, ""
 
 
@@ -109,6 +155,7 @@ def run_env_suite(
     real_map: str | Path | None = REAL_MAP,
     real_map_n: int = 100,
     with_obs: bool = True,
+    with_pettingzoo: bool = True,
 ) -> pd.DataFrame:
     """Agent-steps/s and env-steps/s of our core (and the anchors) in one table.
 
@@ -129,6 +176,13 @@ def run_env_suite(
                     steps=done, seconds=secs, env_steps_per_s=done * batch / secs,
                     agent_steps_per_s=done * batch * n / secs, version=version, note="",
                 ))
+        if with_pettingzoo:
+            done, secs = time_pettingzoo(layout, n, steps, target_seconds)
+            rows.append(dict(
+                sim="ours", mode="pettingzoo", layout=layout.name, n_robots=n, batch=1,
+                steps=done, seconds=secs, env_steps_per_s=done / secs,
+                agent_steps_per_s=done * n / secs, version=version, note="",
+            ))
     note = "anchors not requested"
     if include_anchors:
         anchor_rows, note = run_anchors(cases, steps, target_seconds)
@@ -136,12 +190,16 @@ def run_env_suite(
     df = pd.DataFrame(rows)
     if note:
         df.loc[df["sim"] == "ours", "note"] = note
+    # Core rows compare with POGEMA's env, PettingZoo rows with POGEMA's PettingZoo wrapper.
+    kind = {"pettingzoo": "pettingzoo"}
     pogema = {
-        (r.layout, r.n_robots): r.agent_steps_per_s for r in df.itertuples() if r.sim == "pogema"
+        (r.layout, r.n_robots, r.mode): r.agent_steps_per_s
+        for r in df.itertuples() if r.sim == "pogema"
     }
+    keys = [(r.layout, r.n_robots, kind.get(r.mode, "env")) for r in df.itertuples()]
     df["vs_pogema"] = [
-        r.agent_steps_per_s / pogema[(r.layout, r.n_robots)]
-        if (r.layout, r.n_robots) in pogema else float("nan") for r in df.itertuples()
+        r.agent_steps_per_s / pogema[k] if k in pogema else float("nan")
+        for r, k in zip(df.itertuples(), keys, strict=True)
     ]
     return df.reindex(columns=COLUMNS)
 

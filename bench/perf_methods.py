@@ -26,6 +26,7 @@ import pandas as pd
 import torch
 
 from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
 from bench.perf_baselines import PAPER_EPISODES, PAPER_HORIZON, time_training
 from envs.config import EnvConfig
@@ -101,7 +102,7 @@ def measure_filter(n_robots: int, layout: str, horizon: int = 100, batch_episode
     m.filter = timed  # type: ignore[assignment]
     batch = EpisodeBatch(env, batch_episodes, batch_rng(seed, TRAIN_STREAM, 0), m.layout)
     with torch.no_grad():
-        m.run(batch, greedy=False)
+        m.run(batch, ActionChoice.train(m.torch_gen))
     examined = np.concatenate(timed.examined) if timed.examined else np.zeros(0)
     fallback = np.concatenate(timed.fallback) if timed.fallback else np.zeros(0)
     return {

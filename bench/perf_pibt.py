@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from algorithms.common.episodes import EVAL_STREAM, EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.pibt import PIBTMethod
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
@@ -46,7 +47,7 @@ def time_pibt(
     while plan_s < target_seconds or episodes == 0:
         b = EpisodeBatch(config, batch, batch_rng(seed, EVAL_STREAM, chunk), method.layout)
         chunk += 1
-        core, state = b.core, method.begin(b, greedy=True)
+        core, state = b.core, method.begin(b, ActionChoice.evaluate("planner"))
         while b.running:
             running = int((~core.ended).sum())
             planning = int((~core.done & ~core.ended[:, None]).sum())

@@ -1,9 +1,10 @@
 """Where each cell of a run stands, read from the store (resume planning; writes nothing).
 
-A cell is *done* when its eval file exists (written once, after every chunk) and its rows
-are complete (bench/completeness.py); a done cell with missing rows is evaluated again from
-its final checkpoint (training rows complete) or trained again from the start (identical
-numbers: seeds come from the cell), and ``rerun`` says why. Otherwise
+A cell is *done* when its eval file exists (written once, after every chunk of every
+execution mode), holds one row per evaluation episode and mode, and its training rows are
+complete (bench/completeness.py; checked on every run). A done cell with missing rows is
+evaluated again from its final checkpoint (training rows complete) or trained again from
+the start (identical numbers: seeds come from the cell), and ``rerun`` says why. Otherwise
 its checkpoint (if any) says how far training got; train parts beyond it are stale and
 are discarded by the runner before the cell continues. Every file consulted is
 validated here, before anything is written, so a corrupt or foreign store is refused
@@ -20,8 +21,8 @@ from bench.cells import Cell
 from bench.completeness import expected_for_cell, shortfall, stored_rows
 from bench.costs import cell_seconds
 from bench.grids import Grid
-from bench.schema import SCHEMA_VERSION
-from bench.store import RunStore, read_meta
+from bench.schema import EVAL_SCHEMA, SCHEMA_VERSION
+from bench.store import RunStore, read_meta, read_table
 from envs.errors import BenchError
 
 
@@ -35,7 +36,10 @@ def cell_spec(cell: Cell) -> dict[str, Any]:
         "seed": cell.seed,
         "episodes": cell.episodes,
         "eval_episodes": cell.eval_episodes,
+        "executions": list(cell.execution_modes()),
     }
+
+EvalUnit = tuple[str, int]  # (execution mode, evaluation chunk): the unit of evaluation fan-out
 
 
 @dataclass
@@ -45,15 +49,15 @@ class CellState:
     cell: Cell
     spec: dict[str, Any]
     config: dict[str, Any]  # config columns of cells.parquet
-    n_chunks: int
+    n_chunks: int  # evaluation chunks per execution mode
     phase: str = "pending"  # pending | training | evaluating | done | failed
     iterations: int = 0  # training updates covered by the last checkpoint
     episodes_done: int = 0  # training episodes covered by the last checkpoint
     trained: bool = False  # training finished; evaluation next
     has_checkpoint: bool = False
     state_ref: Any = None  # ObjectRef of the last checkpoint state (set by the runner)
-    eval_todo: list[int] = field(default_factory=list)
-    eval_rows: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
+    eval_todo: list[EvalUnit] = field(default_factory=list)
+    eval_rows: dict[EvalUnit, list[dict[str, Any]]] = field(default_factory=dict)
     wall_s: float = 0.0
     peak_mem_mb: float = float("nan")
     attempts: int = 0
@@ -68,6 +72,15 @@ class CellState:
         return self.cell.cell_id
 
     @property
+    def modes(self) -> tuple[str, ...]:
+        """The cell's execution modes, in order (argmax, sample, sample@T; or planner)."""
+        return tuple(self.spec["executions"])
+
+    def eval_units(self) -> list[EvalUnit]:
+        """Every (mode, chunk) of the cell's evaluation, mode by mode."""
+        return [(m, c) for m in self.modes for c in range(self.n_chunks)]
+
+    @property
     def finished(self) -> bool:
         return self.phase in ("done", "failed")
 
@@ -76,9 +89,10 @@ class CellState:
         if self.finished:
             return 1.0
         c = self.cell
-        train_w = c.episodes / max(c.episodes + c.eval_episodes, 1)
+        evals = c.eval_episodes * len(self.modes)
+        train_w = c.episodes / max(c.episodes + evals, 1)
         train_f = 1.0 if self.trained or c.episodes == 0 else min(self.episodes_done / c.episodes, 1.0)
-        eval_f = len(self.eval_rows) / max(self.n_chunks, 1)
+        eval_f = len(self.eval_rows) / max(self.n_chunks * len(self.modes), 1)
         return train_w * train_f + (1.0 - train_w) * eval_f
 
     def status(self) -> str:
@@ -135,14 +149,15 @@ def _resume_state(store: RunStore, st: CellState) -> None:
     if meta is not None:
         expected, stored = expected_for_cell(st.cell), stored_rows(store, st.cell_id)
         gap = shortfall(expected, stored)
-        if not gap:
+        if not gap and eval_complete(store, st):
             st.phase, st.trained = "done", True
             st.wall_s = float(meta.get("wall_s", st.wall_s))
             st.peak_mem_mb = float(meta.get("peak_mem_mb", st.peak_mem_mb))
             st.attempts = int(meta.get("attempts", st.attempts))
             st.episodes_done = int(meta.get("train_episodes_done", st.episodes_done))
-            st.eval_rows = {k: [] for k in range(st.n_chunks)}
+            st.eval_rows = {u: [] for u in st.eval_units()}
             return
+        gap = gap or "evaluation rows of the wrong modes or episodes"
         if stored.train == expected.train and ckpt is not None and ckpt.get("finished"):
             st.rerun = f"{gap} stored; evaluating it again from its final checkpoint"
         else:
@@ -156,6 +171,15 @@ def _resume_state(store: RunStore, st: CellState) -> None:
         st.wall_s = float(ckpt.get("wall_s", 0.0))
         st.peak_mem_mb = float(ckpt.get("peak_mem_mb", float("nan")))
         st.attempts = max(st.attempts, int(ckpt.get("attempts", 0)))
+
+
+def eval_complete(store: RunStore, st: CellState) -> bool:
+    """Whether the cell's eval file holds exactly one row per evaluation episode and
+    execution mode (a BenchError when the file is corrupt)."""
+    df = read_table(store.eval_path(st.cell_id), EVAL_SCHEMA).select(["execution", "episode"]).to_pandas()
+    want = {(m, e) for m in st.modes for e in range(st.cell.eval_episodes)}
+    have = list(zip(df["execution"].astype(str), df["episode"].astype(int), strict=True))
+    return len(have) == len(want) and set(have) == want
 
 
 def versions() -> dict[str, str]:

@@ -1,7 +1,8 @@
 """``bench eval``: evaluate one method in this process, from a checkpoint or untrained.
 
 Runs the runner's evaluator code (``CellWorker.eval_chunk``) in this process, so the rows
-equal the eval table's rows for the same cell and state; no Ray, no files written.
+equal the eval table's rows for the same cell, state and execution mode; no Ray, no files
+written. By default every mode of the cell (argmax, sample, sample@T; planner for PIBT).
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 import torch
 
 from algorithms.common.episodes import EVAL_METRICS
+from algorithms.common.execution import parse_execution
 from bench.cells import Cell
 from bench.plan import cell_spec
 from bench.store import load_checkpoint
@@ -26,8 +28,10 @@ EVAL_COLUMNS = EVAL_METRICS  # the eval table's metric columns (bench/schema.py 
 def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robots: int | None = None,
                loss_p: float | None = None, layout: str | None = None, episodes: int = 10,
                seed: int | None = None, horizon: int | None = None, groups: int | None = None,
+               execution: str | None = None,
                ) -> tuple[Cell, list[dict[str, Any]]]:
-    """(the evaluated cell, one row per episode). CLI values override the checkpoint's cell."""
+    """(the evaluated cell, one row per episode and execution mode, mode by mode). CLI values
+    override the checkpoint's cell; ``execution`` restricts the modes to one."""
     torch.set_num_threads(1)
     base: dict[str, Any] = {}
     state = None
@@ -48,12 +52,15 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
         spec["layout"] = preset_for(n_robots)  # a new team size gets its own preset
     spec.update(episodes=0, eval_episodes=episodes)
     cell = Cell.make(**spec)
+    modes = cell.execution_modes() if execution is None else (
+        parse_execution(execution, where="--execution").name,)
     worker = CellWorker()  # the runner's evaluator code path: same rows as the eval table
     box = [state] if state is not None else []
     rows: list[dict[str, Any]] = []
     try:
-        for chunk in range(math.ceil(episodes / cell.method_params().eval_chunk)):
-            rows.extend(worker.eval_chunk(cell_spec(cell), box, chunk)["rows"])
+        for mode in modes:
+            for chunk in range(math.ceil(episodes / cell.method_params().eval_chunk)):
+                rows.extend(worker.eval_chunk(cell_spec(cell), box, chunk, mode)["rows"])
     except BenchError:
         raise
     except (KeyError, RuntimeError, ValueError) as exc:
@@ -64,10 +71,15 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
     return cell, [r for r in rows if int(r["episode"]) < episodes]
 
 
-def summarize(rows: list[dict[str, Any]]) -> dict[str, float]:
-    """Mean over episodes of every eval column (NaN-aware: NaN only if every episode is NaN)."""
-    out = {}
-    for col in EVAL_COLUMNS:
-        vals = np.array([float(r.get(col, math.nan)) for r in rows], dtype=np.float64)
-        out[col] = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
+def summarize(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """Per execution mode (in the rows' order), the mean over episodes of every eval column
+    (NaN-aware: NaN only if every episode is NaN)."""
+    out: dict[str, dict[str, float]] = {}
+    for mode in dict.fromkeys(str(r["execution"]) for r in rows):
+        sel = [r for r in rows if r["execution"] == mode]
+        means = {}
+        for col in EVAL_COLUMNS:
+            vals = np.array([float(r.get(col, math.nan)) for r in sel], dtype=np.float64)
+            means[col] = float(np.nanmean(vals)) if np.isfinite(vals).any() else math.nan
+        out[mode] = means
     return out

@@ -5,13 +5,15 @@ core, one torch thread each) only compute. The loop:
 
 1. plan (bench/plan.py): read and validate the store, decide where each cell resumes;
    connect to Ray; only then write (discard stale train parts, manifest, cells.parquet);
-2. dispatch: a free worker takes an evaluation chunk of a trained cell first, else starts
+2. dispatch: a free worker takes an evaluation unit (execution mode x chunk) of a trained
+   cell first, else starts
    (or resumes from its checkpoint) the next cell; training is sticky: the worker that
    trains a cell gets its next chunk of ``checkpoint_every`` iterations;
 3. collect with ``ray.wait`` (timeouts, never a blocking get loop): a training chunk's rows
    are written as a part, then its checkpoint; after the last chunk the final state is
-   ``ray.put`` once and evaluation chunks fan out to every free worker; when all chunks
-   are in, the eval file is written once and the cell is done;
+   ``ray.put`` once and evaluation units (every chunk in every execution mode: argmax,
+   sample, sample@T; planner for PIBT) fan out to every free worker; when all are in, the
+   eval file (one row per episode and mode) is written once and the cell is done;
 4. failures: a method that raises fails its cell (error recorded, the rest go on); a
    worker that dies (process killed, node removed) is restarted by Ray and its unit is
    re-dispatched from the last checkpoint, up to ``MAX_RETRIES`` times per cell.
@@ -141,7 +143,7 @@ class _Run:
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command = on_event, command
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
-        self.inflight: dict[Any, tuple[str, Slot, CellState | None, int]] = {}
+        self.inflight: dict[Any, tuple[str, Slot, CellState | None, Any]] = {}
         self.versions = versions_json()
         self.t0 = time.monotonic()
         self.start_progress = sum(s.progress() * s.weight for s in states)
@@ -225,9 +227,9 @@ class _Run:
         """Give a free worker an evaluation chunk, else the next cell to train."""
         for st in self.states:
             if st.phase == "evaluating" and st.eval_todo:
-                chunk = st.eval_todo.pop(0)
-                ref = slot.actor.eval_chunk.remote(st.spec, [st.state_ref], chunk)
-                self._submit(ref, "eval", slot, st, chunk)
+                mode, chunk = unit = st.eval_todo.pop(0)
+                ref = slot.actor.eval_chunk.remote(st.spec, [st.state_ref], chunk, mode)
+                self._submit(ref, "eval", slot, st, unit)
                 return
         pending = [s for s in self.states if s.phase == "pending"]
         if pending:
@@ -258,13 +260,13 @@ class _Run:
         ref = slot.actor.train_chunk.remote(st.spec, box, st.iterations, self.k)
         self._submit(ref, "train", slot, st, 0)
 
-    def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: int) -> None:
+    def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: Any) -> None:
         slot.busy = kind != "ping"
         self.inflight[ref] = (kind, slot, st, chunk)
 
     def _begin_eval(self, st: CellState) -> None:
         st.phase, st.trained = "evaluating", True
-        st.eval_todo = [c for c in range(st.n_chunks) if c not in st.eval_rows]
+        st.eval_todo = [u for u in st.eval_units() if u not in st.eval_rows]
 
     # --------------------------------------------------------------- results
     def _collect(self, ref: Any, slots: list[Slot]) -> None:
@@ -324,13 +326,14 @@ class _Run:
         else:
             self._submit_train(slot, st)
 
-    def _eval_done(self, st: CellState, chunk: int, rows: list[dict[str, Any]]) -> None:
-        st.eval_rows[chunk] = rows
+    def _eval_done(self, st: CellState, unit: tuple[str, int], rows: list[dict[str, Any]]) -> None:
+        st.eval_rows[unit] = rows
         self._emit("eval_chunk", st)
-        if len(st.eval_rows) < st.n_chunks:
+        units = st.eval_units()
+        if any(u not in st.eval_rows for u in units):
             return
-        all_rows = sorted((r for c in sorted(st.eval_rows) for r in st.eval_rows[c]), key=lambda r: r["episode"])
-        all_rows = [r for r in all_rows if int(r["episode"]) < st.cell.eval_episodes]
+        # Mode by mode, episode by episode; the last chunk may run past eval_episodes.
+        all_rows = [r for u in units for r in st.eval_rows[u] if int(r["episode"]) < st.cell.eval_episodes]
         self.store.write_eval(st.cell_id, all_rows, {
             "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
             "train_episodes_done": st.episodes_done,
@@ -349,7 +352,7 @@ class _Run:
             if not st.finished:
                 st.phase, st.error = "failed", error
 
-    def _worker_lost(self, kind: str, slot: Slot, st: CellState | None, chunk: int, exc: BaseException,
+    def _worker_lost(self, kind: str, slot: Slot, st: CellState | None, chunk: Any, exc: BaseException,
                      slots: list[Slot]) -> None:
         """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
         import ray

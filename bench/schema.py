@@ -1,4 +1,4 @@
-"""The results store schema, version 1 (documented column by column in docs/results-schema.md).
+"""The results store schema, version 2 (documented column by column in docs/results-schema.md).
 
 Every Parquet file the bench writes carries ``schema_version`` in its key-value metadata;
 ``manifest.json`` carries it too. A reader meeting another version refuses the folder
@@ -13,7 +13,7 @@ from typing import Any
 
 import pyarrow as pa
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
 VERSION_KEY = b"schema_version"
 
 STATUSES = ("pending", "running", "done", "failed")
@@ -36,6 +36,7 @@ CELLS_SCHEMA = pa.schema([
     pa.field("eval_episodes", pa.int64()),
     pa.field("on_goal", pa.string()),
     pa.field("loss_model", pa.string()),
+    pa.field("executions", pa.string()),  # comma-separated evaluation modes of the cell
     pa.field("params_json", pa.string()),
     pa.field("config_json", pa.string()),
     pa.field("status", pa.string()),
@@ -71,8 +72,10 @@ TRAIN_SCHEMA = pa.schema(
     + [pa.field("wall_s", pa.float64())]
 )
 
+# One row per cell x evaluation episode x execution mode (algorithms/common/execution.py).
 EVAL_SCHEMA = pa.schema(
-    [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False)]
+    [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False),
+     pa.field("execution", pa.string(), nullable=False), pa.field("scenario", pa.string())]
     + METRIC_FIELDS
 )
 

@@ -42,6 +42,9 @@ __all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full", "
            "read_meta", "read_table", "write_table"]
 
 CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
+# Results schema versions whose checkpoints this bench loads: version 2 changed the eval
+# rows (execution modes) only, not the checkpoint (cell JSON and the method's state_dict).
+CHECKPOINT_VERSIONS = (1, SCHEMA_VERSION)
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
 CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/cells.py: 12 hex digits of SHA-256
 
@@ -122,10 +125,10 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
         raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
         raise BenchError(f"{str(path)!r} is not a bench checkpoint")
-    if data.get("schema_version") != SCHEMA_VERSION:
+    if data.get("schema_version") not in CHECKPOINT_VERSIONS:
         raise BenchError(
             f"checkpoint {str(path)!r} has schema version {data.get('schema_version')}, "
-            f"this bench reads version {SCHEMA_VERSION}"
+            f"this bench reads versions {', '.join(map(str, CHECKPOINT_VERSIONS))}"
         )
     return data
 

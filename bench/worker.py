@@ -7,7 +7,8 @@ cell continues without reloading. When the cached method does not match (another
 restarted process, a re-dispatch after a crash), it is rebuilt from the cell seed and the
 given checkpoint state, which by the Method contract continues exactly as an
 uninterrupted run. An evaluation chunk loads the trained state (passed by reference,
-``ray.put`` once by the driver) and returns ``Method.evaluate(chunk)`` rows.
+``ray.put`` once by the driver) and returns ``Method.evaluate(chunk, seed, execution)``
+rows: one chunk in one execution mode (the driver fans out every mode x chunk).
 
 The class is plain Python (unit-testable without Ray); the runner wraps it with
 ``ray.remote``. One torch thread per worker.
@@ -134,8 +135,10 @@ class CellWorker:
             "peak_mem_mb": peak_rss_mb(),
         }
 
-    def eval_chunk(self, spec: Mapping[str, Any], state_box: list[Any], chunk: int) -> dict[str, Any]:
-        """Greedy evaluation rows of chunk ``chunk`` of the cell from its trained state."""
+    def eval_chunk(self, spec: Mapping[str, Any], state_box: list[Any], chunk: int,
+                   execution: str | None = None) -> dict[str, Any]:
+        """Evaluation rows of chunk ``chunk`` of the cell from its trained state, in mode
+        ``execution`` (default: argmax, or planner for a planner)."""
         reset_peak_rss()
         t0 = time.perf_counter()
         cell_id = str(spec["cell_id"])
@@ -147,5 +150,5 @@ class CellWorker:
         # Every chunk starts from the same state (RNG streams included), so the rows do not
         # depend on which chunks this worker ran before; no state: the untrained initialization.
         method.load_state_dict(state if state is not None else initial)
-        rows = method.evaluate(chunk, int(spec["seed"]))
+        rows = method.evaluate(chunk, int(spec["seed"]), execution)
         return {"rows": rows, "wall_s": time.perf_counter() - t0, "peak_mem_mb": peak_rss_mb()}

@@ -26,7 +26,9 @@ class EnvConfig(BaseModel):
 
     n_robots: int = Field(20, ge=1, le=10_000, description="team size N")
     layout: str = Field("wh20", description="preset name, MovingAI .map path or ASCII .txt path")
-    groups: int = Field(4, ge=1, description="number of fixed groups Z (robot i in group i mod Z)")
+    groups: int = Field(
+        4, ge=1, description="number of fixed groups Z (robot i in group i mod Z); default min(4, N)"
+    )
     horizon: int = Field(500, ge=1, description="maximum episode length T")
     on_goal: Literal["remove", "stay"] = Field(
         "remove", description="completed robots leave the floor, or stay as obstacles and Wait"
@@ -43,6 +45,16 @@ class EnvConfig(BaseModel):
     )
     d_m: int = Field(3, ge=1, description="scalars per robot in a message (2 position + 1 control)")
     reward: RewardWeights = Field(default_factory=RewardWeights)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _default_groups(cls, data: object) -> object:
+        """``groups`` left out means min(4, n_robots), so a team of 2 or 3 needs no override."""
+        if isinstance(data, dict) and "groups" not in data:
+            n = data.get("n_robots", 20)
+            if type(n) is int and 1 <= n < 4:
+                data = {**data, "groups": n}
+        return data
 
     @model_validator(mode="after")
     def _groups_fit(self) -> EnvConfig:

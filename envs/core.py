@@ -10,8 +10,11 @@ State arrays are shaped (B, N); positions are free-cell indices of the layout. O
   cells (edge conflict). Colliding movers stay where they are; this repeats until no
   conflict remains (cascades). Every robot involved in a conflict in any round has the
   collision indicator of eq:reward set (except a completed robot, whose terms are all 0,
-  docs/decisions.md). Following a robot that leaves and rotations around
-  a cycle of three or more robots are allowed;
+  docs/decisions.md). Following a robot that leaves is allowed, and so is a rotation
+  of robots each entering the cell the next one leaves around a cycle (a 4-connected grid
+  has only even cycles, so it takes four or more robots, e.g. a 2x2 block; two robots
+  trading cells is an edge conflict). In POGEMA's terms this is its ``soft`` collision
+  system without the rule that the lowest-index robot wins a contested cell;
 * a robot completes its task the first step it stands on its goal. ``on_goal="remove"``:
   it then leaves the floor; ``"stay"``: it remains as an obstacle and only Waits;
 * an episode terminates when every robot has completed, and is truncated at t = T

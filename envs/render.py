@@ -1,7 +1,7 @@
 """Rendering of warehouse states as RGB frames, ANSI text and GIF files.
 
-Pure functions of arrays, shared by the PettingZoo adapter (``render_mode``) and by
-``bench replay``: nothing here knows about the core or the env. Positions are (row, col)
+Pure functions of arrays, shared by the PettingZoo adapter (``render_mode``: "human"
+prints ``render_ansi`` frames with ``show_in_terminal``) and by ``bench replay``: nothing here knows about the core or the env. Positions are (row, col)
 pairs; per-robot flags are (N,) bool arrays. Frames are drawn with numpy fancy indexing
 (no Python loop over robots, no matplotlib).
 
@@ -24,6 +24,7 @@ import os
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -258,6 +259,21 @@ def render_ansi(
     if header:
         lines.insert(0, header)
     return "\n".join(lines)
+
+
+CLEAR_HOME = "\x1b[H\x1b[2J"  # ANSI: cursor to the top left, clear the screen
+
+
+def show_in_terminal(text: str, stream: TextIO) -> None:
+    """Print one ``render_ansi`` frame for ``render_mode="human"``.
+
+    On a terminal (``stream.isatty()``) the screen is cleared first, so successive frames
+    replace each other in place like an animation; into a pipe or a log file frames are
+    simply appended, separated by a blank line.
+    """
+    tty = bool(getattr(stream, "isatty", lambda: False)())
+    stream.write((CLEAR_HOME if tty else "") + text + ("\n" if tty else "\n\n"))
+    stream.flush()
 
 
 def write_gif(frames: Sequence[np.ndarray] | np.ndarray, path: str | os.PathLike[str],

@@ -8,14 +8,27 @@ from the env's own ``np.random.Generator``: ``reset(seed=s)`` re-seeds it with
 ``sample_scenarios(layout, N, 1, rng)`` would, then spawns the channel's generator.
 
 Agents ``robot_0 .. robot_{N-1}``; ``Discrete(5)`` actions (Up, Down, Left, Right, Wait);
-observations ``{"observation": float32 features, "action_mask": int8 (5,)}``. Every
-agent alive at the start of a step receives the team reward R_t of eq:reward. With
-``on_goal="remove"`` a robot that completes its task is terminated and leaves
-``agents``; with ``"stay"`` it remains (Wait only) until the episode ends. At the
-horizon every remaining agent is truncated.
+observations ``{"observation": float32 features, "action_mask": int8 (5,)}`` (the mask
+lives there only, where TorchRL and PettingZoo's classic envs look for it), or with
+``flat_obs=True`` one float32 Box: the features followed by the 5 mask entries (for
+SuperSuit/Stable-Baselines3). Every agent alive at the start of a step receives the team
+reward R_t of eq:reward. Every robot is in ``agents`` after ``reset`` (a fixed agent set
+for wrappers), including one placed on its own goal: it has completed at t = 0, so it
+may only Wait and, with ``on_goal="remove"``, is terminated at the first step. With
+``on_goal="remove"`` a robot that completes its task is terminated and leaves ``agents``;
+with ``"stay"`` it remains (Wait only) until the episode ends, so the agent set is fixed
+for the whole episode. At the horizon every remaining agent is truncated.
+
+Observations and infos of all agents are built at once from the batched core: each
+agent's arrays are row views of one (N, ...) array per step, and ``infos`` is a dict whose
+per-agent dicts are built on first read from copies of the step's (N,) arrays
+(``envs.step_infos``). Bad input raises ``envs.errors.BenchError`` (a
+``ValueError``) naming the agent or option and the value (``envs.pz_inputs``).
 """
 from __future__ import annotations
 
+import sys
+from functools import partial
 from typing import Any
 
 import gymnasium
@@ -30,10 +43,12 @@ from envs.core import StepResult, WarehouseCore
 from envs.errors import BenchError
 from envs.layouts import Layout, load_layout
 from envs.observations import PatchExtractor, feature_size, robot_features
-from envs.render import render_ansi, render_rgb, write_gif
+from envs.pz_inputs import action_vector, scenario_options
+from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.scenarios import sample_scenarios, validate_scenario
+from envs.step_infos import StepInfos
 
-RENDER_MODES = ("rgb_array", "ansi")
+RENDER_MODES = ("human", "rgb_array", "ansi")
 
 
 def parallel_env(**kwargs: Any) -> WarehouseParallelEnv:
@@ -54,25 +69,31 @@ class WarehouseParallelEnv(ParallelEnv):
         record: bool = False,
         cell_px: int | None = None,
         layout: str | Layout = "wh20",
+        flat_obs: bool = False,
         **config: Any,
     ) -> None:
-        """``render_mode``: "rgb_array", "ansi" or None. ``obs_radius``: k of the
-        (2k+1)^2 local patch. ``record``: keep an RGB frame per step for
-        ``write_episode_gif``. ``cell_px``: pixels per cell in frames (default: auto).
-        ``layout``: preset name, ``.map``/``.txt`` path or a ``Layout``. Other keywords
-        are ``EnvConfig`` fields (``n_robots``, ``groups``, ``loss_p``, ``horizon``, ...).
+        """``render_mode``: "human" (text frames printed to the terminal), "rgb_array",
+        "ansi" or None. ``obs_radius``: k of the (2k+1)^2 local patch. ``record``: keep an
+        RGB frame per step for ``write_episode_gif``. ``cell_px``: pixels per cell in
+        frames (default: auto). ``layout``: preset name, ``.map``/``.txt`` path or a
+        ``Layout``. ``flat_obs``: observations as one float32 Box [features, action
+        mask] instead of a Dict. Other keywords are ``EnvConfig`` fields (``n_robots``,
+        ``groups`` (default min(4, n_robots)), ``loss_p``, ``horizon``, ``on_goal``, ...).
         """
         if render_mode is not None and render_mode not in RENDER_MODES:
             raise BenchError(
                 f"render_mode {render_mode!r} not supported; use one of {', '.join(RENDER_MODES)} or None"
             )
-        if not isinstance(obs_radius, int) or obs_radius < 0:
+        if type(obs_radius) is not int or obs_radius < 0:
             raise BenchError(f"obs_radius must be an integer >= 0, got {obs_radius!r}")
+        if not isinstance(flat_obs, bool):
+            raise BenchError(f"flat_obs must be True or False, got {flat_obs!r}")
         lay = layout if isinstance(layout, Layout) else None
         self.config = EnvConfig.make(layout=lay.name if lay else layout, **config)
         self.layout = lay if lay is not None else load_layout(self.config.layout)
         self.render_mode = render_mode
         self.obs_radius = obs_radius
+        self.flat_obs = flat_obs
         self.record = record
         self.cell_px = cell_px
         n, z = self.config.n_robots, self.config.groups
@@ -82,6 +103,8 @@ class WarehouseParallelEnv(ParallelEnv):
         self.possible_agents = [f"robot_{i}" for i in range(n)]
         self.agent_ids = {a: i for i, a in enumerate(self.possible_agents)}
         self.agents: list[str] = []
+        self._live = np.zeros(n, dtype=bool)  # (N,) robots in ``agents``
+        self._actions = np.full(n, WAIT, dtype=np.int64)  # (N,) scratch for step()
 
         h, w = self.layout.shape
         size = feature_size(obs_radius)
@@ -90,10 +113,15 @@ class WarehouseParallelEnv(ParallelEnv):
         low[2:4] = -1.0  # goal offset / shape
         high[4] = max(1.0, h * w / (h + w))  # min(D, H W) / (H + W)
         low[6 : 6 + N_ACTIONS] = -1.0  # action progress
-        obs_space = spaces.Dict({
-            "observation": spaces.Box(low, high, dtype=np.float32),
-            "action_mask": spaces.Box(0, 1, (N_ACTIONS,), dtype=np.int8),
-        })
+        if flat_obs:
+            low = np.concatenate([low, np.zeros(N_ACTIONS, np.float32)])
+            high = np.concatenate([high, np.ones(N_ACTIONS, np.float32)])
+            obs_space: spaces.Space = spaces.Box(low, high, dtype=np.float32)
+        else:
+            obs_space = spaces.Dict({
+                "observation": spaces.Box(low, high, dtype=np.float32),
+                "action_mask": spaces.Box(0, 1, (N_ACTIONS,), dtype=np.int8),
+            })
         # One object per agent, created once: observation_space(a) is observation_space(a).
         self._obs_spaces = {a: obs_space if i == 0 else _clone(obs_space)
                             for i, a in enumerate(self.possible_agents)}
@@ -115,18 +143,18 @@ class WarehouseParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ reset
     def reset(self, seed: int | None = None, options: dict | None = None
-              ) -> tuple[dict[str, dict], dict[str, dict]]:
+              ) -> tuple[dict[str, Any], dict[str, dict]]:
         """Start an episode. ``options={"starts": [(r, c), ...], "goals": [...]}`` gives
-        an explicit scenario (validated); otherwise it is sampled. Other keys are ignored.
+        an explicit scenario (validated; integer cells only); otherwise it is sampled
+        (never with a robot on its own goal). A misspelt key (``"start"``) is an error;
+        other keys are ignored with a warning.
         """
+        scenario = scenario_options(options)
         if seed is not None or self._rng is None:
             self._rng = np.random.default_rng(seed)
-        options = options or {}
         n = self.config.n_robots
-        if "starts" in options or "goals" in options:
-            if "starts" not in options or "goals" not in options:
-                raise BenchError("reset options: give both 'starts' and 'goals' (lists of (row, col))")
-            s, g = validate_scenario(self.layout, n, options["starts"], options["goals"])
+        if scenario:
+            s, g = validate_scenario(self.layout, n, scenario["starts"], scenario["goals"])
             starts, goals = s[None], g[None]
         else:
             starts, goals = sample_scenarios(self.layout, n, 1, self._rng)
@@ -134,54 +162,60 @@ class WarehouseParallelEnv(ParallelEnv):
         self.channel = GroupChannel(self.config, 1, self._rng.spawn(1)[0])
         self.links = self.channel.step()[0]  # A_0
         self._last = None
-        # A robot placed on its own goal has completed at t = 0 ("remove": off the floor).
-        live = ~self.core.done[0] if self.core.remove else np.ones(n, bool)
-        self.agents = [a for a, keep in zip(self.possible_agents, live, strict=True) if keep]
+        # Every robot starts in ``agents``, even one placed on its goal (done at t = 0).
+        self._live[:] = True
+        self.agents = list(self.possible_agents)
         self.frames = []
         if self.record:
             self.frames.append(self._frame())
-        obs = self._observations(self.agents)
         zero = np.zeros(n)
-        infos = self._infos(self.agents, zero, zero, zero, zero, np.zeros(n, bool),
-                            np.zeros(n, bool))
-        return obs, infos
+        no = np.zeros(n, dtype=bool)
+        return (self._observations(None),
+                self._infos(self.agents, zero, zero, zero, zero, no, no))
 
     # ------------------------------------------------------------------- step
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
-        """Advance one step. Every live agent needs an action; others are ignored."""
-        if not self.agents:
-            return {}, {}, {}, {}, {}
-        unknown = set(actions) - set(self.agent_ids)
-        if unknown:
-            raise BenchError(f"step: unknown agents {sorted(unknown)}")
-        missing = [a for a in self.agents if a not in actions]
-        if missing:
-            raise BenchError(f"step: no action for live agents {missing}")
-        n = self.config.n_robots
-        u = np.full((1, n), WAIT, dtype=np.int64)
-        for a in self.agents:
-            u[0, self.agent_ids[a]] = int(actions[a])
-        res = self.core.step(u)
+        """Advance one step. Every live agent needs an integer action in 0..4; agents
+        that already left may be absent or given None or a valid action (ignored)."""
+        if self.channel is None:
+            raise BenchError("step: call reset() before step()")
+        if self.core.ended[0]:
+            raise BenchError(
+                f"step: the episode ended at t={self.core.t} (no agents left); call reset()")
+        u = action_vector(actions, self.possible_agents, self.agent_ids, self._live,
+                          self._actions)
+        res = self.core.step(u[None])
         self._last = res
         self.links = self.channel.step()[0]  # A_{t+1}: messages carrying X_{t+1}
 
-        live = self.agents
-        team = float(res.reward[0])
-        rewards = dict.fromkeys(live, team)
-        ended = bool(res.terminated[0] or res.truncated[0])
-        reached = res.reached[0]
-        if self.core.remove:
-            term = {a: bool(reached[self.agent_ids[a]] or res.terminated[0]) for a in live}
+        names = self.agents  # alive at the start of this step, in index order
+        everyone = len(names) == self.config.n_robots
+        live = None if everyone else np.flatnonzero(self._live)
+        terminated, truncated = bool(res.terminated[0]), bool(res.truncated[0])
+        # "remove": a robot is terminated the step it completes (or at the first step if
+        # it started on its goal); "stay": only when the whole team has completed.
+        if terminated or not self.core.remove:
+            term = np.full(len(names), terminated)
         else:
-            term = dict.fromkeys(live, bool(res.terminated[0]))
-        trunc = {a: bool(res.truncated[0]) and not term[a] for a in live}
+            term = self.core.done[0] if everyone else self.core.done[0, live]
+        rewards = dict.fromkeys(names, float(res.reward[0]))
+        any_term = bool(term.any())
+        terminations = (dict(zip(names, term.tolist(), strict=True)) if any_term
+                        else dict.fromkeys(names, False))
+        truncations = (dict(zip(names, (~term).tolist(), strict=True)) if truncated
+                       else dict.fromkeys(names, False))
         obs = self._observations(live)
-        infos = self._infos(live, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
+        infos = self._infos(names, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
                             res.time_penalty[0], res.collision[0], res.invalid[0])
-        self.agents = [] if ended else [a for a in live if not term[a]]
+        if terminated or truncated:
+            self._live[:] = False
+            self.agents = []
+        elif any_term:
+            self._live[np.flatnonzero(self._live)[term]] = False
+            self.agents = [a for a, done in zip(names, term.tolist(), strict=True) if not done]
         if self.record:
             self.frames.append(self._frame())
-        return obs, rewards, term, trunc, infos
+        return obs, rewards, terminations, truncations, infos
 
     # --------------------------------------------------------- per-agent views
     def action_masks(self) -> np.ndarray:
@@ -191,41 +225,42 @@ class WarehouseParallelEnv(ParallelEnv):
         mask[self.core.done[0], :WAIT] = 0
         return mask
 
-    def _observations(self, agents: list[str]) -> dict[str, dict]:
+    def _observations(self, idx: np.ndarray | None) -> dict[str, Any]:
+        """Observations of robots ``idx`` (None: all): row views of one (N, F) feature
+        array and one (N, 5) mask array of this step."""
         feats = robot_features(self.core, self.patch, self.groups)[0]  # (N, F)
         mask = self.action_masks()
-        return {a: {"observation": feats[i], "action_mask": mask[i]}
-                for a in agents for i in (self.agent_ids[a],)}
+        if idx is None:
+            names = self.possible_agents
+        else:
+            names = [self.possible_agents[i] for i in idx.tolist()]
+            feats, mask = feats[idx], mask[idx]
+        if self.flat_obs:
+            return dict(zip(names, np.concatenate([feats, mask.astype(np.float32)], axis=1),
+                            strict=True))
+        return {a: {"observation": f, "action_mask": m}
+                for a, f, m in zip(names, feats, mask, strict=True)}
 
-    def _infos(self, agents: list[str], progress: np.ndarray, goal_bonus: np.ndarray,
+    def _infos(self, names: list[str], progress: np.ndarray, goal_bonus: np.ndarray,
                collision_penalty: np.ndarray, time_penalty: np.ndarray,
-               collision: np.ndarray, invalid: np.ndarray) -> dict[str, dict]:
-        cells = self.layout.cells
-        pos = cells[self.core.pos[0]].tolist()
-        goal = cells[self.core.goal[0]].tolist()
-        at_goal = (self.core.pos[0] == self.core.goal[0]).tolist()
-        mask = self.action_masks()
-        links_in = self.links.T  # [z, z']: does z receive from z' this step
-        c_hier, c_dec = self.channel.payload_hier, self.channel.payload_dec
-        out = {}
-        for a in agents:
-            i = self.agent_ids[a]
-            z = int(self.groups[i])
-            out[a] = {
-                "position": tuple(pos[i]), "goal": tuple(goal[i]), "group": z,
-                "collision": bool(collision[i]), "at_goal": at_goal[i],
-                "invalid": bool(invalid[i]), "action_mask": mask[i],
-                "progress": float(progress[i]), "goal_bonus": float(goal_bonus[i]),
-                "collision_penalty": float(collision_penalty[i]),
-                "time_penalty": float(time_penalty[i]),
-                "link_available": links_in[z], "payload_hier": c_hier, "payload_dec": c_dec,
-                "t": self.core.t,
-            }
-        return out
+               collision: np.ndarray, invalid: np.ndarray) -> StepInfos:
+        """Infos of agents ``names`` (keys ``INFO_KEYS``), built on first read from
+        copies of this step's (N,) arrays (``envs.step_infos``)."""
+        # Copies (a few hundred bytes): the infos must not change if the core or the
+        # channel ever reuse their arrays in place.
+        columns = partial(_info_columns, self.layout.cells, *(x.copy() for x in (
+            self.core.pos[0], self.core.goal[0])), self.groups, self.links.copy(),
+            *(x.copy() for x in (progress, goal_bonus, collision_penalty, time_penalty,
+                                 collision, invalid)))
+        constants = {"payload_hier": self.channel.payload_hier,
+                     "payload_dec": self.channel.payload_dec, "t": self.core.t}
+        return StepInfos(names, self.agent_ids, columns, constants)
 
     def state(self) -> np.ndarray:
         """(5 N + 1,) float32 global state: positions and goals (row/H, col/W), completed
         flags, t/T."""
+        if self.channel is None:
+            raise BenchError("state: call reset() before state()")
         h, w = self.layout.shape
         scale = np.array([h, w], np.float32)
         cells = self.layout.cells
@@ -262,7 +297,11 @@ class WarehouseParallelEnv(ParallelEnv):
             return self._frame()
         args, kw = self._render_args()
         header = f"t={self.core.t}/{self.config.horizon} agents={len(self.agents)}"
-        return render_ansi(*args, **kw, header=header)
+        text = render_ansi(*args, **kw, header=header)
+        if self.render_mode == "human":
+            show_in_terminal(text, sys.stdout)
+            return None
+        return text
 
     def write_episode_gif(self, path: str, fps: float | None = None) -> str:
         """Write the frames recorded since the last reset (needs ``record=True``)."""
@@ -275,6 +314,23 @@ class WarehouseParallelEnv(ParallelEnv):
         self.frames = []
 
 
-def _clone(space: spaces.Dict) -> spaces.Dict:
-    """An equal but distinct Dict space (each agent seeds its own sampler)."""
-    return spaces.Dict({k: spaces.Box(v.low, v.high, v.shape, v.dtype) for k, v in space.items()})
+def _info_columns(cells: np.ndarray, pos: np.ndarray, goal: np.ndarray, groups: np.ndarray,
+                  links: np.ndarray, progress: np.ndarray, goal_bonus: np.ndarray,
+                  collision_penalty: np.ndarray, time_penalty: np.ndarray,
+                  collision: np.ndarray, invalid: np.ndarray) -> dict[str, np.ndarray]:
+    """The (N, ...) columns of ``StepInfos`` from cell indices pos/goal (N,), the cell
+    table (F, 2) and A_t (Z, Z)."""
+    return {
+        "position": cells[pos], "goal": cells[goal], "group": groups,
+        "collision": collision, "at_goal": pos == goal, "invalid": invalid,
+        "progress": progress, "goal_bonus": goal_bonus,
+        "collision_penalty": collision_penalty, "time_penalty": time_penalty,
+        "link_available": links.T[groups],  # (N, Z): does z_i hear from z'
+    }
+
+
+def _clone(space: spaces.Space) -> spaces.Space:
+    """An equal but distinct space (each agent seeds its own sampler)."""
+    if isinstance(space, spaces.Box):
+        return spaces.Box(space.low, space.high, space.shape, space.dtype)
+    return spaces.Dict({k: _clone(v) for k, v in space.items()})

@@ -10,11 +10,14 @@ listed among the store's problems. Deterministic: bootstrap
 generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
-.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.md, index.md, index.html.
+.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.{md,csv}, calibration.{json,md} (the
+calibration of the claim tests), index.md, index.html.
 """
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -23,7 +26,8 @@ from matplotlib.figure import Figure
 
 from bench.completeness import incomplete_cells
 from bench.store import DiskFull, RunStore, file_mode, is_disk_full
-from reports.claims import all_claims, claims_markdown
+from reports.claims import all_claims
+from reports.claims_page import calibration_markdown, claims_frame, claims_markdown
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
@@ -84,10 +88,29 @@ def _study_entries(run_dir: Path, out: Path) -> list[Entry]:
     return entries
 
 
-def build_report(run_dir: Path | str, out_dir: Path | str | None = None) -> Path:
+CALIBRATION = Path(__file__).with_name("calibration.json")  # `bench calibrate --out`, committed
+
+
+def _calibration(out: Path) -> str | None:
+    """``calibration.md`` from ``<report>/calibration.json`` (copied from the packaged
+    table when absent); returns its name for the claims page, None without a table."""
+    cached = out / "calibration.json"
+    if not cached.exists() and CALIBRATION.exists():
+        _atomic(cached, lambda tmp: shutil.copyfile(CALIBRATION, tmp))
+    if not cached.exists():
+        return None
+    rep = json.loads(cached.read_text(encoding="utf-8"))
+    import pandas as pd
+
+    write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta")))
+    return "calibration.md"
+
+
+def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper") -> Path:
     """Rebuild the report (default ``<run_dir>/report/``, else ``out_dir``) from the store;
     returns that directory (holding ``index.html``). Missing, failed or incomplete cells are
-    listed, never fatal; a run directory without ``cells.parquet`` is a ``BenchError``."""
+    listed, never fatal; a run directory without ``cells.parquet`` is a ``BenchError``.
+    ``claims_at="run"`` also checks the claims at the run's own configurations."""
     store = load_store(run_dir)
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
     for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
@@ -97,7 +120,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None) -> Path
 
     titles = {
         "fig1_training": "Fig. 1: training convergence",
-        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net",
+        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net, per execution mode",
         "fig3_comm_payload": "Fig. 3: communication payload and ratio",
     }
     builders = {"fig1_training": lambda: fig1_training(train),
@@ -113,17 +136,20 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None) -> Path
     write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
     write_text(out / "table1_safety.tex", table1_latex(table))
     write_text(out / "table1_safety.csv", table.to_csv(index=False))
-    entries.append(Entry("Table I: safety filter",
+    entries.append(Entry("Table I: safety filter, per execution mode",
                          ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes)))
 
     summary = summary_frame(evals, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
-    entries.append(Entry("Summary of every configuration (method x N x p)", ("summary.md", "summary.csv")))
+    entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
+                         ("summary.md", "summary.csv")))
 
-    claims = all_claims(train, evals)
-    write_text(out / "claims.md", claims_markdown(claims))
-    entries.append(Entry("Claims of Sec. IV", ("claims.md",)))
+    claims = all_claims(train, evals, at=claims_at, cells=store.cells)
+    cal = _calibration(out)
+    write_text(out / "claims.md", claims_markdown(claims, cal))
+    write_text(out / "claims.csv", claims_frame(claims).to_csv(index=False))
+    entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ())))
 
     entries += _study_entries(Path(run_dir), out)
 

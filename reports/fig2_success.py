@@ -1,6 +1,8 @@
 """Fig. 2: success-rate percentile curves, hierarchical vs IC3Net.
 
-Panels: N = 40, 60 (rows) x p = 0.2, 0.4, 0.6 (columns), paper Sec. IV, fig:fig2. As in
+Panels: N = 40, 60 (rows) x p = 0.2, 0.4, 0.6 (columns), paper Sec. IV, fig:fig2, repeated
+for every execution mode of the run (rows grouped by mode: argmax, sample, sample@T; both
+methods in a panel ran the same mode on the same scenarios). As in
 the paper, the evaluation episodes of a configuration are sorted by success rate (fraction
 of robots that reached their goal) and plotted against their percentile. Episodes of all
 seeds are pooled for the curve; with several seeds a 95% bootstrap band over seeds (each
@@ -24,7 +26,7 @@ from reports.plotting import (
     placeholder,
 )
 from reports.stats import bootstrap_band, percentile_curve, quantile_curve
-from reports.store import fmt_p, select
+from reports.store import execution_order, fmt_p, select
 
 PAPER_N = (40, 60)
 PAPER_P = (0.2, 0.4, 0.6)
@@ -49,23 +51,27 @@ def fig2_success(evals: pd.DataFrame) -> Built:
         notes.append(f"the run has no hierarchical or IC3Net evaluation for N = {fmt_list(n_missing)}")
     if p_missing:
         notes.append(f"the run has no hierarchical or IC3Net evaluation at p = {fmt_list(p_missing)}")
-    nrow, ncol = max(len(ns), 1), max(len(ps), 1)
+    modes = execution_order(both["execution"]) or ["argmax"]
+    per_mode = max(len(ns), 1)
+    nrow, ncol = per_mode * len(modes), max(len(ps), 1)
     with paper_style():
         fig = new_figure(1.0 + 1.25 * nrow)
         axes = fig.subplots(nrow, ncol, sharex=True, sharey=True, squeeze=False)
         handles: dict[str, object] = {}
         for i in range(nrow):
+            mode, i_n = modes[i // per_mode], i % per_mode
+            in_mode = both[both["execution"] == mode]
             for j in range(ncol):
                 ax = axes[i, j]
-                if i >= len(ns) or j >= len(ps):
+                if i_n >= len(ns) or j >= len(ps):
                     placeholder(ax, "no evaluation data")
                     continue
-                n, p = int(ns[i]), float(ps[j])
+                n, p = int(ns[i_n]), float(ps[j])
                 drawn = False
                 for method in METHODS:
-                    rows = select(both, method, n, p)
+                    rows = select(in_mode, method, n, p)
                     if rows.empty:
-                        notes.append(f"N = {n}, p = {fmt_p(p)}: no {method} evaluation")
+                        notes.append(f"N = {n}, p = {fmt_p(p)}, {mode}: no {method} evaluation")
                         continue
                     pct, val = percentile_curve(rows["success_rate"].to_numpy())
                     color = method_color(method)
@@ -78,7 +84,7 @@ def fig2_success(evals: pd.DataFrame) -> Built:
                     drawn = True
                 if not drawn:
                     placeholder(ax, "no data")
-                ax.set_title(f"N = {n}, p = {fmt_p(p)}")
+                ax.set_title(f"N = {n}, p = {fmt_p(p)}\n{mode}")
                 ax.set_xlim(0, 100)
                 ax.set_ylim(-3, 103)
                 ax.set_xticks([0, 50, 100])

@@ -106,7 +106,8 @@ def _table(head: list[str], rows: list[list[str]]) -> str:
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;
 line-height:1.4}table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;
 padding:2px 6px;font-size:90%;vertical-align:top}img{max-width:100%;border:1px solid #eee}
-.holds{color:#1a7f37}.does-not-hold{color:#b42318}.not-enough-data{color:#8a6d00}
+.supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
+.not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
 code{font-size:90%}"""
 
 

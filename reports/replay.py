@@ -1,22 +1,27 @@
-"""``write_replay``: an animated GIF of one evaluation episode, re-run from the checkpoint.
+"""``write_replay``: a GIF or MP4 of one evaluation episode, re-run from the checkpoint.
 
 The episode is not stored step by step; it is re-run deterministically: the cell is rebuilt
 from ``cells.parquet`` (``config_json``), its method from the registry with the cell's
 seed, its trained state from ``checkpoints/<cell_id>.pt`` (``weights_only`` load), and
 evaluation chunk ``episode // eval_chunk`` is run exactly as the bench's evaluator runs it
-(``Method.evaluate(chunk, seed)``), with hooks that record episode ``episode % eval_chunk``
-step by step. The recorded episode's metrics are checked against its stored evaluation
-row, so a GIF never shows an episode other than the one in the store.
+(``Method.evaluate(chunk, seed, execution)``, in one execution mode: argmax by default,
+planner for PIBT), with hooks that record episode ``episode % eval_chunk`` step by step.
+The recorded episode's metrics are checked against its stored evaluation row of the same
+mode, so a GIF never shows an episode other than the one in the store.
 
-Each frame (``envs.render.render_rgb``) shows robots coloured by group, the goals of
-unfinished robots, collisions (red border), controls changed by the safety filter (black
-inner border: proposed != executed) and, for methods with a group channel, a strip of the
-inter-group links of that step (red = lost), with a caption: step, collisions,
-corrections and lost links.
+Each frame (reports/replay_frames.py, grid by ``envs.render.render_rgb``, at least 800 px
+wide) shows robots coloured by group, the goals of unfinished robots, collisions (red
+border), controls changed by the safety filter (black inner border: proposed != executed)
+and, for methods with a group channel, a row of the inter-group links of that step (red =
+lost). A caption names the method, N, p, layout, cell id, episode and execution mode, then
+the step's counters; a legend explains every mark. ``progress(phase, done, total)`` is
+called while re-running, drawing and encoding. MP4 needs the optional ``imageio-ffmpeg``
+package; without it ``--format mp4`` is one clear error before any work.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +31,7 @@ import pandas as pd
 
 from algorithms.base import Method
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
 from bench.cells import Cell
 from bench.schema import EVAL_SCHEMA
@@ -34,8 +40,16 @@ from envs.channel import LossProcess, comm_graph, group_assignment
 from envs.core import StepResult
 from envs.errors import BenchError
 from envs.render import render_rgb, write_gif
+from reports.plotting import method_label
+from reports.replay_frames import LegendSpec, compose, legend_panel, links_row, replay_cell_px
 
 CHECK_COLUMNS = ("team_return", "success_rate", "collision_rate", "steps")
+FORMATS = ("gif", "mp4")
+Progress = Callable[[str, int, int], None]  # (phase, done, total)
+
+
+def _no_progress(_phase: str, _done: int, _total: int) -> None:
+    return None
 
 
 @dataclass
@@ -61,6 +75,7 @@ class Recorder:
     goal: np.ndarray | None = None
     latest_links: np.ndarray | None = None
     pending: tuple[np.ndarray, np.ndarray | None, np.ndarray | None] | None = None
+    has_proposals: bool = False  # the method reported proposals (it has a safety filter)
 
     def on_links(self, avail: np.ndarray) -> None:
         """Availability drawn by a loss process: kept (on graph edges) when it is group-level
@@ -84,6 +99,7 @@ class Recorder:
         links = getattr(dec, "links", None)
         links = np.asarray(links)[self.k] if links is not None else self.latest_links
         proposed = None if dec.proposed is None else np.asarray(dec.proposed)[self.k].copy()
+        self.has_proposals |= proposed is not None
         self.pending = (np.asarray(dec.actions)[self.k].copy(), proposed, links)
 
     def observed(self, batch: EpisodeBatch, res: StepResult) -> None:
@@ -103,13 +119,13 @@ def _hook(method: Method, rec: Recorder) -> None:
     """Wrap the method's begin/decide/observe (instance attributes) to feed ``rec``."""
     begin, decide, observe = method.begin, method.decide, method.observe
 
-    def _begin(batch: EpisodeBatch, greedy: bool) -> Any:
-        state = begin(batch, greedy)
+    def _begin(batch: EpisodeBatch, choice: ActionChoice) -> Any:
+        state = begin(batch, choice)
         rec.begin(batch)
         return state
 
-    def _decide(batch: EpisodeBatch, state: Any, greedy: bool) -> Decision:
-        dec = decide(batch, state, greedy)
+    def _decide(batch: EpisodeBatch, state: Any, choice: ActionChoice) -> Decision:
+        dec = decide(batch, state, choice)
         rec.decided(batch, dec)
         return dec
 
@@ -120,8 +136,10 @@ def _hook(method: Method, rec: Recorder) -> None:
     method.begin, method.decide, method.observe = _begin, _decide, _observe  # type: ignore[method-assign]
 
 
-def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder) -> list[dict[str, float]]:
-    """``method.evaluate(chunk, seed)`` with every group-level loss draw reported to ``rec``."""
+def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder,
+                  execution: str | None = None) -> list[dict[str, Any]]:
+    """``method.evaluate(chunk, seed, execution)`` with every group-level loss draw
+    reported to ``rec``."""
     original: Callable[[LossProcess], np.ndarray] = LossProcess.step
 
     def step(self: LossProcess) -> np.ndarray:
@@ -132,58 +150,130 @@ def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder) -> list[
     _hook(method, rec)
     LossProcess.step = step  # type: ignore[method-assign]
     try:
-        return method.evaluate(chunk, seed)
+        return method.evaluate(chunk, seed, execution)
     finally:
         LossProcess.step = original  # type: ignore[method-assign]
 
 
-def _caption(frame: np.ndarray, lines: list[str]) -> np.ndarray:
-    """The frame with a white band of text lines on top (PIL's default font); the frame is
-    padded with white on the right when the text is wider."""
-    from PIL import Image, ImageDraw, ImageFont
-
-    font = ImageFont.load_default()
-    line_h = 12
-    probe = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    width = max(frame.shape[1], *(int(probe.textlength(t, font=font)) + 6 for t in lines))
-    band = Image.new("RGB", (width, line_h * len(lines) + 4), (255, 255, 255))
-    draw = ImageDraw.Draw(band)
-    for i, text in enumerate(lines):
-        draw.text((3, 2 + i * line_h), text, fill=(0, 0, 0), font=font)
-    body = np.pad(frame, ((0, 0), (0, width - frame.shape[1]), (0, 0)), constant_values=255)
-    return np.concatenate([np.asarray(band, dtype=np.uint8), body], axis=0)
-
-
 def render_steps(layout: Any, rec: Recorder, groups: np.ndarray, adjacency: np.ndarray,
-                 horizon: int) -> list[np.ndarray]:
-    """One captioned RGB frame per recorded step (the first shows the start)."""
+                 horizon: int, title: str = "", progress: Progress = _no_progress) -> list[np.ndarray]:
+    """One captioned, legended RGB frame per recorded step (the first shows the start);
+    ``title`` is the caption's first line (method, N, p, cell, episode, execution)."""
     cells = layout.cells
     with_links = any(s.links is not None for s in rec.steps)
     z = len(adjacency)
-    frames = []
+    shape = np.asarray(getattr(layout, "obstacles", layout)).shape
+    px = replay_cell_px(shape)
+    width = max(shape[1] * px, 800)
+    legend = legend_panel(width, LegendSpec(groups=z, links=with_links, corrections=rec.has_proposals))
     none = np.zeros_like(adjacency, dtype=bool)
-    for s in rec.steps:
-        # A frame before any message (the start) shows every link grey ("no message").
-        links, adj = (s.links, adjacency) if s.links is not None else (
-            (none, none) if with_links else (None, None))
-        frame = render_rgb(layout, cells[s.pos], cells[rec.goal], groups, done=s.done,
-                           on_floor=s.on_floor, collision=s.collision, corrected=s.corrected,
-                           links=links, adjacency=adj)
-        stats = f"collisions {int(s.collision.sum())} | corrected {int(s.corrected.sum())}"
-        if s.links is not None:
-            stats += f" | lost links {int((adjacency & ~s.links).sum())}/{int(adjacency.sum())}"
-        head = f"t = {s.t}/{horizon} | done {int(s.done.sum())}/{len(s.done)} | Z = {z}"
-        frames.append(_caption(frame, [head, stats]))
-    width = max(f.shape[1] for f in frames)
-    return [np.pad(f, ((0, 0), (0, width - f.shape[1]), (0, 0)), constant_values=255) for f in frames]
+    frames = []
+    for i, s in enumerate(rec.steps):
+        body = render_rgb(layout, cells[s.pos], cells[rec.goal], groups, done=s.done,
+                          on_floor=s.on_floor, collision=s.collision, corrected=s.corrected, cell_px=px)
+        stats = (f"t = {s.t}/{horizon}  |  done {int(s.done.sum())}/{len(s.done)}  |  "
+                 f"collisions {int(s.collision.sum())}")
+        if rec.has_proposals:
+            stats += f"  |  corrected {int(s.corrected.sum())}"
+        row = None
+        if with_links:
+            # A frame before any message (the start) shows every link grey ("no message").
+            links, adj = (s.links, adjacency) if s.links is not None else (none, none)
+            row = links_row(width, links, adj)
+            stats += (f"  |  lost links {int((adjacency & ~s.links).sum())}/{int(adjacency.sum())}"
+                      if s.links is not None else "  |  no message yet")
+        frames.append(compose([(title, True), (stats, False)] if title else [(stats, False)], body, legend, row))
+        progress("drawing frames", i + 1, len(rec.steps))
+    height = max(f.shape[0] for f in frames)  # a wrapped caption may add a line
+    return [np.pad(f, ((0, height - f.shape[0]), (0, 0), (0, 0)), constant_values=255) for f in frames]
 
 
-def _stored_row(rs: RunStore, cell_id: str, episode: int) -> pd.Series | None:
+def write_mp4(frames: list[np.ndarray], path: Path | str, fps: float = 8.0) -> Path:
+    """Write frames as H.264 MP4 (yuv420p) atomically; frames are padded white to a multiple
+    of 16 px. BenchError when ``imageio-ffmpeg`` is not installed."""
+    import os
+    import tempfile
+
+    ffmpeg = require_mp4()
+    path = Path(path)
+    if not frames:
+        raise BenchError(f"write_mp4 {str(path)!r}: no frames to write")
+    h, w = frames[0].shape[:2]
+    ph, pw = -(-h // 16) * 16, -(-w // 16) * 16
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.mp4", dir=path.parent)
+    os.close(fd)
+    try:
+        writer = ffmpeg.write_frames(tmp, (pw, ph), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+                                     macro_block_size=16, quality=8, ffmpeg_log_level="error")
+        writer.send(None)
+        for f in frames:
+            writer.send(np.ascontiguousarray(np.pad(f, ((0, ph - h), (0, pw - w), (0, 0)), constant_values=255)))
+        writer.close()
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a video is an ordinary file
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def require_mp4() -> Any:
+    """The ``imageio_ffmpeg`` module, or BenchError saying how to get MP4 output."""
+    try:
+        import imageio_ffmpeg
+    except ImportError:
+        raise BenchError("--format mp4 needs the imageio-ffmpeg package, which is not installed "
+                         "(pip install imageio-ffmpeg); use --format gif") from None
+    return imageio_ffmpeg
+
+
+@contextmanager
+def replay_progress() -> Iterator[Progress]:
+    """A ``progress`` callback for ``write_replay``: a rich bar per phase on an interactive
+    stderr, else one line on stderr per phase start and end and every 25 % of the frames."""
+    import os
+    import sys
+
+    if os.environ.get("CI", "").lower() in ("1", "true", "yes") or not sys.stderr.isatty():
+        last: dict[str, int] = {}
+
+        def lines(phase: str, done: int, total: int) -> None:
+            quarter = 4 * done // max(total, 1)  # 0..4: start, each 25 %, end
+            if last.get(phase) != quarter:
+                last[phase] = quarter
+                print(f"replay: {phase} {done}/{total}", file=sys.stderr, flush=True)
+
+        yield lines
+        return
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    tasks: dict[str, Any] = {}
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  TextColumn("ETA"), TimeRemainingColumn(), transient=False) as bar:
+        def update(phase: str, done: int, total: int) -> None:
+            if phase not in tasks:
+                tasks[phase] = bar.add_task(phase, total=total)
+            bar.update(tasks[phase], completed=done, total=total)
+
+        yield update
+
+
+def _stored_row(rs: RunStore, cell_id: str, episode: int, execution: str) -> pd.Series | None:
     path = rs.eval_path(cell_id)
     if not path.exists():
         return None
     df = read_table(path, EVAL_SCHEMA).to_pandas()
-    rows = df[df["episode"] == episode]
+    rows = df[(df["episode"] == episode) & (df["execution"] == execution)]
     return None if rows.empty else rows.iloc[-1]
 
 
@@ -200,12 +290,19 @@ def load_cell(rs: RunStore, cell_id: str) -> Cell:
 
 
 def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | str,
-                 fps: float = 8.0, verify: bool = True) -> Path:
-    """Write evaluation episode ``episode`` of cell ``cell_id`` as a GIF at ``out``.
+                 fps: float = 8.0, verify: bool = True, fmt: str = "gif",
+                 progress: Progress = _no_progress, execution: str | None = None) -> Path:
+    """Write evaluation episode ``episode`` of cell ``cell_id``, in execution mode
+    ``execution`` (default: argmax, or planner for PIBT), as a GIF or MP4 (``fmt``) at ``out``.
 
-    BenchError when the cell, its checkpoint (learned methods) or the episode does not
-    exist, or (``verify``) when the re-run does not reproduce the stored evaluation row.
+    BenchError when the cell, its checkpoint (learned methods), the episode or the mode does
+    not exist, when ``fmt`` is unknown or MP4 support is missing, or (``verify``) when the
+    re-run does not reproduce the stored evaluation row.
     """
+    if fmt not in FORMATS:
+        raise BenchError(f"unknown replay format {fmt!r}; choose {' or '.join(FORMATS)}")
+    if fmt == "mp4":
+        require_mp4()  # fail before the re-run
     rs = RunStore(run_dir)
     cell = load_cell(rs, cell_id)
     if not 0 <= int(episode) < cell.eval_episodes:
@@ -222,11 +319,18 @@ def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | st
     chunk, k = divmod(int(episode), size)
     adjacency = comm_graph(env.groups, env.comm_graph)
     rec = Recorder(k, adjacency)
-    rows = _run_recorded(method, chunk, cell.seed, rec)
+    modes = cell.execution_modes()
+    choice = method.execution_choice(execution, cell.seed, chunk)
+    if choice.name not in modes:
+        raise BenchError(f"--execution {choice.name!r}: cell {cell_id} was evaluated in "
+                         f"{', '.join(modes)}")
+    progress("re-running the episode", 0, 1)
+    rows = _run_recorded(method, chunk, cell.seed, rec, choice.name)
+    progress("re-running the episode", 1, 1)
     if k >= len(rows):  # the last chunk may be cut short by eval_episodes
         raise BenchError(f"episode {episode} was not produced by evaluation chunk {chunk}")
     if verify:
-        stored = _stored_row(rs, cell_id, int(episode))
+        stored = _stored_row(rs, cell_id, int(episode), choice.name)
         if stored is not None:
             bad = [c for c in CHECK_COLUMNS
                    if not np.isclose(float(rows[k][c]), float(stored[c]), rtol=1e-6, atol=1e-9,
@@ -234,9 +338,14 @@ def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | st
             if bad:
                 c = bad[0]
                 raise BenchError(
-                    f"replay of cell {cell_id} episode {episode} does not reproduce the stored "
+                    f"replay of cell {cell_id} episode {episode} ({choice.name}) does not reproduce the stored "
                     f"evaluation ({c}: {rows[k][c]} re-run vs {stored[c]} stored); was the "
                     "checkpoint replaced after evaluation?")
     groups = group_assignment(env.n_robots, env.groups)
-    frames = render_steps(method.layout, rec, groups, adjacency, env.horizon)
-    return write_gif(frames, out, fps=fps)
+    title = (f"{method_label(cell.method)}  |  N={env.n_robots}  |  p={env.loss_p:g}  |  Z={env.groups}  |  "
+             f"{cell.layout}  |  cell {cell_id}  |  episode {int(episode)}  |  execution {choice.name}")
+    frames = render_steps(method.layout, rec, groups, adjacency, env.horizon, title, progress)
+    progress(f"encoding {fmt}", 0, 1)
+    path = write_mp4(frames, out, fps=fps) if fmt == "mp4" else write_gif(frames, out, fps=fps)
+    progress(f"encoding {fmt}", 1, 1)
+    return path

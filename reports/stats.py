@@ -1,28 +1,171 @@
 """Statistics behind every figure, table and claim: small pure functions over arrays.
 
 Modelled on rliable's ``metrics.py``: each function takes plain arrays (shapes in the
-docstring), returns numbers or arrays, and draws its randomness from a ``seed`` so a
-report is a pure function of the store. Confidence intervals are percentile bootstrap
-intervals (Efron); the resampling unit (seeds or evaluation episodes) is the caller's
-choice and is always reported next to the interval.
+docstring) and returns numbers or arrays; randomness comes from a seeded
+``numpy.random.Generator`` so a report is a pure function of the store.
+
+The seed is the unit of every inference: callers pass one number per seed (a per-seed
+mean), never pooled episodes. Intervals and tests are Student/Welch t on those numbers
+(calibrated at 3 seeds, where a percentile bootstrap over 3 values covers the mean only
+about 75% of the time: measured by ``bench calibrate``). rliable supplies the IQM and the
+probability of improvement (``rliable.metrics``; its ``library`` module, which holds the
+stratified bootstrap and performance profiles, needs ``arch``, which does not import
+under pandas 3, so the seed bootstrap here is written out).
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from rliable import metrics as rly_metrics
 from scipy import stats as sps
 
 N_BOOT = 2000
 LEVEL = 0.95
+ALPHA = 0.05
 
 
 def _clean(x: Sequence[float] | np.ndarray) -> np.ndarray:
-    a = np.asarray(x, dtype=np.float64).reshape(-1)
+    """The finite values of ``x`` as a flat float array."""
+    a = np.asarray(x, dtype=np.float64)
     return a[np.isfinite(a)]
 
 
+# ------------------------------------------------------------------ t statistics
+@dataclass(frozen=True)
+class TTest:
+    """A (Welch) t statistic for a linear contrast of sample means.
+
+    ``estimate`` = sum_k w_k mean(x_k) - null; ``lo``/``hi`` its two-sided ``level`` CI
+    (of the contrast, null not subtracted); ``p_greater``/``p_less`` one-sided p-values of
+    H1: contrast > null and H1: contrast < null. ``df`` is Welch-Satterthwaite (inf when
+    the contrast has no variance, which makes the test exact).
+    """
+
+    estimate: float
+    se: float
+    df: float
+    lo: float
+    hi: float
+    p_greater: float
+    p_less: float
+
+    @property
+    def valid(self) -> bool:
+        return bool(np.isfinite(self.estimate))
+
+
+_NAN_TEST = TTest(*(np.nan,) * 7)
+
+
+def welch_parts(means: np.ndarray, variances: np.ndarray, counts: np.ndarray,
+                weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Estimate, standard error and Welch-Satterthwaite df of sum_k w_k mean_k.
+
+    ``means``/``variances`` (K, ...) per-sample means and unbiased variances (ddof 1),
+    ``counts`` (K,) sample sizes (each >= 2), ``weights`` (K,). Trailing axes are
+    vectorized over (e.g. percentiles). df = (sum c_k)^2 / sum c_k^2 / (n_k - 1) with
+    c_k = w_k^2 s_k^2 / n_k; inf where the standard error is 0.
+    """
+    terms = list(zip(means, variances, counts, weights, strict=True))
+    c = [(w * w * v / n, n) for _, v, n, w in terms]  # (c_k, n_k)
+    est = sum(w * m for m, _, _, w in terms)
+    var = sum(ck for ck, _ in c)
+    denom = sum(ck * ck / (n - 1) for ck, n in c)
+    with np.errstate(invalid="ignore"):  # 0 / 0 where nothing varies: df = inf below
+        df = np.where(denom > 0, var * var / denom, np.inf)
+    return np.asarray(est), np.sqrt(var), df
+
+
+def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[float],
+           null: float = 0.0, level: float = LEVEL) -> TTest:
+    """Welch t test and CI of the contrast sum_k w_k mean(x_k) against ``null``.
+
+    ``samples``: K 1-D arrays (n_k,), one number per seed. One sample with weight 1 is
+    the one-sample t test; two with (1, -1) Welch's two-sample test; four with
+    (1, -1, -1, 1) a difference of two gaps. Any sample with fewer than 2 finite values
+    gives NaNs. A contrast without variance is decided exactly (p 0 or 1).
+    """
+    arrays = [_clean(s) for s in samples]
+    if len(arrays) != len(weights):
+        raise ValueError("samples and weights must have the same length")
+    if not arrays or any(a.size < 2 for a in arrays):
+        return _NAN_TEST
+    means = np.array([a.mean() for a in arrays])
+    variances = np.array([a.var(ddof=1) for a in arrays])
+    counts = np.array([a.size for a in arrays])
+    est, se, df = (float(v) for v in welch_parts(means, variances, counts, np.asarray(weights)))
+    if se == 0.0:
+        d = est - null
+        return TTest(d, 0.0, np.inf, est, est, float(d <= 0), float(d >= 0))
+    tstat = (est - null) / se
+    half = float(sps.t.ppf(0.5 + level / 2.0, df)) * se
+    return TTest(est - null, se, df, est - half, est + half,
+                 float(sps.t.sf(tstat, df)), float(sps.t.cdf(tstat, df)))
+
+
+def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
+    """(mean, lo, hi): the Student t interval of the mean of ``x`` (n,), e.g. seed means.
+
+    Calibrated for normal seed means at any n >= 2 (coverage in docs/decisions.md);
+    one value gives (v, nan, nan), none gives NaNs. NaNs are dropped.
+    """
+    a = _clean(x)
+    if a.size == 0:
+        return np.nan, np.nan, np.nan
+    t = t_test([a], [1.0], level=level)  # NaN bounds below 2 values
+    return float(a.mean()), t.lo, t.hi
+
+
+def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Difference of mean curves a - b with one-sided simultaneous bounds (Bonferroni).
+
+    ``a`` (S_a, G), ``b`` (S_b, G): one curve per seed (e.g. success quantiles at G
+    percentiles). Returns (diff, lower, upper), each (G,): with probability >= 1 - alpha
+    the true difference is >= ``lower`` at every one of the G points (and, separately,
+    <= ``upper`` at every point). Per point a Welch t bound at level alpha / G.
+    Needs S_a, S_b >= 2.
+    """
+    a, b = np.asarray(a), np.asarray(b)
+    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or min(len(a), len(b)) < 2:
+        raise ValueError(f"curves must be (S, G) with S >= 2 and equal G, got {a.shape} and {b.shape}")
+    means = np.stack([a.mean(axis=0), b.mean(axis=0)])
+    variances = np.stack([a.var(axis=0, ddof=1), b.var(axis=0, ddof=1)])
+    est, se, df = welch_parts(means, variances, np.array([len(a), len(b)]), np.array([1.0, -1.0]))
+    q = sps.t.ppf(1.0 - alpha / a.shape[1], df)  # df = inf: the normal quantile
+    return est, est - q * se, est + q * se
+
+
+def zero_events_bound(n: int, alpha: float = ALPHA) -> float:
+    """Exact (Clopper-Pearson) one-sided upper 1 - alpha bound on an event probability
+    after 0 events in ``n`` independent trials: 1 - alpha^(1/n) (about 3/n)."""
+    if n < 1:
+        return np.nan
+    return float(1.0 - alpha ** (1.0 / n))
+
+
+# ------------------------------------------------------------------- rliable
+def iqm(x: Sequence[float] | np.ndarray) -> float:
+    """Interquartile mean (25% trimmed from each end), rliable's ``aggregate_iqm``."""
+    a = _clean(x)
+    if a.size == 0:
+        return np.nan
+    return float(rly_metrics.aggregate_iqm(a[:, None]))
+
+
+def probability_of_improvement(x: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray) -> float:
+    """P(X > Y) + P(X = Y) / 2 over seed scores ``x`` (n_x,), ``y`` (n_y,): rliable's
+    ``probability_of_improvement`` (Mann-Whitney U / (n_x n_y)). NaN if a side is empty."""
+    a, b = _clean(x), _clean(y)
+    if a.size == 0 or b.size == 0:
+        return np.nan
+    return float(rly_metrics.probability_of_improvement(a[:, None], b[:, None]))
+
+
+# ---------------------------------------------------------------- bootstrap
 def bootstrap_ci(
     x: Sequence[float] | np.ndarray,
     statistic: Callable[[np.ndarray], np.ndarray] | None = None,
@@ -32,47 +175,20 @@ def bootstrap_ci(
 ) -> tuple[float, float]:
     """Percentile bootstrap CI of ``statistic`` (default: mean) of a sample ``x`` (n,).
 
-    ``statistic`` maps resamples (n_boot, n) to (n_boot,). NaNs are dropped; an empty
-    sample gives (nan, nan), a single value v gives (v, v).
+    For statistics without a t interval (IQM of many episodes); undercovers with few
+    values, so never used over seeds. ``statistic`` maps (n_boot, n) to (n_boot,). NaNs
+    are dropped; empty gives (nan, nan), a single value v gives (v, v).
     """
     a = _clean(x)
     if a.size == 0:
-        return float("nan"), float("nan")
-    stat = statistic or (lambda m: m.mean(axis=-1))
+        return np.nan, np.nan
+    stat = statistic or (lambda m: m.mean(axis=1))
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, a.size, size=(n_boot, a.size))
-    reps = np.asarray(stat(a[idx]), dtype=np.float64)
+    idx = rng.integers(a.size, size=(n_boot, a.size))
+    reps = np.asarray(stat(a[idx]))
     alpha = (1.0 - level) / 2.0
     lo, hi = np.quantile(reps, [alpha, 1.0 - alpha])
     return float(lo), float(hi)
-
-
-def bootstrap_contrast_ci(
-    samples: Sequence[Sequence[float] | np.ndarray],
-    weights: Sequence[float],
-    n_boot: int = N_BOOT,
-    level: float = LEVEL,
-    seed: int = 0,
-) -> tuple[float, float, float]:
-    """Point estimate and CI of sum_k w_k mean(x_k) with each sample resampled independently.
-
-    ``samples`` are K 1-D arrays (n_k,); ``weights`` (K,). A difference of means is
-    weights (1, -1); a difference of two gaps is (1, -1, -1, 1). Returns (estimate, lo,
-    hi); any empty sample gives NaNs.
-    """
-    arrays = [_clean(s) for s in samples]
-    if len(arrays) != len(weights):
-        raise ValueError("samples and weights must have the same length")
-    if any(a.size == 0 for a in arrays):
-        return float("nan"), float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    est = float(sum(w * a.mean() for w, a in zip(weights, arrays, strict=True)))
-    reps = np.zeros(n_boot)
-    for w, a in zip(weights, arrays, strict=True):
-        reps += w * a[rng.integers(0, a.size, size=(n_boot, a.size))].mean(axis=1)
-    alpha = (1.0 - level) / 2.0
-    lo, hi = np.quantile(reps, [alpha, 1.0 - alpha])
-    return est, float(lo), float(hi)
 
 
 def bootstrap_band(
@@ -80,32 +196,25 @@ def bootstrap_band(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Mean curve and pointwise bootstrap band over runs for ``curves`` shaped (S, T).
 
-    Runs (rows, e.g. seeds) are resampled with replacement; returns (mean, lo, hi), each
-    (T,). With S = 1 the band collapses onto the curve. NaN entries are ignored per column.
+    A figure's shading, not a test. Runs (rows, e.g. seeds) are resampled with
+    replacement; returns (mean, lo, hi), each (T,). With S = 1 the band collapses onto
+    the curve. NaN entries are ignored per column.
     """
-    c = np.asarray(curves, dtype=np.float64)
+    c = np.asarray(curves)
     if c.ndim != 2 or c.shape[0] == 0:
         raise ValueError(f"curves must be (S, T) with S >= 1, got {c.shape}")
     mean = np.nanmean(c, axis=0)
-    if c.shape[0] == 1:
-        return mean, mean.copy(), mean.copy()
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, c.shape[0], size=(n_boot, c.shape[0]))
-    with np.errstate(all="ignore"):
+    idx = rng.integers(c.shape[0], size=(n_boot, c.shape[0]))
+    with warnings.catch_warnings():  # a resample of only NaNs in a column: NaN, ignored below
+        warnings.simplefilter("ignore")
         reps = np.nanmean(c[idx], axis=1)  # (n_boot, T)
     alpha = (1.0 - level) / 2.0
     lo, hi = np.nanquantile(reps, [alpha, 1.0 - alpha], axis=0)
     return mean, lo, hi
 
 
-def iqm(x: Sequence[float] | np.ndarray) -> float:
-    """Interquartile mean: the mean of the middle 50% (25% trimmed from each end, as rliable)."""
-    a = _clean(x)
-    if a.size == 0:
-        return float("nan")
-    return float(sps.trim_mean(a, proportiontocut=0.25))
-
-
+# ------------------------------------------------------------------- curves
 def percentile_curve(x: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Episodes sorted by value against their percentile (Fig. 2's view).
 
@@ -113,7 +222,7 @@ def percentile_curve(x: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.nd
     pct_i = 100 (i + 0.5) / n the midpoint (Hazen) plotting position of the i-th smallest.
     """
     a = np.sort(_clean(x))
-    pct = 100.0 * (np.arange(a.size) + 0.5) / max(a.size, 1)
+    pct = 100.0 * (np.arange(a.size) + 0.5) / a.size  # empty stays empty
     return pct, a
 
 
@@ -123,18 +232,14 @@ def quantile_curve(x: Sequence[float] | np.ndarray, pct: np.ndarray) -> np.ndarr
     a = _clean(x)
     if a.size == 0:
         return np.full(np.shape(pct), np.nan)
-    return np.quantile(a, np.asarray(pct, dtype=np.float64) / 100.0, method="hazen")
+    return np.quantile(a, np.asarray(pct) / 100.0, method="hazen")
 
 
 def smooth(y: Sequence[float] | np.ndarray, window: int) -> np.ndarray:
     """Trailing moving average of (T,) ``y`` over ``window`` points (fewer at the start)."""
-    a = np.asarray(y, dtype=np.float64).reshape(-1)
-    w = max(1, int(window))
-    if a.size == 0 or w == 1:
-        return a.copy()
-    c = np.concatenate([[0.0], np.cumsum(a)])
-    k = np.arange(1, a.size + 1)
-    start = np.maximum(k - w, 0)
+    c = np.concatenate([[0.0], np.cumsum(y)])  # cumsum flattens; 0.0 makes it float
+    k = np.arange(1, c.size)
+    start = np.maximum(k - max(1, int(window)), 0)
     return (c[k] - c[start]) / (k - start)
 
 
@@ -143,66 +248,66 @@ def smoothing_window(n_episodes: int) -> int:
     return int(np.clip(round(0.05 * n_episodes), 1, 100))
 
 
-def mann_whitney_greater(a: Sequence[float] | np.ndarray, b: Sequence[float] | np.ndarray) -> float:
-    """One-sided Mann-Whitney U p-value for H1: values of ``a`` tend to exceed those of ``b``.
+# -------------------------------------------------------------- convergence
+@dataclass(frozen=True)
+class CurveShape:
+    """Gain and final drift of one training curve (one seed)."""
 
-    NaN if either sample is empty or every value is identical (no evidence either way).
+    gain: float  # mean(last window) - mean(first window)
+    drift: float  # OLS slope over the last window x its length: change across it
+    window: int  # episodes per window
+
+
+def curve_shape(rewards: Sequence[float] | np.ndarray, frac: float = 0.2,
+                min_window: int = 10) -> CurveShape | None:
+    """Gain and drift of a training curve ``rewards`` (T,) in episode order.
+
+    Windows: the first and the last ``floor(frac T)`` episodes (the paper: "converges at
+    around 1600" of 2000, so the last 20% is where it should be flat). None when a
+    window would hold fewer than ``min_window`` episodes.
     """
-    x, y = _clean(a), _clean(b)
-    if x.size == 0 or y.size == 0 or np.ptp(np.concatenate([x, y])) == 0:
-        return float("nan")
-    return float(sps.mannwhitneyu(x, y, alternative="greater").pvalue)
-
-
-def slope_ci(y: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
-    """OLS slope of (T,) ``y`` against its index, with a t-based CI: (slope, lo, hi).
-
-    Needs T >= 3; a perfectly straight line gives a zero-width interval.
-    """
-    a = np.asarray(y, dtype=np.float64).reshape(-1)
-    if a.size < 3:
-        return float("nan"), float("nan"), float("nan")
-    x = np.arange(a.size, dtype=np.float64)
-    res = sps.linregress(x, a)
-    half = float(sps.t.ppf(0.5 + level / 2.0, a.size - 2) * res.stderr)
-    return float(res.slope), float(res.slope - half), float(res.slope + half)
+    a = np.asarray(rewards)
+    w = int(np.floor(frac * a.size))
+    if w < max(min_window, 2):
+        return None
+    first, last = a[:w], a[a.size - w:]
+    x = np.arange(w) - (w - 1) / 2.0  # centred: the OLS slope is x.y / x.x
+    slope = float(np.dot(x, last) / np.dot(x, x))
+    return CurveShape(float(last.mean() - first.mean()), slope * w, w)
 
 
 @dataclass(frozen=True)
 class Convergence:
-    """Outcome of ``convergence_test`` for one training curve (rewards per episode)."""
+    """Across-seed tests of ``convergence_test`` (each a one-sample t over seeds)."""
 
-    converged: bool
-    gain: float  # mean(last window) - mean(first window)
-    gain_lo: float  # 95% CI of the gain (bootstrap over the windows' episodes)
-    drift: float  # OLS slope over the last window x its length: change across the window
-    drift_lo: float
-    drift_hi: float
-    tolerance: float  # allowed |drift|: ``rel_tol`` x |gain|
-    window: int  # episodes per window
+    gain: TTest  # E[gain] vs 0
+    above: TTest  # E[drift - tol gain] vs 0: < 0 means not rising beyond tolerance
+    below: TTest  # E[drift + tol gain] vs 0: > 0 means not falling beyond tolerance
+    rel_tol: float
+    window: int  # the shortest window of the seeds' curves
+
+    def supported(self, alpha: float = ALPHA) -> bool:
+        """Improved and stable: an intersection-union test, each part at ``alpha``."""
+        return bool(self.gain.p_greater < alpha and self.above.p_less < alpha
+                    and self.below.p_greater < alpha)
+
+    def contradicted(self, alpha: float = ALPHA) -> bool:
+        """Significantly no gain, still rising or falling beyond the tolerance."""
+        return bool(self.gain.p_less < alpha or self.above.p_greater < alpha
+                    or self.below.p_less < alpha)
 
 
-def convergence_test(
-    rewards: Sequence[float] | np.ndarray, frac: float = 0.2, rel_tol: float = 0.2,
-    min_window: int = 10, seed: int = 0,
-) -> Convergence | None:
-    """Has a training curve improved and then stabilised? (the claim behind Fig. 1(b)).
+def convergence_test(shapes: Sequence[CurveShape], rel_tol: float = 0.2) -> Convergence:
+    """Has training improved and then stabilised, over seeds? (Fig. 1(b)'s claim).
 
-    ``rewards`` (T,) episode rewards in training order. With windows of ``frac`` T episodes
-    at the start and at the end: *improved* if the 95% bootstrap CI of mean(last) -
-    mean(first) lies above 0; *stable* if the 95% CI of the drift over the last window
-    (OLS slope x window length) lies inside +-``rel_tol`` x gain (an equivalence test:
-    a noisy curve cannot pass by having a wide interval). Converged = both. Returns None
-    when a window would hold fewer than ``min_window`` episodes.
+    ``shapes``: one ``CurveShape`` per seed (>= 2). Improved: E[gain] > 0. Stable: the
+    drift over the last window lies within +-``rel_tol`` x gain, tested as the
+    equivalence E[drift - tol gain] < 0 and E[drift + tol gain] > 0; both are linear in
+    per-seed numbers, so one-sample t tests over seeds decide them exactly (no episode
+    autocorrelation enters: a seed is one number).
     """
-    a = np.asarray(rewards, dtype=np.float64).reshape(-1)
-    w = int(np.floor(frac * a.size))
-    if w < min_window:
-        return None
-    first, last = a[:w], a[-w:]
-    gain, g_lo, _ = bootstrap_contrast_ci([last, first], [1.0, -1.0], seed=seed)
-    slope, s_lo, s_hi = slope_ci(last)
-    tol = rel_tol * abs(gain)
-    drift_lo, drift_hi = s_lo * w, s_hi * w
-    converged = bool(g_lo > 0 and -tol <= drift_lo and drift_hi <= tol)
-    return Convergence(converged, gain, g_lo, slope * w, drift_lo, drift_hi, tol, w)
+    g = np.array([s.gain for s in shapes])
+    d = np.array([s.drift for s in shapes])
+    return Convergence(t_test([g], [1.0]), t_test([d - rel_tol * g], [1.0]),
+                       t_test([d + rel_tol * g], [1.0]), rel_tol,
+                       min((s.window for s in shapes), default=0))

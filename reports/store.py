@@ -4,7 +4,9 @@ The report is rebuilt from the store alone: ``cells.parquet`` (one row per cell)
 ``train/`` and ``eval/`` (Parquet datasets, one row per cell and episode) and
 ``manifest.json``, read with the bench's own file reader (``bench.store.read_table``:
 schema version checked per file). Per-episode rows are joined with the configuration columns of their
-cell (method, n_robots, loss_p, seed, groups, ...). Only cells whose status is ``done``
+cell (method, n_robots, loss_p, seed, groups, ...). Evaluation rows carry their execution
+mode (``execution``: argmax, sample, sample@T, or planner), one row per cell x episode x
+mode; a done cell missing a mode or an episode is listed in ``Store.problems``. Only cells whose status is ``done``
 feed figures, tables and claims; the others are listed as missing (docs/decisions.md).
 A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
 """
@@ -66,8 +68,41 @@ def _read_dataset(root: Path, schema: pa.Schema, problems: list[str]) -> pd.Data
 def _with_config(rows: pd.DataFrame, done: pd.DataFrame) -> pd.DataFrame:
     cfg = done[["cell_id", *CONFIG_COLUMNS]]
     out = rows.merge(cfg, on="cell_id", how="inner")
-    return out.drop_duplicates(["cell_id", "episode"], keep="last").sort_values(
-        ["cell_id", "episode"], kind="stable").reset_index(drop=True)
+    key = ["cell_id", "execution", "episode"] if "execution" in out else ["cell_id", "episode"]
+    return out.drop_duplicates(key, keep="last").sort_values(key, kind="stable").reset_index(drop=True)
+
+
+def execution_order(modes: object) -> list[str]:
+    """Execution modes in report order: argmax, sample, sample@T by decreasing T, planner."""
+    def key(m: str) -> tuple[int, float]:
+        if m == "argmax":
+            return (0, 0.0)
+        if m == "sample":
+            return (1, 0.0)
+        if m.startswith("sample@"):
+            try:
+                return (2, -float(m.split("@", 1)[1]))
+            except ValueError:
+                return (3, 0.0)
+        return (4, 0.0)
+    return sorted({str(m) for m in modes}, key=lambda m: (*key(m), m))
+
+
+def incomplete_evals(cells: pd.DataFrame, evals: pd.DataFrame) -> list[str]:
+    """Problems of done cells with evaluation rows that lack a mode (``executions`` of
+    cells.parquet) or an episode in a mode: one line per cell and mode."""
+    have = evals.groupby(["cell_id", "execution"])["episode"].nunique().to_dict() if len(evals) else {}
+    with_rows = {cid for cid, _ in have}
+    out = []
+    for r in cells.itertuples(index=False):
+        if r.cell_id not in with_rows:
+            continue  # reported as "no evaluation rows"
+        for m in (x for x in str(getattr(r, "executions", "") or "").split(",") if x):
+            n = int(have.get((r.cell_id, m), 0))
+            if n < int(r.eval_episodes):
+                out.append(f"cell {r.cell_id} is done but has {n} of {int(r.eval_episodes)} "
+                           f"evaluation episodes in execution mode {m}")
+    return out
 
 
 def load_store(run_dir: Path | str) -> Store:
@@ -95,6 +130,7 @@ def load_store(run_dir: Path | str) -> Store:
         problems.append(str(exc))
     for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
         problems.append(f"cell {cid} is done but has no evaluation rows")
+    problems += incomplete_evals(done, evals)
     return Store(run, cells.reset_index(drop=True), train, evals, manifest, problems)
 
 

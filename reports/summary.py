@@ -1,9 +1,10 @@
-"""Summary of every configuration group (method x N x p) with confidence intervals.
+"""Summary of every configuration group (method x N x p x execution mode) with CIs.
 
-For each group: number of cells (all statuses) and of done seeds, evaluation episodes,
+One row per configuration and execution mode (argmax, sample, sample@T; planner for PIBT;
+every mode ran on the same evaluation scenarios, docs/decisions.md). For each row: number of cells (all statuses) and of done seeds, evaluation episodes,
 and for success rate, team return, collision rate, correction rate and payload the mean
-over seeds of per-seed evaluation means with a 95% bootstrap CI over seeds (over
-evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
+over seeds of per-seed evaluation means with a 95% Student t CI over seeds (a bootstrap CI
+over evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
 Success rate and team return also get the interquartile mean over pooled evaluation
 episodes (robust to a few degenerate episodes, as rliable recommends).
 """
@@ -12,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports.stats import bootstrap_ci, iqm
+from reports.stats import bootstrap_ci, iqm, mean_ci
+from reports.store import execution_order
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
@@ -23,13 +25,14 @@ KEYS = ["method", "n_robots", "loss_p"]
 def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[float, float, float, str]:
     """(mean, lo, hi, unit) of ``metric`` over evaluation rows of one configuration.
 
-    Mean over seeds (cells) of per-seed means with a bootstrap CI over seeds; with a single
-    seed, the mean and CI over its evaluation episodes (unit "episodes"). NaNs are ignored.
+    Mean over seeds (cells) of per-seed means with a Student t CI over seeds (calibrated;
+    a seed bootstrap covers 50-75% at 2-3 seeds); with a single seed, the mean and a
+    bootstrap CI over its evaluation episodes (unit "episodes"). NaNs are ignored.
     """
     per_seed = rows.groupby("cell_id")[metric].mean().dropna()
     if len(per_seed) >= 2:
-        lo, hi = bootstrap_ci(per_seed.to_numpy(), seed=seed)
-        return float(per_seed.mean()), lo, hi, "seeds"
+        mean, lo, hi = mean_ci(per_seed.to_numpy())
+        return mean, lo, hi, "seeds"
     vals = rows[metric].to_numpy(dtype=np.float64)
     vals = vals[np.isfinite(vals)]
     if vals.size == 0:
@@ -39,29 +42,38 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
 
 
 def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
-    """One row per (method, n_robots, loss_p) group present in ``cells``."""
+    """One row per (method, n_robots, loss_p) group present in ``cells`` and execution mode
+    of its evaluation rows (modes in report order; "-" when the group has no rows)."""
     out = []
     for key, group_cells in cells.groupby(KEYS, sort=True):
         method, n, p = key
-        rows = evals[(evals["method"] == method) & (evals["n_robots"] == n)
-                     & np.isclose(evals["loss_p"].astype(float), float(p))]
-        status = group_cells["status"]
-        rec: dict[str, object] = {
-            "method": method, "n_robots": int(n), "loss_p": float(p),
-            "cells": len(group_cells), "cells_done": int((status == "done").sum()),
-            "cells_failed": int((status == "failed").sum()), "seeds": rows["cell_id"].nunique(),
-            "eval_episodes": len(rows),
-        }
-        unit = "-"
-        for m in SUMMARY_METRICS:
-            mean, lo, hi, u = metric_estimate(rows, m) if len(rows) else (np.nan,) * 3 + ("-",)
-            rec[m], rec[f"{m}_lo"], rec[f"{m}_hi"] = mean, lo, hi
-            unit = u if u != "-" else unit
-        for m in IQM_METRICS:
-            rec[f"{m}_iqm"] = iqm(rows[m].to_numpy()) if len(rows) else np.nan
-        rec["ci_over"] = unit
-        out.append(rec)
+        group = evals[(evals["method"] == method) & (evals["n_robots"] == n)
+                      & np.isclose(evals["loss_p"].astype(float), float(p))]
+        for mode in execution_order(group["execution"]) or ["-"]:
+            rows = group[group["execution"] == mode]
+            out.append(_summary_row(method, int(n), float(p), mode, rows, group_cells))
     return pd.DataFrame(out)
+
+
+def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
+                 group_cells: pd.DataFrame) -> dict[str, object]:
+    """The summary of one configuration in one execution mode."""
+    status = group_cells["status"]
+    rec: dict[str, object] = {
+        "method": method, "n_robots": n, "loss_p": p, "execution": mode,
+        "cells": len(group_cells), "cells_done": int((status == "done").sum()),
+        "cells_failed": int((status == "failed").sum()), "seeds": rows["cell_id"].nunique(),
+        "eval_episodes": len(rows),
+    }
+    unit = "-"
+    for m in SUMMARY_METRICS:
+        mean, lo, hi, u = metric_estimate(rows, m) if len(rows) else (np.nan,) * 3 + ("-",)
+        rec[m], rec[f"{m}_lo"], rec[f"{m}_hi"] = mean, lo, hi
+        unit = u if u != "-" else unit
+    for m in IQM_METRICS:
+        rec[f"{m}_iqm"] = iqm(rows[m].to_numpy()) if len(rows) else np.nan
+    rec["ci_over"] = unit
+    return rec
 
 
 def _fmt(v: float, lo: float, hi: float, pct: bool) -> str:
@@ -72,16 +84,19 @@ def _fmt(v: float, lo: float, hi: float, pct: bool) -> str:
 
 
 def summary_markdown(frame: pd.DataFrame) -> str:
-    head = ["method", "N", "p", "seeds (done/cells)", "eval episodes", "success rate",
+    head = ["method", "N", "p", "execution", "seeds (done/cells)", "eval episodes", "success rate",
             "success IQM", "team return", "return IQM", "collision rate", "correction rate",
             "payload (scalars/step)", "CI over"]
     lines = ["# Summary of every configuration", "",
-             "Mean over seeds [95% bootstrap CI]; the CI is over seeds when a configuration has "
-             "two or more done seeds, else over the evaluation episodes of its single seed "
-             "(column \"CI over\"). IQM: interquartile mean over pooled evaluation episodes.", "",
+             "Mean over seeds [95% CI]; the CI is a Student t interval over seeds when a "
+             "configuration has two or more done seeds, else a bootstrap over the evaluation episodes "
+             "of its single seed (column \"CI over\"). IQM: interquartile mean over pooled evaluation "
+             "episodes. Execution: how controls were picked (argmax; sample = softmax(logits); "
+             "sample@T = softmax(logits / T); planner = PIBT), every mode on the same evaluation "
+             "scenarios.", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in frame.iterrows():
-        cells = [str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}",
+        cells = [str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
                  f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
                  + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
                  str(r["eval_episodes"]),

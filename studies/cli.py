@@ -34,25 +34,36 @@ class TuneResult:
     summary: RunSummary
     directory: Path
     files: list[Path]
-    best: dict[str, Any] | None  # params and values of the best trial, if any
+    best: dict[str, Any] | None  # the best configuration (mean over replicates, CI), if any
+    best_reason: str  # why there is no best yet ("" when there is one)
+    coverage: str  # "20 of 20 configurations have >= 2 finished replicates"
 
 
-def tune_study(name: str, n_trials: int, options: dict[str, Any], *, storage: str | None = None,
+PLAN_OPTIONS = ("search", "replicates", "prune_warmup", "prune_min_rho")
+
+
+def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, storage: str | None = None,
                root: Path | str = DEFAULT_ROOT, workers: int | None = None,
                address: str | None = None, inline: bool = False,
-               log: Callable[[str], None] = lambda _m: None) -> TuneResult:
+               log: Callable[[str], None] = lambda _m: None,
+               progress: Callable[[Any], None] = lambda _s: None) -> TuneResult:
     """Run study ``name`` until it holds ``n_trials`` finished trials, then export + report.
 
     ``options`` holds what the user set explicitly: any ``TrialSettings`` field plus
-    ``seed``, ``c_max`` (bool: search C_max), ``param`` (list of ``NAME=VALUES``) and
-    ``pruner``. For a resumed study the stored values fill in the rest.
+    ``seed``, ``c_max`` (bool: search C_max), ``param`` (list of ``NAME=VALUES``),
+    ``pruner``, ``search`` (auto/grid/tpe), ``replicates``, ``prune_warmup`` and
+    ``prune_min_rho``. For a resumed study the stored values fill in the rest.
+    ``n_trials`` None: every point ``replicates`` times (grid), else 20.
     """
     import optuna
 
-    from studies.export import write_trials
+    from studies.export import best_configuration, trials_frame, write_trials
     from studies.objective import TrialSettings
+    from studies.points import coverage
+    from studies.pruning import warmup_step
     from studies.report import build_study_report
     from studies.runner import make_pruner, preflight, run_study
+    from studies.schedule import SearchPlan
     from studies.space import space_size
     from studies.storage import (
         CONFIG_ATTR,
@@ -64,7 +75,7 @@ def tune_study(name: str, n_trials: int, options: dict[str, Any], *, storage: st
     )
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    if n_trials < 1:
+    if n_trials is not None and n_trials < 1:
         raise BenchError(f"--trials must be >= 1, got {n_trials}")
     directory = study_dir(name, root)
     given = _config(options)  # bad options fail before anything is written
@@ -75,14 +86,23 @@ def tune_study(name: str, n_trials: int, options: dict[str, Any], *, storage: st
     settings = TrialSettings.make(**{k: v for k, v in config.items() if k in TrialSettings.model_fields})
     space = {k: tuple(v) for k, v in config["space"].items()}
     preflight(settings, space)
-    pruner = make_pruner(config["pruner"], settings.multi_objective)
+    plan = SearchPlan.make(config["search"], space, config["replicates"], config["seed"])
+    pruner = make_pruner(config["pruner"], settings.multi_objective, settings.iterations,
+                         config["prune_warmup"], config["prune_min_rho"])
+    if n_trials is None:
+        n_trials = plan.default_trials()
     study = open_study(name, store, settings.directions, config["seed"], pruner)
     if not stored:
         study.set_user_attr(CONFIG_ATTR, config)
+    pruning = config["pruner"] != "none" and not settings.multi_objective
     log(f"study {name}: {space_size(space)} configurations "
         f"({', '.join(f'{k} in {list(v)}' for k, v in space.items())}); "
+        f"{plan.mode} search, {plan.replicates} replicate(s) per configuration, {n_trials} trials; "
         f"N={settings.n_robots}, p={settings.loss_p}, layout={settings.layout}, "
-        f"{settings.episodes} episodes x horizon {settings.horizon}")
+        f"{settings.episodes} episodes x horizon {settings.horizon}; "
+        + (f"pruning from update {warmup_step(settings.iterations, config['prune_warmup'])} of "
+           f"{settings.iterations} when rank correlation >= {config['prune_min_rho']}"
+           if pruning else "no pruning"))
     if inline:
         from studies.executors import SequentialExecutor
 
@@ -92,16 +112,20 @@ def tune_study(name: str, n_trials: int, options: dict[str, Any], *, storage: st
 
         executor = RayExecutor(workers, address=address)
     summary = run_study(study, settings, space, config["seed"], n_trials, executor,
-                        pruning=config["pruner"] != "none", log=log)
-    files = [write_trials(study, directory)]
+                        pruning=config["pruner"] != "none", log=log, plan=plan, progress=progress)
+    extra = {"search_resolved": plan.mode, "space_size": space_size(space), "iterations": settings.iterations,
+             "warmup_step": warmup_step(settings.iterations, config["prune_warmup"]) if pruning else None}
+    files = [write_trials(study, directory, extra)]
     files += build_study_report(directory)
-    best = None
-    if summary.complete:
-        from studies.export import best_trial
-
-        trial = best_trial(study)
-        best = {"number": trial.number, "params": dict(trial.params), "values": list(trial.values)}
-    return TuneResult(summary, directory, files, best)
+    best, reason = None, ""
+    try:
+        row = best_configuration(study)
+        best = {"params": {k: int(row[k]) for k in space}, **{k: row[k] for k in (
+            "value", "ci_low", "ci_high", "complete", "success_rate", "team_return", "trials")}}
+    except BenchError as exc:
+        reason = str(exc)
+    cover = coverage(trials_frame(study), space_size(space), plan.replicates)
+    return TuneResult(summary, directory, files, best, reason, cover)
 
 
 def _config(options: dict[str, Any]) -> dict[str, Any]:
@@ -112,8 +136,22 @@ def _config(options: dict[str, Any]) -> dict[str, Any]:
     settings = TrialSettings.make(**{k: v for k, v in options.items() if k in TrialSettings.model_fields})
     overrides = parse_overrides(options.get("param") or [])
     space = search_space(c_max=bool(options.get("c_max")), overrides=overrides)
+    from studies.pruning import MIN_RHO, WARMUP, warmup_step
+    from studies.schedule import resolve_mode
+
+    resolve_mode(options.get("search", "auto"), space)  # an unknown mode fails here
+    replicates = int(options.get("replicates", 2))
+    if replicates < 1:
+        raise BenchError(f"--replicates must be >= 1, got {replicates}")
+    warmup = float(options.get("prune_warmup", WARMUP))
+    warmup_step(settings.iterations, warmup)  # validates the range
+    min_rho = float(options.get("prune_min_rho", MIN_RHO))
+    if not -1.0 <= min_rho <= 1.0:
+        raise BenchError(f"--prune-min-rho must be in [-1, 1], got {min_rho}")
     return {**settings.model_dump(mode="json"), "space": {k: list(v) for k, v in space.items()},
-            "seed": int(options.get("seed", 0)), "pruner": options.get("pruner", "median")}
+            "seed": int(options.get("seed", 0)), "pruner": options.get("pruner", "median"),
+            "search": options.get("search", "auto"), "replicates": replicates,
+            "prune_warmup": warmup, "prune_min_rho": min_rho}
 
 
 def print_best(name: str, storage: str | None = None, root: Path | str = DEFAULT_ROOT) -> str:
@@ -137,7 +175,17 @@ def tune(
     study: str | None = typer.Option(None, "--study", help="study name (resumes if it exists)"),
     best: str | None = typer.Option(None, "--best", metavar="STUDY",
                                        help="print the best configuration of STUDY as a grid file and exit"),
-    trials: int = typer.Option(20, "--trials", help="finished (complete + pruned) trials the study should hold"),
+    trials: int | None = typer.Option(None, "--trials",
+                                      help="finished (complete + pruned) trials the study should hold "
+                                           "(default: every configuration x --replicates for a grid search, else 20)"),
+    search: str | None = typer.Option(None, "--search",
+                                      help="auto (grid for <= 64 configurations, else TPE), grid or tpe (default: auto)"),
+    replicates: int | None = typer.Option(None, "--replicates",
+                                          help="seed replicates per configuration; best = highest mean (default: 2)"),
+    prune_warmup: float | None = typer.Option(None, "--prune-warmup",
+                                              help="fraction of training before pruning may act (default: 0.5)"),
+    prune_min_rho: float | None = typer.Option(None, "--prune-min-rho",
+                                               help="rank correlation (value at the step vs final) needed to prune (default: 0.7)"),
     n_robots: int | None = typer.Option(None, "--n-robots", help="team size N (default: 8)"),
     loss_p: float | None = typer.Option(None, "--loss-p", help="message loss probability p (default: 0.2)"),
     layout: str | None = typer.Option(None, "--layout", help="layout preset or .map path (default: tiny)"),
@@ -150,7 +198,8 @@ def tune(
     c_max: bool | None = typer.Option(None, "--c-max/--no-c-max", help="also search C_max (default: no)"),
     param: list[str] | None = typer.Option(None, "--param", metavar="NAME=VALUES",
                                               help="restrict a parameter, e.g. ref_size=4,8 or search_radius=1..3 (repeatable)"),
-    pruner: str | None = typer.Option(None, "--pruner", help="median or none (default: median)"),
+    pruner: str | None = typer.Option(None, "--pruner",
+                                      help="median (after the warm-up, gated by the rank correlation) or none (default: median)"),
     seed: int | None = typer.Option(None, "--seed", help="study seed (trial seeds derive from it) (default: 0)"),
     storage: str | None = typer.Option(None, "--storage", metavar="URL",
                                           help="RDB URL of a shared study database (default: journal file under results/studies/)"),
@@ -169,24 +218,50 @@ def tune(
     local = {"method": method, "n_robots": n_robots, "loss_p": loss_p, "layout": layout,
              "groups": groups, "episodes": episodes, "horizon": horizon,
              "eval_episodes": eval_episodes, "objectives": objectives, "c_max": c_max,
-             "param": param or None, "pruner": pruner, "seed": seed}
+             "param": param or None, "pruner": pruner, "seed": seed, "search": search,
+             "replicates": replicates, "prune_warmup": prune_warmup, "prune_min_rho": prune_min_rho}
     options = {k: v for k, v in local.items() if v is not None}
     if workers is not None and workers < 1:
         raise BenchError(f"--workers must be >= 1, got {workers}")
+    from studies.progress import make_bar
+
     t0 = time.perf_counter()
-    res = tune_study(study, trials, options, storage=storage, root=out, workers=workers,
-                     address=address, inline=inline, log=lambda m: typer.echo(m, err=True))
+    bar = None
+
+    def progress(snap: Any) -> None:
+        nonlocal bar
+        if bar is None:
+            bar = make_bar(snap.requested)
+        if bar is not None:
+            bar.update(snap)
+
+    def log(message: str) -> None:
+        if bar is not None:
+            bar.log(message)
+        else:
+            typer.echo(message, err=True)
+
+    try:
+        res = tune_study(study, trials, options, storage=storage, root=out, workers=workers,
+                         address=address, inline=inline, log=log, progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
     s = res.summary
     typer.echo(f"study {study}: {s.finished}/{s.requested} finished trials "
                f"({s.complete} complete, {s.pruned} pruned, {s.failed} failed"
                + (f", {s.running_elsewhere} running elsewhere" if s.running_elsewhere else "")
                + f"); {s.started} run now in {time.perf_counter() - t0:.1f} s")
     typer.echo(f"reason: {s.reason()}")
+    typer.echo(f"coverage: {res.coverage}")
     if res.best:
-        params = ", ".join(f"{k}={v}" for k, v in res.best["params"].items())
-        typer.echo(f"best: trial {res.best['number']} {params} "
-                   f"(objective {', '.join(f'{v:.4f}' for v in res.best['values'])})")
-    typer.echo(f"trials: {res.files[0]}\nreport: {res.directory / 'report'}")
+        b = res.best
+        params = ", ".join(f"{k}={v}" for k, v in b["params"].items())
+        typer.echo(f"best: {params}: mean objective {b['value']:.4f} over {int(b['complete'])} replicates "
+                   f"(95% CI {b['ci_low']:.4f} .. {b['ci_high']:.4f}; trials {b['trials']})")
+    else:
+        typer.echo(f"best: withheld, {res.best_reason}")
+    typer.echo(f"trials: {res.files[0]}\nreport: {res.directory / 'report' / 'study.html'}")
     typer.echo(f"best configuration as a grid file: bench tune --best {study}"
                + (f" --out {out}" if Path(out) != DEFAULT_ROOT else ""))
     sys.stdout.flush()

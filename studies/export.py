@@ -3,7 +3,8 @@
 ``results/studies/<study>/trials.parquet`` holds one row per trial (``TRIAL_COLUMNS`` plus
 one column per searched parameter), written atomically beside the journal; it reads back
 to the same frame. ``importances.json`` holds Optuna's parameter importances (or why there
-are none), so the report needs only these two files, whatever the storage.
+are none) and ``study.json`` the study's config (settings, space, search plan, pruner), so
+the report needs only these files, whatever the storage.
 ``best_grid_snippet`` renders the best configuration as a grid file (bench/grid_files.py)
 that ``bench run --grid-file`` accepts.
 """
@@ -22,13 +23,20 @@ from optuna.trial import FrozenTrial, TrialState
 from bench.store import atomic_file
 from envs.errors import BenchError
 from studies.space import PARAMETERS
-from studies.storage import CONFIG_ATTR, RETRY_OF
+from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
 
 TRIALS_FILE = "trials.parquet"
 IMPORTANCES_FILE = "importances.json"
+CONFIG_FILE = "study.json"
+MIN_IMPORTANCE_TRIALS = 10  # complete trials before fANOVA importances are computed
+IMPORTANCE_CAVEAT = (
+    "fANOVA importances from {n} complete trials of a noisy objective (pruned trials left "
+    "out): a rough ranking of which parameter moved the objective in this study, not a "
+    "measured effect; compare the per-configuration means and CIs instead.")
 TRIAL_COLUMNS = (
     "study", "number", "state", "value", "value_return", "success_rate", "team_return",
-    "seed", "cell_id", "retry_of", "last_step", "pruned_at_step", "episodes", "wall_s",
+    "seed", "replicate", "cell_id", "retry_of", "last_step", "pruned_at_step", "prune_rho",
+    "prune_n", "episodes", "wall_s",
     "datetime_start", "datetime_complete", "duration_s", "intermediate_json", "error",
 )
 
@@ -43,9 +51,11 @@ def trials_frame(study: optuna.Study) -> pd.DataFrame:
     names = [p for p in PARAMETERS if any(p in t.params for t in trials)]
     rows = [_row(study.study_name, t, names) for t in trials]
     frame = pd.DataFrame(rows, columns=[*TRIAL_COLUMNS, *names])
-    for col in ("number", "seed", "retry_of", "last_step", "pruned_at_step", "episodes", *names):
+    for col in ("number", "seed", "replicate", "retry_of", "last_step", "pruned_at_step", "prune_n",
+                "episodes", *names):
         frame[col] = frame[col].astype("Int64")
-    for col in ("value", "value_return", "success_rate", "team_return", "wall_s", "duration_s"):
+    for col in ("value", "value_return", "success_rate", "team_return", "prune_rho", "wall_s",
+                "duration_s"):
         frame[col] = frame[col].astype("float64")
     for col in ("datetime_start", "datetime_complete"):
         frame[col] = pd.to_datetime(frame[col]).astype("datetime64[us]")
@@ -63,8 +73,10 @@ def _row(study: str, t: FrozenTrial, names: list[str]) -> dict[str, Any]:
         "value": values[0] if values else math.nan,
         "value_return": values[1] if len(values) > 1 else math.nan,
         "success_rate": ua.get("success_rate", math.nan), "team_return": ua.get("team_return", math.nan),
-        "seed": ua.get("seed"), "cell_id": ua.get("cell_id"), "retry_of": ua.get(RETRY_OF),
-        "last_step": t.last_step, "pruned_at_step": ua.get("pruned_at_step"),
+        "seed": ua.get("seed"), "replicate": ua.get(REPLICATE), "cell_id": ua.get("cell_id"),
+        "retry_of": ua.get(RETRY_OF), "last_step": t.last_step,
+        "pruned_at_step": ua.get("pruned_at_step"), "prune_rho": ua.get("prune_rho", math.nan),
+        "prune_n": ua.get("prune_n"),
         "episodes": ua.get("episodes"), "wall_s": ua.get("wall_s", math.nan),
         "datetime_start": t.datetime_start, "datetime_complete": t.datetime_complete,
         "duration_s": duration,
@@ -74,14 +86,18 @@ def _row(study: str, t: FrozenTrial, names: list[str]) -> dict[str, Any]:
     }
 
 
-def write_trials(study: optuna.Study, directory: Path) -> Path:
-    """``directory/trials.parquet`` (atomic) and ``directory/importances.json``."""
+def write_trials(study: optuna.Study, directory: Path, extra: dict[str, Any] | None = None) -> Path:
+    """``directory/trials.parquet`` (atomic), ``importances.json`` and ``study.json`` (the
+    stored config plus ``extra``, e.g. the resolved search plan and warm-up step)."""
     frame = trials_frame(study)
     path = directory / TRIALS_FILE
     with atomic_file(path) as fh:
         frame.to_parquet(fh, index=False)
     with atomic_file(directory / IMPORTANCES_FILE) as fh:
         fh.write(json.dumps(importances(study), indent=1, sort_keys=True).encode())
+    config = {"study": study.study_name, **dict(study.user_attrs.get(CONFIG_ATTR) or {}), **(extra or {})}
+    with atomic_file(directory / CONFIG_FILE) as fh:
+        fh.write(json.dumps(config, indent=1, sort_keys=True, default=str).encode())
     return path
 
 
@@ -93,60 +109,79 @@ def read_trials(path: Path) -> pd.DataFrame:
 
 
 def importances(study: optuna.Study) -> dict[str, Any]:
-    """``{"importances": {param: share}, "reason": str | None}`` for the first objective.
+    """``{"importances": {param: share}, "reason": str | None, "caveat": str | None}`` for
+    the first objective.
 
-    Optuna's default evaluator (fANOVA) needs at least two complete trials and a parameter
-    that varies; otherwise the importances are empty and ``reason`` says why.
+    fANOVA on a handful of noisy trials ranks noise (issue #16: 6-7 trials), so importances
+    are computed only from ``MIN_IMPORTANCE_TRIALS`` complete trials and a parameter that
+    varies; otherwise they are empty and ``reason`` says why. ``caveat`` goes with them.
     """
     complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
     varying = [p for p in PARAMETERS if len({t.params.get(p) for t in complete}) > 1]
-    if len(complete) < 2 or not varying:
-        return {"importances": {}, "reason": f"too few trials: {len(complete)} complete, "
-                f"{len(varying)} varying parameter(s); need 2 and 1"}
+    if len(complete) < MIN_IMPORTANCE_TRIALS or not varying:
+        return {"importances": {}, "caveat": None,
+                "reason": f"too few trials for importances: {len(complete)} complete, "
+                f"{len(varying)} varying parameter(s); need {MIN_IMPORTANCE_TRIALS} and 1"}
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             imp = optuna.importance.get_param_importances(
                 study, params=varying, target=lambda t: t.values[0])
     except (RuntimeError, ValueError) as exc:
-        return {"importances": {}, "reason": f"importances unavailable: {exc}"}
-    return {"importances": {k: float(v) for k, v in imp.items()}, "reason": None}
+        return {"importances": {}, "reason": f"importances unavailable: {exc}", "caveat": None}
+    return {"importances": {k: float(v) for k, v in imp.items()}, "reason": None,
+            "caveat": IMPORTANCE_CAVEAT.format(n=len(complete))}
 
 
-def best_trial(study: optuna.Study) -> FrozenTrial:
-    """The best complete trial; multi-objective: the Pareto trial with the highest success
-    rate, team return breaking ties."""
+def replicates_of(study: optuna.Study) -> int:
+    """Replicates per configuration the study was created with (2 for older studies)."""
+    return int((study.user_attrs.get(CONFIG_ATTR) or {}).get("replicates", 2))
+
+
+def best_configuration(study: optuna.Study) -> pd.Series:
+    """The configuration with the highest mean objective over its replicates, with its CI
+    (studies/points.py ``best_point``; BenchError while no configuration qualifies)."""
+    from studies.points import best_point
+    from studies.schedule import resolve_mode
+    from studies.space import space_size
+
     if not study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         raise BenchError(f"study {study.study_name!r} has no complete trial yet")
-    if len(study.directions) == 1:
-        return study.best_trial
-    return max(study.best_trials, key=lambda t: (t.values[0], t.values[1]))
+    config = study.user_attrs.get(CONFIG_ATTR) or {}
+    space = config.get("space")
+    exhaustive = bool(space) and resolve_mode(config.get("search", "auto"), space) == "grid"
+    return best_point(trials_frame(study), replicates_of(study), space_size(space) if exhaustive else None)
 
 
 def best_grid_snippet(study: optuna.Study) -> str:
-    """The best configuration as a TOML grid file for ``bench run --grid-file``.
+    """The best configuration (highest mean over replicates) as a TOML grid file for
+    ``bench run --grid-file``.
 
     The base cell repeats the study's N, p, layout, Z and budgets with the best
     parameters; raise ``episodes``/``eval_episodes`` for a full-length run.
     """
-    trial = best_trial(study)
+    from studies.points import param_columns
+
+    best = best_configuration(study)
+    names = param_columns(trials_frame(study))
     settings = dict(study.user_attrs.get(CONFIG_ATTR) or {})
     base: dict[str, Any] = {k: settings[k] for k in (
         "method", "n_robots", "loss_p", "groups", "layout", "episodes", "horizon",
         "eval_episodes") if k in settings}
-    base.update({k: int(v) for k, v in trial.params.items()})
+    base.update({k: int(best[k]) for k in names})
     params = dict(settings.get("params", {}))
     for key in ("batch_episodes", "eval_chunk"):
         if key in settings:
             params[key] = settings[key]
-    values = ", ".join(f"{v:.4g}" for v in trial.values)
+    label = ", ".join(f"{k}={int(best[k])}" for k in names)
     lines = [
-        f"# best trial {trial.number} of study {study.study_name!r}: objective {values}",
-        f"# success rate {trial.user_attrs.get('success_rate', float('nan')):.3f}, "
-        f"team return {trial.user_attrs.get('team_return', float('nan')):.2f}; "
+        f"# best configuration of study {study.study_name!r}: {label}",
+        f"# mean objective {best['value']:.4f} over {int(best['complete'])} replicates "
+        f"(95% CI {best['ci_low']:.4f} .. {best['ci_high']:.4f}; trials {best['trials']})",
+        f"# mean success rate {best['success_rate']:.3f}, mean team return {best['team_return']:.2f}; "
         "budgets are the study's (raise episodes/eval_episodes for a full run)",
         f"name = {_toml(f'tuned-{study.study_name}')}",
-        f"description = {_toml(f'best of Optuna study {study.study_name} (trial {trial.number})')}",
+        f"description = {_toml(f'best of Optuna study {study.study_name} ({label})')}",
         "", "[base]",
         *(f"{k} = {_toml(v)}" for k, v in base.items()),
     ]

@@ -1,10 +1,12 @@
-"""Study figures: optimization history, the L x |R_z| landscape, parameter importances.
+"""Study figures: optimization history, the L x |R_z| landscape, intermediate-value
+curves, parameter importances.
 
 Pure builders take the trials frame (studies/export.py ``trials_frame``) or the stored
 importances and return a ``Built`` figure (reports/plotting.py); only
-``build_study_report`` writes files: ``<study_dir>/report/study_{history,landscape,
-importances}.{png,pdf}`` and ``study.md``. It reads ``trials.parquet`` and
-``importances.json`` alone, so ``bench report`` can include a study from any storage.
+``build_study_report`` writes files: ``<study_dir>/report/study_{history,landscape,curves,
+importances}.{png,pdf}``, ``study.md`` and ``study.html`` (studies/report_page.py). It reads
+``trials.parquet``, ``importances.json`` and ``study.json`` alone, so ``bench report`` can
+include a study from any storage.
 """
 from __future__ import annotations
 
@@ -17,7 +19,7 @@ import pandas as pd
 
 from envs.errors import BenchError
 from reports.plotting import Built, new_figure, paper_style, placeholder
-from studies.export import IMPORTANCES_FILE, TRIALS_FILE, read_trials
+from studies.export import CONFIG_FILE, IMPORTANCES_FILE, TRIALS_FILE, read_trials
 from studies.space import REF_SIZES, SEARCH_RADII
 
 REPORT_DIR = "report"
@@ -50,46 +52,112 @@ def history_figure(trials: pd.DataFrame) -> Built:
         return Built(fig, notes)
 
 
-def landscape_table(trials: pd.DataFrame, value: str = "success_rate") -> tuple[pd.DataFrame, pd.DataFrame]:
-    """(mean, count) tables of complete trials: rows L (search_radius), columns |R_z|.
+def landscape_table(trials: pd.DataFrame, value: str = "success_rate") -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """(mean over complete trials, complete count, pruned count): rows L (search_radius),
+    columns |R_z|. Every value of the default space appears, so configurations never run
+    show as NaN with both counts 0, and a configuration whose trials were all pruned as NaN
+    with a pruned count."""
+    done = trials[trials["state"].isin(["COMPLETE", "PRUNED"])].dropna(subset=["search_radius", "ref_size"])
+    rows = sorted(set(SEARCH_RADII) | set(done["search_radius"].astype(int)))
+    cols = sorted(set(REF_SIZES) | set(done["ref_size"].astype(int)))
+    comp = done[done["state"] == "COMPLETE"]
+    mean = comp.groupby(["search_radius", "ref_size"])[value].mean().unstack()
+    mean = mean.reindex(index=rows, columns=cols).astype(float)
 
-    Every value of the default space appears, so missing configurations show as NaN.
-    """
-    comp = trials[trials["state"] == "COMPLETE"]
-    rows = sorted(set(SEARCH_RADII) | set(comp["search_radius"].dropna().astype(int)))
-    cols = sorted(set(REF_SIZES) | set(comp["ref_size"].dropna().astype(int)))
-    grouped = comp.groupby(["search_radius", "ref_size"])[value]
-    mean = grouped.mean().unstack().reindex(index=rows, columns=cols).astype(float)
-    count = grouped.size().unstack().reindex(index=rows, columns=cols).fillna(0).astype(int)
-    return mean, count
+    def counts(part: pd.DataFrame) -> pd.DataFrame:
+        table = part.groupby(["search_radius", "ref_size"]).size().unstack()
+        return table.reindex(index=rows, columns=cols).fillna(0).astype(int)
+
+    return mean, counts(comp), counts(done[done["state"] == "PRUNED"])
 
 
 def landscape_figure(trials: pd.DataFrame) -> Built:
-    """Heatmap of the mean evaluation success rate over L x |R_z| (complete trials)."""
+    """Heatmap of the mean evaluation success rate over L x |R_z|; every cell says how many
+    trials completed and were pruned, and a cell whose trials were all pruned is hatched
+    (evaluated and stopped, not missing)."""
     import seaborn as sns
+    from matplotlib.patches import Patch, Rectangle
 
-    mean, count = landscape_table(trials)
+    mean, n_comp, n_pruned = landscape_table(trials)
     notes = []
     if "c_max" in trials and trials["c_max"].notna().any():
         notes.append("averaged over the searched C_max values")
     with paper_style():
-        fig = new_figure(2.4)
+        fig = new_figure(2.6)
         ax = fig.add_subplot()
-        if count.to_numpy().sum() == 0:
-            placeholder(ax, "no complete trial yet")
-            return Built(fig, ["no complete trial"])
-        labels = np.array([[f"{m:.2f}\n(n={c})" if c else "" for m, c in zip(mr, cr, strict=False)]
-                           for mr, cr in zip(mean.to_numpy(), count.to_numpy(), strict=False)])
-        sns.heatmap(mean, ax=ax, annot=labels, fmt="", vmin=0.0, vmax=1.0, cmap="viridis",
-                    cbar_kws={"label": "success rate"}, annot_kws={"fontsize": 5},
+        if (n_comp.to_numpy() + n_pruned.to_numpy()).sum() == 0:
+            placeholder(ax, "no finished trial yet")
+            return Built(fig, ["no finished trial"])
+        labels = np.empty(mean.shape, dtype=object)
+        for (i, j), m in np.ndenumerate(mean.to_numpy()):
+            c, p = int(n_comp.iat[i, j]), int(n_pruned.iat[i, j])
+            counts = f"{c} ok" + (f", {p} pr" if p else "")
+            labels[i, j] = (f"{m:.2f}\n{counts}" if c else (f"pruned\n{p} pr" if p else "not run"))
+        sns.heatmap(mean, ax=ax, vmin=0.0, vmax=1.0, cmap="viridis",
+                    cbar_kws={"label": "mean success rate (complete trials)"},
                     linewidths=0.4, linecolor="white")
+        ax.set_facecolor("0.93")  # NaN cells: light grey behind the annotations
+        for (i, j), text in np.ndenumerate(labels):  # seaborn leaves NaN cells unlabelled
+            m = mean.iat[i, j]
+            dark = pd.notna(m) and m < 0.6
+            ax.text(j + 0.5, i + 0.5, text, ha="center", va="center", fontsize=4.5,
+                    color="white" if dark else "black")
+        for (i, j), p in np.ndenumerate(n_pruned.to_numpy()):
+            if p and not n_comp.iat[i, j]:
+                ax.add_patch(Rectangle((j, i), 1, 1, fill=False, hatch="///", edgecolor="C3", linewidth=0))
         ax.set_xlabel(PARAM_LABELS["ref_size"])
         ax.set_ylabel(PARAM_LABELS["search_radius"])
-        ax.set_title("Landscape: mean evaluation success rate")
-        missing = int((count.to_numpy() == 0).sum())
+        ax.grid(False)
+        ax.set_title("Mean success rate (ok = complete, pr = pruned trials)")
+        ax.legend(handles=[Patch(facecolor="0.93", edgecolor="C3", hatch="///", label="all trials pruned"),
+                           Patch(facecolor="0.93", label="not run")],
+                  loc="upper left", bbox_to_anchor=(0.0, -0.22), ncols=2, frameon=False)
+        all_pruned = int(((n_pruned.to_numpy() > 0) & (n_comp.to_numpy() == 0)).sum())
+        missing = int(((n_pruned.to_numpy() == 0) & (n_comp.to_numpy() == 0)).sum())
+        if all_pruned:
+            notes.append(f"{all_pruned} configuration(s) evaluated but every trial pruned (hatched)")
         if missing:
-            notes.append(f"{missing} of {count.size} configurations not evaluated (blank)")
+            notes.append(f"{missing} of {mean.size} configurations not run")
         return Built(fig, notes)
+
+
+def intermediate_curves(trials: pd.DataFrame) -> list[tuple[int, str, np.ndarray, np.ndarray]]:
+    """(trial number, state, steps (K,), values (K,)) of every finished trial's reports."""
+    out = []
+    for _, row in trials[trials["state"].isin(["COMPLETE", "PRUNED"])].sort_values("number").iterrows():
+        text = row.get("intermediate_json")
+        raw = json.loads(text) if isinstance(text, str) else {}
+        steps = np.array(sorted(int(k) for k in raw), dtype=int)
+        values = np.array([raw[str(k)] for k in steps], dtype=float)
+        out.append((int(row["number"]), str(row["state"]), steps, values))
+    return out
+
+
+def curves_figure(trials: pd.DataFrame, warmup: int | None = None) -> Built:
+    """Intermediate objective value against training updates, one line per trial: complete
+    trials blue, pruned ones red ending in a cross; a dashed line at the pruning warm-up."""
+    with paper_style():
+        fig = new_figure(2.4)
+        ax = fig.add_subplot()
+        curves = [c for c in intermediate_curves(trials) if len(c[2])]
+        if not curves:
+            placeholder(ax, "no intermediate values (multi-objective studies report none)")
+            return Built(fig, ["no intermediate values"])
+        for state, color in (("COMPLETE", "C0"), ("PRUNED", "C3")):
+            part = [c for c in curves if c[1] == state]
+            for k, (_, _, steps, values) in enumerate(part):
+                ax.plot(steps, values, color=color, alpha=0.45, marker=".",
+                        label=f"{state.lower()} ({len(part)})" if k == 0 else None)
+                if state == "PRUNED":
+                    ax.plot(steps[-1:], values[-1:], color=color, marker="x", linestyle="none")
+        if warmup is not None:
+            ax.axvline(warmup, color="0.3", linestyle="--", linewidth=0.8,
+                       label=f"warm-up (pruning from update {warmup})")
+        ax.set_xlabel("training updates")
+        ax.set_ylabel("intermediate objective")
+        ax.set_title("Intermediate values (what the pruner sees)")
+        ax.legend(loc="best", framealpha=0.9)
+        return Built(fig, [])
 
 
 def importance_figure(imp: dict[str, Any]) -> Built:
@@ -106,45 +174,33 @@ def importance_figure(imp: dict[str, Any]) -> Built:
         ax.barh([PARAM_LABELS.get(n, n) for n in names], [values[n] for n in names], color="C0")
         ax.set_xlabel("importance (fANOVA, share of objective variance)")
         ax.set_xlim(0, 1)
-        ax.set_title("Parameter importances")
-        return Built(fig, [])
-
-
-def summary_markdown(trials: pd.DataFrame, imp: dict[str, Any]) -> str:
-    """A short page: counts per state, the best complete trial, importances."""
-    counts = trials["state"].value_counts().to_dict()
-    name = trials["study"].iloc[0] if len(trials) else "?"
-    lines = [f"# Study {name}", "",
-             "trials: " + ", ".join(f"{k.lower()} {v}" for k, v in sorted(counts.items())), ""]
-    comp = trials[trials["state"] == "COMPLETE"]
-    if not comp.empty:
-        best = comp.loc[comp["value"].idxmax()]
-        params = [c for c in ("ref_size", "search_radius", "c_max") if c in comp and pd.notna(best.get(c))]
-        lines += [f"best: trial {int(best['number'])} " +
-                  ", ".join(f"{p}={int(best[p])}" for p in params) +
-                  f" (success rate {best['success_rate']:.3f}, team return {best['team_return']:.2f})", ""]
-    values = imp.get("importances") or {}
-    lines.append("importances: " + (", ".join(f"{k} {v:.2f}" for k, v in values.items())
-                                    if values else str(imp.get("reason"))))
-    return "\n".join(lines) + "\n"
+        ax.set_title("Parameter importances (rough: see the caveat)")
+        return Built(fig, [imp["caveat"]] if imp.get("caveat") else [])
 
 
 def build_study_report(study_dir: Path | str) -> list[Path]:
-    """Write the study's figures (PNG + PDF) and ``study.md`` into ``study_dir/report``."""
+    """Write the study's figures (PNG + PDF), ``study.md`` and ``study.html`` into
+    ``study_dir/report`` from ``trials.parquet`` (+ ``importances.json``, ``study.json``)."""
     from reports.build import save_figure, write_text
+    from studies.report_page import study_page
 
     study_dir = Path(study_dir)
     path = study_dir / TRIALS_FILE
     if not path.exists():
         raise BenchError(f"no {TRIALS_FILE} in {str(study_dir)!r}; run `bench tune` first")
     trials = read_trials(path)
-    imp_path = study_dir / IMPORTANCES_FILE
+    imp_path, cfg_path = study_dir / IMPORTANCES_FILE, study_dir / CONFIG_FILE
     imp = json.loads(imp_path.read_text()) if imp_path.exists() else {"reason": "not computed"}
+    config = json.loads(cfg_path.read_text()) if cfg_path.exists() else {}
     out_dir = study_dir / REPORT_DIR
     out: list[Path] = []
-    for stem, built in (("study_history", history_figure(trials)),
-                        ("study_landscape", landscape_figure(trials)),
-                        ("study_importances", importance_figure(imp))):
+    figures = {"study_history": history_figure(trials),
+               "study_landscape": landscape_figure(trials),
+               "study_curves": curves_figure(trials, config.get("warmup_step")),
+               "study_importances": importance_figure(imp)}
+    for stem, built in figures.items():
         out += save_figure(built.fig, out_dir / stem)
-    out.append(write_text(out_dir / "study.md", summary_markdown(trials, imp)))
+    page = study_page(trials, imp, config, {stem: built.notes for stem, built in figures.items()})
+    out.append(write_text(out_dir / "study.md", page.markdown()))
+    out.append(write_text(out_dir / "study.html", page.html()))
     return out

@@ -1,11 +1,13 @@
 """The driver loop: the driver owns the study (ask/tell); executors only run segments.
 
-``run_study`` keeps up to ``executor.capacity`` trials running. For each one it asks the
-study for parameters (``study.ask`` with the fixed categorical space), starts a worker,
-and for every streamed ``Segment`` it reports the intermediate value (``trial.report``)
-and asks the pruner (``trial.should_prune``, median by default) before letting the worker
-train on: pruning happens on the driver, as ask/tell requires, and a pruned worker is
-stopped at once. ``n_trials`` counts finished (COMPLETE or PRUNED) trials of the whole
+``run_study`` keeps up to ``executor.capacity`` trials running. For each one it takes the
+next configuration from the ``SearchPlan`` (studies/schedule.py: the least-replicated grid
+point, enqueued, or TPE's proposal), asks the study for it (``study.ask`` with the fixed
+categorical space), starts a worker with the seed of the trial's replicate index, and for
+every streamed ``Segment`` it reports the intermediate value (``trial.report``) and asks
+the pruner (``trial.should_prune``; studies/pruning.py) before letting the worker train
+on: pruning happens on the driver, as ask/tell requires, and a pruned worker is stopped
+at once. ``n_trials`` counts finished (COMPLETE or PRUNED) trials of the whole
 study, so a rerun after an interruption tops the study up to the requested number.
 Multi-objective studies cannot prune (Optuna); their segments are only recorded.
 """
@@ -21,9 +23,12 @@ from optuna.trial import Trial, TrialState
 
 from envs.errors import BenchError
 from studies.executors import Outcome
-from studies.objective import Segment, TrialSettings, TrialSpec, eval_seed, trial_seed
+from studies.objective import Segment, TrialSettings, TrialSpec, eval_seed
+from studies.progress import TuneSnapshot
+from studies.pruning import MIN_RHO, WARMUP, PredictivePruner, warmup_step
+from studies.schedule import SearchPlan, replicate_seed, trial_replicate
 from studies.space import distributions
-from studies.storage import LEASE_BEAT, RETRY_OF, lease_attrs, recover_orphans, requeue
+from studies.storage import LEASE_BEAT, REPLICATE, lease_attrs, recover_orphans, requeue
 
 FINISHED = (TrialState.COMPLETE, TrialState.PRUNED)
 HEARTBEAT_S = 60.0
@@ -63,18 +68,22 @@ class RunSummary:
         if not self.pruning:
             return "pruning off (multi-objective studies cannot prune, or --pruner none)"
         if self.pruned:
-            return (f"{self.pruned} trial(s) pruned: intermediate success fell below the median "
-                    "of earlier complete trials at the same step")
-        return ("all trials complete: none fell below the median of earlier complete trials "
-                "at the same step (the median pruner waits for 3 complete trials)")
+            return (f"{self.pruned} trial(s) pruned: after the warm-up, at a step whose values "
+                    "rank-correlate with the final ones, they fell below the median of the "
+                    "complete trials at that step")
+        return ("all trials complete: pruning waits for the warm-up, 5 complete trials and a "
+                "rank correlation >= the threshold between a step's values and the final ones "
+                "(see the study report), and then for a trial below the median")
 
 
-def make_pruner(kind: str, multi_objective: bool) -> optuna.pruners.BasePruner:
-    """``median`` (default: 3 start-up trials, no warm-up) or ``none``."""
+def make_pruner(kind: str, multi_objective: bool, iterations: int = 1, warmup: float = WARMUP,
+                min_rho: float = MIN_RHO) -> optuna.pruners.BasePruner:
+    """``median``: ``PredictivePruner`` (median rule after ``warmup`` of the ``iterations``
+    training updates, gated by a rank correlation >= ``min_rho``), or ``none``."""
     if kind == "none" or multi_objective:
         return optuna.pruners.NopPruner()
     if kind == "median":
-        return optuna.pruners.MedianPruner(n_startup_trials=3, n_warmup_steps=0)
+        return PredictivePruner(warmup_step(iterations, warmup), min_rho=min_rho)
     raise BenchError(f"unknown pruner {kind!r}; choose median or none")
 
 
@@ -88,9 +97,15 @@ def preflight(settings: TrialSettings, space: Mapping[str, Sequence[int]]) -> No
 def run_study(study: optuna.Study, settings: TrialSettings, space: Mapping[str, Sequence[int]],
               study_seed: int, n_trials: int, executor: Executor, pruning: bool = True,
               log: Callable[[str], None] = lambda _msg: None,
-              heartbeat_s: float = HEARTBEAT_S) -> RunSummary:
-    """Run trials until the study holds ``n_trials`` finished ones; see the module doc."""
+              heartbeat_s: float = HEARTBEAT_S, plan: SearchPlan | None = None,
+              progress: Callable[[TuneSnapshot], None] = lambda _s: None) -> RunSummary:
+    """Run trials until the study holds ``n_trials`` finished ones; see the module doc.
+
+    ``plan`` defaults to TPE without replicates; ``progress`` gets a snapshot after every
+    finished trial (and one at the start).
+    """
     t0 = time.perf_counter()
+    plan = plan or SearchPlan.make("tpe", space, 1, study_seed)
     pruning = pruning and not settings.multi_objective
     summary = RunSummary(requested=n_trials, pruning=pruning)
     summary.recovered = recover_orphans(study)
@@ -101,14 +116,25 @@ def run_study(study: optuna.Study, settings: TrialSettings, space: Mapping[str, 
     running: dict[int, Trial] = {}
     failures = 0
     last_beat = time.time()
+    finished_before = _finished(study)
+
+    def snapshot() -> TuneSnapshot:
+        done = _finished(study)
+        return TuneSnapshot(n_trials, done, done - finished_before, len(running), time.perf_counter() - t0)
+
+    progress(snapshot())
     try:
         while True:
             while len(running) < executor.capacity and _occupied(study) < n_trials:
+                nxt = plan.next_point(study.get_trials(deepcopy=False))
+                if nxt is not None:
+                    study.enqueue_trial(nxt[0], user_attrs={REPLICATE: nxt[1]})
                 trial = study.ask(dists)
                 for key, val in lease_attrs().items():
                     trial.set_user_attr(key, val)
-                root = int(trial.user_attrs.get(RETRY_OF, trial.number))
-                seed = trial_seed(study_seed, root)
+                replicate = trial_replicate(study, trial)
+                seed = replicate_seed(study_seed, replicate)
+                trial.set_user_attr(REPLICATE, replicate)
                 trial.set_user_attr("seed", seed)
                 try:
                     spec = settings.spec(trial.params, seed, e_seed)
@@ -120,14 +146,15 @@ def run_study(study: optuna.Study, settings: TrialSettings, space: Mapping[str, 
                 running[trial.number] = trial
                 executor.start(trial.number, spec)
                 summary.started += 1
-                log(f"trial {trial.number} started: {_fmt(trial.params)}")
+                log(f"trial {trial.number} started: {_fmt(trial.params)} (replicate {replicate})")
             if not running:
                 break
             for number, outcome in executor.wait(timeout=heartbeat_s):
                 trial = running[number]
                 if isinstance(outcome, Segment):
                     failures = 0
-                    _on_segment(study, trial, outcome, executor, running, pruning, log)
+                    if _on_segment(study, trial, outcome, executor, running, pruning, log, snapshot):
+                        progress(snapshot())
                     continue
                 running.pop(number)
                 executor.stop(number)
@@ -164,8 +191,9 @@ def run_study(study: optuna.Study, settings: TrialSettings, space: Mapping[str, 
 
 
 def _on_segment(study: optuna.Study, trial: Trial, seg: Segment, executor: Executor,
-                running: dict[int, Trial], pruning: bool, log: Callable[[str], None]) -> None:
-    """Report one segment; finish, prune or continue the trial."""
+                running: dict[int, Trial], pruning: bool, log: Callable[[str], None],
+                snapshot: Callable[[], TuneSnapshot]) -> bool:
+    """Report one segment; finish, prune or continue the trial (True: it finished)."""
     trial.set_user_attr(LEASE_BEAT, time.time())
     trial.set_user_attr("success_rate", seg.success_rate)
     trial.set_user_attr("team_return", seg.team_return)
@@ -178,16 +206,25 @@ def _on_segment(study: optuna.Study, trial: Trial, seg: Segment, executor: Execu
         executor.stop(trial.number)
         study.tell(trial, list(seg.values))
         log(f"trial {trial.number} complete: success {seg.success_rate:.3f}, "
-            f"return {seg.team_return:.1f} ({_fmt(trial.params)})")
-    elif pruning and trial.should_prune():
+            f"return {seg.team_return:.1f} ({_fmt(trial.params)}) {snapshot().line()}")
+        return True
+    if pruning and trial.should_prune():
         running.pop(trial.number)
         executor.stop(trial.number)
         trial.set_user_attr("pruned_at_step", seg.step)
+        why = "below the median"
+        if isinstance(study.pruner, PredictivePruner):
+            _, rho, n, median = study.pruner.decision(study, _frozen(study, trial.number))
+            trial.set_user_attr("prune_rho", rho)
+            trial.set_user_attr("prune_n", n)
+            trial.set_user_attr("prune_median", median)
+            why = f"below the median {median:.3f} of {n} complete trials; rank correlation {rho:.2f}"
         study.tell(trial, state=TrialState.PRUNED)
-        log(f"trial {trial.number} pruned at step {seg.step}: success {seg.success_rate:.3f} "
-            f"below the median ({_fmt(trial.params)})")
-    else:
-        executor.advance(trial.number)
+        log(f"trial {trial.number} pruned at step {seg.step}: objective {seg.values[0]:.3f} "
+            f"{why} ({_fmt(trial.params)}) {snapshot().line()}")
+        return True
+    executor.advance(trial.number)
+    return False
 
 
 def _abandon(study: optuna.Study, running: dict[int, Trial], executor: Executor, reason: str) -> None:
@@ -202,6 +239,10 @@ def _abandon(study: optuna.Study, running: dict[int, Trial], executor: Executor,
 
 def _frozen(study: optuna.Study, number: int) -> optuna.trial.FrozenTrial:
     return next(t for t in study.get_trials(deepcopy=False) if t.number == number)
+
+
+def _finished(study: optuna.Study) -> int:
+    return len(study.get_trials(deepcopy=False, states=FINISHED))
 
 
 def _occupied(study: optuna.Study) -> int:

@@ -33,6 +33,7 @@ JOURNAL_FILE = "journal.log"
 CONFIG_ATTR = "config"  # study user attribute holding settings, space and seed
 LEASE_HOST, LEASE_PID, LEASE_BEAT = "driver_host", "driver_pid", "heartbeat"
 RETRY_OF = "retry_of"
+REPLICATE = "replicate"  # replicate index of the trial's point (studies/schedule.py)
 GRACE_S = 600.0  # a remote driver silent this long is considered dead
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
 
@@ -74,7 +75,8 @@ def _redact(url: str) -> str:
 
 def open_study(name: str, storage: BaseStorage, directions: list[str], seed: int,
                pruner: optuna.pruners.BasePruner) -> optuna.Study:
-    """Create or load study ``name``; its sampler is a seeded TPE (constant liar, parallel).
+    """Create or load study ``name``; its sampler is a seeded TPE (constant liar, parallel),
+    consulted only by TPE searches (an exhaustive search enqueues every trial's parameters).
 
     The sampler seed also depends on how many trials the study already holds, so a
     resumed study does not replay the random start-up proposals of its first run.
@@ -164,14 +166,18 @@ def is_orphan(trial: FrozenTrial, grace_s: float = GRACE_S, now: float | None = 
 def requeue(study: optuna.Study, trial: FrozenTrial, reason: str) -> None:
     """Mark ``trial`` FAIL (if still running) and enqueue its parameters again.
 
-    The new trial keeps ``retry_of`` = the first trial of the chain, whose number fixes
-    its seed, so a re-run trial trains exactly what the crashed one would have.
+    The new trial keeps ``retry_of`` = the first trial of the chain and its replicate
+    index, which fixes its seed, so a re-run trial trains exactly what the crashed one
+    would have.
     """
     root = int(trial.user_attrs.get(RETRY_OF, trial.number))
+    attrs: dict[str, Any] = {RETRY_OF: root}
+    if REPLICATE in trial.user_attrs:
+        attrs[REPLICATE] = int(trial.user_attrs[REPLICATE])
     if trial.state == TrialState.RUNNING:
         study._storage.set_trial_user_attr(trial._trial_id, "error", reason)
         study.tell(trial.number, state=TrialState.FAIL, skip_if_finished=True)
-    study.enqueue_trial(dict(trial.params), user_attrs={RETRY_OF: root}, skip_if_exists=False)
+    study.enqueue_trial(dict(trial.params), user_attrs=attrs, skip_if_exists=False)
 
 
 def recover_orphans(study: optuna.Study, grace_s: float = GRACE_S) -> list[int]:

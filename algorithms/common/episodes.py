@@ -9,6 +9,7 @@ numbers whichever worker runs it.
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,7 +40,16 @@ class EpisodeBatch:
         self.rng = rng
         self.core = WarehouseCore(config, layout if layout is not None else load_layout(config.layout))
         starts, goals = sample_scenarios(self.core.layout, config.n_robots, batch, rng)
+        self.starts, self.goals = np.asarray(starts), np.asarray(goals)  # (B, N) free-cell indices
         self.core.reset(starts, goals)
+
+    def scenario_hashes(self) -> list[str]:
+        """Per episode, 16 hex digits of SHA-256 over its starts and goals (the ``scenario``
+        eval column: rows of different execution modes with equal hashes ran one scenario)."""
+        s = np.ascontiguousarray(self.starts, dtype=np.int64)
+        g = np.ascontiguousarray(self.goals, dtype=np.int64)
+        return [hashlib.sha256(s[b].tobytes() + g[b].tobytes()).hexdigest()[:16]
+                for b in range(s.shape[0])]
 
     @property
     def running(self) -> bool:

@@ -2,9 +2,10 @@
 
 Per step and for every group z of B episodes at once (no loop over groups or robots):
 receive S_t^z over the lossy channel, update the GRU predictors and complete S-hat^z
-(eq:predictor_input..eq:interaction_state_collection), sample (training) or take the
-argmax (execution) of the reference r ~ mu_psi_z and the joint control U~ ~ pi_theta_z,
-then run the safety filter (Algorithm 1) to get the executed U_t^z.
+(eq:predictor_input..eq:interaction_state_collection), pick the reference r ~ mu_psi_z
+and the joint control U~ ~ pi_theta_z in the run's execution mode (both levels alike:
+sampled in training; argmax, sampled or tempered in evaluation, algorithms/common/
+execution.py), then run the safety filter (Algorithm 1) to get the executed U_t^z.
 
 Training (``update``, see ``training.py``): the centralized critic V_omega on the global
 state gives the team advantage, used for both policy levels (eq:losses), Adam; the GRU
@@ -13,14 +14,15 @@ predictors are trained with their own supervised loss and optimizer (eq:gru_pred
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
 from pydantic import Field
 
-from algorithms.base import Method, MethodParams, sample_categorical
+from algorithms.base import Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
+from algorithms.common.execution import ActionChoice
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
 from algorithms.hierarchical.messages import (
     CTRL,
@@ -71,8 +73,6 @@ class HierarchicalParams(MethodParams):
     share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
     normalize_advantage: bool = Field(True, description="scale the team advantage by its batch RMS")
     update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
-    execution: Literal["argmax", "sample"] = Field(
-        "argmax", description="evaluation controls: argmax at both levels (SPEC), or sampled")
 
 
 @dataclass
@@ -84,7 +84,6 @@ class Controller:
     pred: PredictorState | None = None
     buffer: RolloutBuffer | None = None
     running: np.ndarray | None = None  # (B,) episodes running before the current step
-    gen: torch.Generator | None = None  # sampled evaluation: its own stream, from batch.rng
 
 
 class HierarchicalMethod(Method):
@@ -118,13 +117,11 @@ class HierarchicalMethod(Method):
         }
 
     # ------------------------------------------------------------- controller
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> Controller:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> Controller:
         p: HierarchicalParams = self.params  # type: ignore[assignment]
         core = batch.core
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
-        if greedy and p.execution == "sample":  # never touch the training stream
-            ctrl.gen = torch.Generator().manual_seed(int(batch.rng.integers(2**62)))
-        if not greedy:
+        if choice.training:
             b, n, zz = core.batch, core.n, self.env.groups
             slots, links = self.gs.n_slots, self.gs.neighbors.shape[1]
             ctrl.buffer = RolloutBuffer(self.env.horizon, b, {
@@ -141,10 +138,8 @@ class HierarchicalMethod(Method):
             })
         return ctrl
 
-    def decide(self, batch: EpisodeBatch, state: Controller, greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: Controller, choice: ActionChoice) -> Decision:
         core, gs = batch.core, self.gs
-        gen = state.gen if state.gen is not None else self.torch_gen
-        greedy = greedy and state.gen is None
         state.running = ~core.ended
         # Channel and predictor: S_t^z, A_t^{z',z} -> S-hat_t^z.
         avail = gs.link_availability(state.channel.step())  # (B, Z, K)
@@ -168,8 +163,8 @@ class HierarchicalMethod(Method):
         action_mask = self.layout.move_valid[core.pos]
         with torch.no_grad():
             ref, _, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=None,
-                                               greedy=greedy, gen=gen)
-            proposed_g = sample_categorical(logp, greedy, gen)  # (Z, B, n)
+                                               choice=choice)
+            proposed_g = choice(logp)  # (Z, B, n), the same mode as r
         proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
 
         dec = Decision(actions=proposed, proposed=proposed, payload=float(state.channel.payload_hier),
@@ -193,11 +188,12 @@ class HierarchicalMethod(Method):
         return torch.from_numpy(np.ascontiguousarray(np.swapaxes(g, 0, 1)))
 
     def policy_forward(self, own: np.ndarray, nbr: np.ndarray, controlled: np.ndarray,
-                       action_mask: np.ndarray, ref: torch.Tensor | None, greedy: bool = False,
-                       gen: torch.Generator | None = None,
+                       action_mask: np.ndarray, ref: torch.Tensor | None,
+                       choice: ActionChoice | None = None,
                        ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
-        (M, N), action_mask (M, N, 5). Samples r when ``ref`` is None. Returns r (Z, M),
+        (M, N), action_mask (M, N, 5). Picks r with ``choice`` (default: a training sample)
+        when ``ref`` is None. Returns r (Z, M),
         log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)."""
         feats_u = self.group_major(own).to(torch.float32)
         feats_r = torch.cat([feats_u, self.group_major(nbr).to(torch.float32)], dim=-1)
@@ -205,7 +201,7 @@ class HierarchicalMethod(Method):
         amask = self.group_major(action_mask, fill=True)
         ref_logp = torch.log_softmax(self.reference(feats_r, mask), dim=-1)  # (Z, M, R)
         if ref is None:
-            ref = sample_categorical(ref_logp, greedy, gen if gen is not None else self.torch_gen)
+            ref = (choice if choice is not None else ActionChoice.train(self.torch_gen))(ref_logp)
         return ref, ref_logp, self.local(feats_u, mask, ref, amask)
 
     def _apply_filter(self, core: Any, cells: np.ndarray, present: np.ndarray, controlled: np.ndarray,

@@ -10,6 +10,7 @@ import torch
 
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.common.trainer import policy_gradient_losses
 from algorithms.decentralized import DecentralizedMethod, action_feature_index
 from envs.actions import DELTAS, Action
@@ -34,12 +35,13 @@ def test_payload_is_all_to_all_every_step() -> None:
 def run_steps(loss_p: float, steps: int = 6):
     env = EnvConfig(**{**ENV.model_dump(), "loss_p": loss_p})
     m = DecentralizedMethod(env, {}, seed=0)
+    choice = ActionChoice.train(m.torch_gen)
     batch = EpisodeBatch(env, 2, batch_rng(0, 0, 0), m.layout)
     starts = batch.core.pos.copy()
     with torch.no_grad():
-        state = m.begin(batch, greedy=False)
+        state = m.begin(batch, choice)
         for _ in range(steps):
-            m.observe(batch, state, batch.core.step(m.decide(batch, state, greedy=False).actions))
+            m.observe(batch, state, batch.core.step(m.decide(batch, state, choice).actions))
     state.board.receive()  # the messages of the current step
     return batch.core, state.board, starts
 
@@ -93,11 +95,11 @@ def test_message_maps__drop_robots_that_left_the_floor() -> None:
 
 def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
     env = EnvConfig(n_robots=10, layout="tiny", horizon=30, groups=2, loss_p=0.0)
-    params = {"eval_chunk": 4, "execution": "sample"}
-    free = DecentralizedMethod(env, params, seed=0).evaluate(0)
+    params = {"eval_chunk": 4}
+    free = DecentralizedMethod(env, params, seed=0).evaluate(0, execution="sample")
     assert sum(r["collision_rate"] for r in free) > 0  # untrained robots do collide
     assert all(np.isnan(r["mean_candidates"]) for r in free)  # no filter, no counts
-    safe = DecentralizedMethod(env, {**params, "safety_filter": True}, seed=0).evaluate(0)
+    safe = DecentralizedMethod(env, {**params, "safety_filter": True}, seed=0).evaluate(0, execution="sample")
     assert all(r["collision_rate"] == 0 for r in safe)
     assert all(r["correction_rate"] > 0 and r["mean_candidates"] >= 1 for r in safe)
     assert all(0 <= r["fallback_rate"] <= 1 for r in safe)
@@ -106,11 +108,12 @@ def test_safety_filter_with_fresh_messages_prevents_every_collision() -> None:
 def test_action_aligned_features_are_progress_and_robots_on_each_target_cell() -> None:
     env = EnvConfig(n_robots=12, layout="tiny", horizon=20, groups=2, loss_p=0.5)
     m = DecentralizedMethod(env, {}, seed=0)
+    choice = ActionChoice.train(m.torch_gen)
     batch = EpisodeBatch(env, 2, batch_rng(0, 0, 3), m.layout)
     with torch.no_grad():
-        state = m.begin(batch, greedy=False)
+        state = m.begin(batch, choice)
         for _ in range(4):  # some stale messages by now
-            m.observe(batch, state, batch.core.step(m.decide(batch, state, greedy=False).actions))
+            m.observe(batch, state, batch.core.step(m.decide(batch, state, choice).actions))
     core, board = batch.core, state.board
     board.receive()
     phi = m.observe_robots(state)[..., action_feature_index(m.params.patch_radius)]  # (B, N, 3, 5)
@@ -134,7 +137,7 @@ def test_update__chunked_actor_loss_is_the_papers_loss_with_the_same_gradient() 
     def rolled(chunk_rows: int) -> tuple[DecentralizedMethod, object]:
         m = DecentralizedMethod(env, {"batch_episodes": 3, "chunk_rows": chunk_rows}, seed=2)
         with torch.no_grad():
-            state, _ = m.run(EpisodeBatch(env, 3, batch_rng(0, 0, 0), m.layout), greedy=False)
+            state, _ = m.run(EpisodeBatch(env, 3, batch_rng(0, 0, 0), m.layout), ActionChoice.train(m.torch_gen))
         return m, state
 
     small, state_small = rolled(256)  # about 360 robot-steps: two chunks
@@ -157,7 +160,7 @@ def test_update__chunked_actor_loss_is_the_papers_loss_with_the_same_gradient() 
 @pytest.mark.slow
 def test_decentralized__learns_on_a_small_layout() -> None:
     env = EnvConfig(n_robots=6, layout="tiny", horizon=40, groups=2, loss_p=0.2)
-    m = DecentralizedMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "execution": "argmax"}, seed=0)
+    m = DecentralizedMethod(env, {"batch_episodes": 8, "eval_chunk": 20}, seed=0)
 
     before = eval_success(m)
     for _ in range(200):

@@ -46,10 +46,10 @@ class _Random(Method):
     name = "random-test"
     learned = False
 
-    def begin(self, batch, greedy):
+    def begin(self, batch, choice):
         return np.random.default_rng(0)
 
-    def decide(self, batch, state, greedy):
+    def decide(self, batch, state, choice):
         return Decision(actions=state.integers(0, 5, batch.core.pos.shape))
 
 

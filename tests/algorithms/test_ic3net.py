@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ARGMAX_CHOICE, ActionChoice
 from algorithms.ic3net import IC3NetMethod, average_comm
 from envs.config import EnvConfig
 from tests.algorithms.learning import eval_success
@@ -51,7 +52,7 @@ def rollout_logits(params: dict, env: EnvConfig = ENV, seed: int = 1) -> list[to
     m.policy.register_forward_hook(lambda mod, inp, out: seen.append(out[0].clone()))
     batch = EpisodeBatch(env, 2, batch_rng(0, 0, 0), m.layout)
     with torch.no_grad():
-        m.run(batch, greedy=False)
+        m.run(batch, ActionChoice.train(m.torch_gen))
     return seen
 
 
@@ -76,7 +77,7 @@ def test_with_every_message_lost_no_message_is_ever_used() -> None:
 def test_links_combine_gates_liveness_and_loss() -> None:
     m = IC3NetMethod(EnvConfig(**{**ENV.model_dump(), "loss_p": 0.5}), {}, seed=0)
     batch = EpisodeBatch(m.env, 1, batch_rng(0, 0, 0), m.layout)
-    state = m.begin(batch, greedy=True)
+    state = m.begin(batch, ARGMAX_CHOICE)
     state.gate[:] = np.array([[1, 1, 1, 0, 1, 1]], dtype=bool)
     alive = np.array([[1, 1, 1, 1, 1, 0]], dtype=bool)
     links = m.links(state, alive)[0]
@@ -104,7 +105,7 @@ def test_update_replays_exactly_what_the_rollout_computed() -> None:
     hook = m.policy.register_forward_hook(lambda mod, inp, out: seen.append(out[:3]))
     batch = EpisodeBatch(ENV, 2, batch_rng(0, 0, 0), m.layout)
     with torch.no_grad():
-        state, _ = m.run(batch, greedy=False)
+        state, _ = m.run(batch, ActionChoice.train(m.torch_gen))
         hook.remove()
         data = {k: state.buffer.tensor(k) for k in state.buffer.data}
         hc = m.policy.initial_state(2, ENV.n_robots)
@@ -118,7 +119,7 @@ def test_update_replays_exactly_what_the_rollout_computed() -> None:
 @pytest.mark.slow
 def test_ic3net__learns_on_a_small_layout() -> None:
     env = EnvConfig(n_robots=4, layout="tiny", horizon=30, groups=2, loss_p=0.2)
-    m = IC3NetMethod(env, {"batch_episodes": 8, "eval_chunk": 20, "execution": "argmax"}, seed=0)
+    m = IC3NetMethod(env, {"batch_episodes": 8, "eval_chunk": 20}, seed=0)
 
     before = eval_success(m)
     for _ in range(150):

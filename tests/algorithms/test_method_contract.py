@@ -19,6 +19,7 @@ import torch
 
 from algorithms.base import Method
 from algorithms.common.episodes import EVAL_METRICS, EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.registry import METHODS, method_class
 from envs.config import EnvConfig
 
@@ -57,14 +58,16 @@ def parameters(method: Method) -> list[torch.Tensor]:
             if isinstance(mod, torch.nn.Module) for p in mod.parameters()]
 
 
-@pytest.mark.parametrize("greedy", [True, False])
-def test_method__decide_gives_valid_actions_for_every_robot(name: str, greedy: bool) -> None:
+@pytest.mark.parametrize("mode", ["train", "argmax", "sample@0.5"])
+def test_method__decide_gives_valid_actions_for_every_robot(name: str, mode: str) -> None:
     m = make(name)
     batch = EpisodeBatch(ENV, 3, batch_rng(0, 1, 0), m.layout)
+    choice = (ActionChoice.train(m.torch_gen) if mode == "train"
+              else m.execution_choice(mode if m.learned else None, 0, 0))
     with torch.no_grad():
-        state = m.begin(batch, greedy)
+        state = m.begin(batch, choice)
         for _ in range(3):
-            dec = m.decide(batch, state, greedy)
+            dec = m.decide(batch, state, choice)
             assert dec.actions.shape == (3, ENV.n_robots)
             assert np.issubdtype(dec.actions.dtype, np.integer)
             assert dec.actions.min() >= 0 and dec.actions.max() <= 4

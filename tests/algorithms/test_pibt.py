@@ -5,10 +5,12 @@ import io
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.pibt import FREE, PIBTMethod, initial_priority, plan_episode
 from envs import EnvConfig
 from envs.actions import WAIT
@@ -21,7 +23,7 @@ def _run_checked(method: PIBTMethod, batch: EpisodeBatch) -> EpisodeBatch:
     """Run the shared loop by hand and check every StepResult: the planned joint move is
     executed exactly (no collision, no invalid move, no robot held back by the core)."""
     core = batch.core
-    state = method.begin(batch, greedy=True)
+    state = method.begin(batch, ActionChoice.evaluate("planner"))
     nxt = method.layout.next_cell
     while batch.running:
         dec = method.decide(batch, state, True)
@@ -191,9 +193,7 @@ def test_initial_priority__farther_first_then_random():
 
 # ------------------------------------------------------------ contract
 def _same_rows(a: list[dict], b: list[dict]) -> bool:
-    return [list(r) for r in a] == [list(r) for r in b] and all(
-        np.array_equal(np.array(list(x.values())), np.array(list(y.values())), equal_nan=True)
-        for x, y in zip(a, b, strict=True))
+    return pd.DataFrame(a).equals(pd.DataFrame(b))  # NaN-aware, string columns included
 
 
 def test_pibt__same_seed_same_metrics_and_other_seed_differs():

@@ -101,7 +101,7 @@ def write_finished_store(out: Path, grid: Any) -> None:
                 "peak_mem_mb": 0.0, "attempts": 1, "state": state})
             if res["finished"]:
                 break
-        rows = [r for c in range(st.n_chunks) for r in worker.eval_chunk(spec, [state], c)["rows"]]
+        rows = [r for m, c in st.eval_units() for r in worker.eval_chunk(spec, [state], c, m)["rows"]]
         store.write_eval(st.cell_id, [r for r in rows if r["episode"] < st.cell.eval_episodes],
                          {"wall_s": 0.0, "attempts": 1, "train_episodes_done": first})
         st.phase, st.attempts, st.episodes_done = "done", 1, first

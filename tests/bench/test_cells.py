@@ -25,11 +25,12 @@ def test_cell__id_is_sha256_of_canonical_json_and_pinned() -> None:
     assert json.loads(canonical)["layout"] == "wh20"
     # Pinned: a change here silently orphans every stored result (bump SCHEMA_VERSION instead).
     assert canonical == (
-        '{"c_max":500,"episodes":2000,"eval_episodes":100,"groups":4,"horizon":500,"layout":"wh20",'
-        '"loss_model":"bernoulli","loss_p":0.2,"method":"pibt","n_robots":20,"on_goal":"remove",'
-        '"params":{},"ref_size":8,"safety_filter":false,"search_radius":2,"seed":3}'
+        '{"c_max":500,"episodes":2000,"eval_episodes":100,"eval_temperatures":[0.5],"groups":4,'
+        '"horizon":500,"layout":"wh20","loss_model":"bernoulli","loss_p":0.2,"method":"pibt",'
+        '"n_robots":20,"on_goal":"remove","params":{},"ref_size":8,"safety_filter":false,'
+        '"search_radius":2,"seed":3}'
     )
-    assert cell.cell_id == "a1aca0d59234"
+    assert cell.cell_id == "a933e94de172"
 
 
 def test_cell__id_ignores_params_order_and_changes_with_any_field() -> None:

@@ -15,6 +15,7 @@ from algorithms.common.episodes import EVAL_METRICS
 from bench import costs
 from bench.cli import main
 from bench.grid_files import load_grid_file
+from bench.grids import get_grid
 from bench.store import RunStore
 from tests.bench.conftest import (
     REPO,
@@ -26,6 +27,11 @@ from tests.bench.conftest import (
 )
 
 BENCH = str(Path(sys.executable).with_name("bench"))
+
+
+def printed_scenarios(episodes: pd.DataFrame) -> list[str]:
+    """The argmax rows' scenario hashes: every mode must show the same ones."""
+    return episodes[episodes.execution == "argmax"]["scenario"].tolist()
 
 
 def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
@@ -78,6 +84,13 @@ def _broken_copy(src: Path, dst: Path, how: str) -> Path:
     (["eval"], "give --method"),
     (["report", "--run", "{missing}"], "not a bench run directory"),
     (["replay", "--run", "{out}", "--cell", "nope"], "cell 'nope' is not in"),
+    (["eval", "--method", "toy", "--n-robots", "4", "--layout", "tiny", "--execution", "argmx"],
+     "unknown execution mode 'argmx'"),
+    (["eval", "--method", "pibt", "--n-robots", "4", "--layout", "tiny", "--execution", "argmax"],
+     "'argmax' does not apply to a planner"),
+    (["replay", "--run", "{out}", "--cell", "{cell}", "--execution", "sample@0.25"],
+     "was evaluated in argmax, sample, sample@0.5"),
+    (["run", "--grid-file", "{bad_temp}"], "eval_temperatures: temperature 1 is the 'sample' mode"),
 ])
 def test_cli__user_mistake_is_one_line_exit_2_and_the_store_is_unchanged(
         capsys: pytest.CaptureFixture[str], store_dir: tuple[Path, Path], tmp_path: Path,
@@ -86,7 +99,10 @@ def test_cli__user_mistake_is_one_line_exit_2_and_the_store_is_unchanged(
     (tmp_path / "bad_method.toml").write_text('[base]\nmethod = "qmix"\nn_robots = 4\nloss_p = 0.2\n')
     (tmp_path / "bad_value.toml").write_text('[base]\nmethod = "toy"\nloss_p = 0.2\n[axes]\nn_robots = [4, 0]\n')
     (tmp_path / "file").write_text("not a directory")
+    (tmp_path / "bad_temp.toml").write_text('[base]\nmethod = "toy"\nn_robots = 4\nloss_p = 0.2\n'
+                                            'layout = "tiny"\neval_temperatures = [1.0]\n')
     subst = dict(grid=grid_file, out=out, bad_method=tmp_path / "bad_method.toml",
+                 bad_temp=tmp_path / "bad_temp.toml", cell=RunStore(out).read_cells()["cell_id"].iloc[0],
                  bad_value=tmp_path / "bad_value.toml", file=tmp_path / "file", missing=tmp_path / "missing.toml")
     argv = [a.format(**subst) for a in args]
     if argv[0] == "run" and "--out" not in argv:
@@ -132,7 +148,7 @@ def test_console_script__unknown_grid_exits_2_and_version_names_the_commit() -> 
     assert ver.returncode == 0 and ver.stdout.startswith("warehouse-marl-bench 0.1.0 (git ")
 
 
-@pytest.mark.parametrize("method", ["toy", "decentralized"])  # greedy; sampled evaluation
+@pytest.mark.parametrize("method", ["toy", "decentralized"])
 def test_eval__from_a_checkpoint_prints_the_rows_the_eval_table_stores(
         capsys: pytest.CaptureFixture[str], toy: str, tmp_path: Path, method: str) -> None:
     grid_file = write_grid_file(tmp_path / "g.toml", toy_spec(method=method, eval_episodes=5,
@@ -147,13 +163,23 @@ def test_eval__from_a_checkpoint_prints_the_rows_the_eval_table_stores(
     assert code == 0, err
     printed = json.loads(stdout)
     stored = store.read_eval()
-    stored = stored[stored.cell_id == cell_id].sort_values("episode")
-    assert list(printed["mean"]) == list(EVAL_METRICS)
-    assert printed["mean"]["team_return"] == pytest.approx(stored["team_return"].mean())
-    assert printed["mean"]["success_rate"] == pytest.approx(stored["success_rate"].mean())
+    stored = stored[stored.cell_id == cell_id]
+    assert printed["executions"] == ["argmax", "sample", "sample@0.5"] == list(printed["mean"])
     episodes = pd.DataFrame(printed["episodes"])
-    for col in ("team_return", "collision_rate", "steps"):
-        assert episodes[col].tolist() == pytest.approx(stored[col].tolist()), col
+    for mode in printed["executions"]:
+        want = stored[stored.execution == mode].sort_values("episode")
+        got = episodes[episodes.execution == mode]
+        assert list(printed["mean"][mode]) == list(EVAL_METRICS)
+        assert printed["mean"][mode]["team_return"] == pytest.approx(want["team_return"].mean())
+        assert printed["mean"][mode]["success_rate"] == pytest.approx(want["success_rate"].mean())
+        for col in ("team_return", "collision_rate", "steps"):
+            assert got[col].tolist() == pytest.approx(want[col].tolist()), (mode, col)
+        assert got["scenario"].tolist() == want["scenario"].tolist() == printed_scenarios(episodes)
+    code, stdout, err = _cli(capsys, "eval", "--checkpoint", str(store.ckpt_path(cell_id)), "--episodes", "5",
+                             "--json", "--execution", "sample@0.5")
+    assert code == 0 and json.loads(stdout)["executions"] == ["sample@0.5"]
+    code, _, err = _cli(capsys, "eval", "--checkpoint", str(store.ckpt_path(cell_id)), "--execution", "sampel")
+    assert code == 2 and err.count("\n") == 1 and "unknown execution mode 'sampel'" in err
 
 
 def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFixture[str], toy: str) -> None:
@@ -161,6 +187,7 @@ def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFix
                              "--episodes", "3", "--horizon", "10")
     assert code == 0, err
     assert "untrained initialization" in stdout and "success_rate" in stdout and "payload_dec_per_step" in stdout
+    assert all(mode in stdout for mode in ("argmax", "sample", "sample@0.5"))
 
 
 def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -> None:
@@ -168,6 +195,13 @@ def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -
     assert code == 0
     rows = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
     assert rows["smoke"].split("│")[2].strip() == "16"
-    assert rows["paper"].split("│")[2].strip() == "28"
+    assert rows["paper"].split("│")[2].strip() == "84"  # 28 configurations x 3 seeds (default)
+    assert [rows["paper"].split("│")[k].strip() for k in (6, 7)] == ["28", "3"]
     assert rows["full"].split("│")[2].strip() == "216"
     assert f"cost: {costs.LABEL}" in stdout  # measured or estimate, said in the title
+    hours = float(rows["paper"].split("│")[8])
+    assert hours == pytest.approx(costs.grid_cell_hours(get_grid("paper").cells), rel=1e-2)
+    code, stdout, _ = _cli(capsys, "grids", "--seeds", "5")
+    five = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
+    assert five["paper"].split("│")[2].strip() == "140"
+    assert float(five["paper"].split("│")[8]) == pytest.approx(hours * 5 / 3, rel=1e-2)

@@ -60,7 +60,10 @@ def test_run__sigkill_midway_then_rerun_completes_without_duplicates_or_gaps(tmp
     train, evals = store.read_train(), store.read_eval()
     for cid in cells.index:
         assert sorted(train.loc[train.cell_id == cid, "episode"]) == list(range(EPISODES)), cid
-        assert sorted(evals.loc[evals.cell_id == cid, "episode"]) == list(range(EVAL)), cid
+        ev = evals[evals.cell_id == cid]
+        for mode in ("argmax", "sample", "sample@0.5"):  # every mode, each episode once
+            assert sorted(ev.loc[ev.execution == mode, "episode"]) == list(range(EVAL)), (cid, mode)
+        assert len(ev) == 3 * EVAL, cid
     assert not any(p.name.endswith(".tmp") for p in out.rglob("*"))
     resumed = [cid for cid in cells.index if cid not in done_before]
     assert (cells.loc[resumed, "attempts"] >= 2).any(), "no cell was resumed from a checkpoint"

@@ -271,7 +271,7 @@ def test_completeness__a_done_cell_missing_training_rows_is_trained_again(finish
     grid = load_grid_file(grid_file)
     store = RunStore(out)
     cell = grid.cells[0]
-    assert expected_for_cell(cell).train == 8 and expected_for_cell(cell).eval == 5
+    assert expected_for_cell(cell).train == 8 and expected_for_cell(cell).eval == 15  # 5 episodes x argmax, sample, sample@0.5
     parts = store.train_parts(cell.cell_id)
     parts[1][1].unlink()  # a training part of a finished cell disappears
     states, _ = plan_run(store, grid, fresh=False)
@@ -292,7 +292,7 @@ def test_completeness__a_done_cell_missing_eval_rows_is_evaluated_again_from_its
     assert stored_rows(store, cid).eval == 3
     st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
     assert (st.phase, st.trained, st.has_checkpoint) == ("pending", True, True)
-    assert st.rerun == "3 of 5 evaluation rows stored; evaluating it again from its final checkpoint"
+    assert st.rerun == "3 of 15 evaluation rows stored; evaluating it again from its final checkpoint"
 
 
 def test_completeness__report_warns_naming_the_incomplete_cell(

@@ -23,10 +23,10 @@ PIBT = {("pibt", n, 0.2) for n in (20, 40, 60, 80, 90, 100)}
 
 def test_paper_grid__is_exactly_the_figure_and_table_configurations() -> None:
     grid = get_grid("paper")
-    got = [(c.method, c.n_robots, c.loss_p) for c in grid.cells]
+    got = [(c.method, c.n_robots, c.loss_p) for c in grid.cells if c.seed == 0]
     assert len(got) == len(set(got)), "duplicated configuration"
     assert set(got) == FIG1 | FIG2 | FIG3 | TABLE1 | PIBT
-    assert len(grid) == 28
+    assert len(grid) == 28 * 3 and grid.configurations == 28 and grid.seeds == 3
 
 
 def test_paper_grid__uses_the_paper_settings() -> None:
@@ -34,7 +34,8 @@ def test_paper_grid__uses_the_paper_settings() -> None:
         assert (c.groups, c.search_radius, c.c_max, c.horizon, c.eval_episodes) == (4, 2, 500, 500, 100)
         assert c.episodes == (0 if c.method == "pibt" else 2000)
         assert c.safety_filter == (c.method == "hierarchical")
-        assert c.layout == "warehouse-10-20-10-2-1" and c.seed == 0
+        assert c.layout == "warehouse-10-20-10-2-1" and c.seed in (0, 1, 2)  # 3 seeds by default
+        assert c.eval_temperatures == (0.5,)
 
 
 def test_smoke_grid__every_method_two_team_sizes_two_loss_probabilities() -> None:
@@ -55,10 +56,11 @@ def test_full_grid__crosses_methods_sizes_probabilities_and_seeds() -> None:
 
 
 def test_seeds_option__replicates_each_configuration_over_seeds_0_to_k() -> None:
-    one, three = get_grid("paper", seeds=1), get_grid("paper", seeds=3)
-    assert len(three) == 3 * len(one)
-    assert {c.seed for c in three.cells} == {0, 1, 2}
-    assert len({c.cell_id for c in three.cells}) == len(three)
+    one, five = get_grid("paper", seeds=1), get_grid("paper", seeds=5)
+    assert len(five) == 5 * len(one) and five.seeds == 5 and five.configurations == len(one)
+    assert {c.seed for c in five.cells} == {0, 1, 2, 3, 4}
+    assert len({c.cell_id for c in five.cells}) == len(five)
+    assert [c.cell_id for c in get_grid("paper").cells] == [c.cell_id for c in get_grid("paper", seeds=3).cells]
 
 
 def test_unknown_grid__is_a_bench_error() -> None:
@@ -70,9 +72,12 @@ def test_cost__is_episodes_times_horizon_times_n_over_throughput() -> None:
     cell = get_grid("paper").cells[0]
     assert cell.n_robots == 20  # a measured point: no interpolation
     rate = {k: v[20] for k, v in costs.AGENT_STEPS_PER_S[cell.method].items()}
-    expected = (2000 * 500 * cell.n_robots / rate["train"] + 100 * 500 * cell.n_robots / rate["eval"])
+    modes = 3  # argmax, sample, sample@0.5: every evaluation episode runs once per mode
+    expected = (2000 * 500 * cell.n_robots / rate["train"] + modes * 100 * 500 * cell.n_robots / rate["eval"])
     assert costs.cell_seconds(cell) == pytest.approx(expected)
     assert costs.grid_cell_hours([cell, cell]) == pytest.approx(2 * expected / 3600)
+    pibt = next(c for c in get_grid("paper").cells if c.method == "pibt" and c.n_robots == 20)
+    assert costs.cell_seconds(pibt) == pytest.approx(100 * 500 * 20 / costs.AGENT_STEPS_PER_S["pibt"]["eval"][20])
 
 
 def test_grid_file__toml_base_crossed_with_axes_including_params(tmp_path: Path) -> None:

@@ -25,11 +25,12 @@ def _grid(*specs: dict) -> Grid:
 def _frames(out: Path) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     store = RunStore(out)
     key = ["cell_id", "episode"]
+    ekey = ["cell_id", "execution", "episode"]
     train = store.read_train()
     evals = store.read_eval()
     return (store.read_cells().set_index("cell_id").sort_index(),
             train[METRICS + ["actor_loss"]].sort_values(key).reset_index(drop=True),
-            evals[METRICS].sort_values(key).reset_index(drop=True))
+            evals[METRICS + ["execution", "scenario"]].sort_values(ekey).reset_index(drop=True))
 
 
 def _four_cells() -> Grid:
@@ -44,7 +45,8 @@ def test_run__one_and_two_workers_give_identical_metrics_and_rerun_changes_nothi
     c1, t1, e1 = _frames(tmp_path / "w1")
     c2, t2, e2 = _frames(tmp_path / "w2")
     assert (c1["status"] == "done").all() and (c1["attempts"] == 1).all()
-    assert len(t1) == 4 * 8 and len(e1) == 4 * 5
+    assert len(t1) == 4 * 8 and len(e1) == 4 * 5 * 3  # 5 episodes in argmax, sample, sample@0.5
+    assert not e1.duplicated(["cell_id", "execution", "episode"]).any()
     pd.testing.assert_frame_equal(t1, t2)
     pd.testing.assert_frame_equal(e1, e2)
     assert (c1["peak_mem_mb"] > 50).all() and (c1["wall_s"] > 0).all()
@@ -145,3 +147,25 @@ def test_run__done_cell_with_missing_rows_is_run_again_to_identical_rows(toy: st
     pd.testing.assert_frame_equal(train0, train1)
     pd.testing.assert_frame_equal(eval0, eval1)
     assert run_grid(grid, out, workers=2, checkpoint_every=1).rerun == {}
+
+
+def test_run__interrupted_between_execution_modes_then_resumed_has_every_mode_once(
+        toy: str, tmp_path: Path) -> None:
+    grid = _grid(*(toy_spec(seed=s) for s in (0, 1)))  # 3 chunks x 3 modes = 9 eval units per cell
+    seen = []
+
+    def interrupt(kind: str, st: object) -> None:
+        seen.append(kind)
+        if seen.count("eval_chunk") == 4:  # some modes of a cell evaluated, others not
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_grid(grid, tmp_path / "a", workers=2, checkpoint_every=2, on_event=interrupt)
+    assert (RunStore(tmp_path / "a").read_cells()["status"] != "done").all()
+    run_grid(grid, tmp_path / "a", workers=2, checkpoint_every=2)
+    run_grid(grid, tmp_path / "b", workers=1, checkpoint_every=2)
+    ca, _, ea = _frames(tmp_path / "a")
+    _, _, eb = _frames(tmp_path / "b")
+    assert (ca["status"] == "done").all()
+    assert len(ea) == 2 * 5 * 3 and not ea.duplicated(["cell_id", "execution", "episode"]).any()
+    pd.testing.assert_frame_equal(ea, eb)

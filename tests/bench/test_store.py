@@ -21,7 +21,8 @@ def _metric_row(episode: int, **extra: float) -> dict:
     return {"episode": episode, "team_return": 1.5 * episode, "success_rate": 0.25, "collision_rate": 0.0,
             "invalid_rate": 0.1, "correction_rate": 0.0, "mean_candidates": float("nan"),
             "fallback_rate": float("nan"), "predictor_error": float("nan"),
-            "payload_scalars_per_step": 36.0, "payload_dec_per_step": 1140.0, "steps": 500, **extra}
+            "payload_scalars_per_step": 36.0, "payload_dec_per_step": 1140.0, "steps": 500,
+            "execution": "argmax", "scenario": f"{episode:016x}", **extra}
 
 
 def test_atomic_file__failure_mid_write_keeps_the_old_file_and_no_temp(tmp_path: Path) -> None:
@@ -66,18 +67,20 @@ def test_cells_table__round_trip_keeps_types(tmp_path: Path) -> None:
     row = {f.name: None for f in CELLS_SCHEMA}
     row.update(cell_id="c1", grid="g", method="pibt", n_robots=8, loss_p=0.2, seed=0, groups=4, ref_size=8,
                search_radius=2, c_max=500, safety_filter=False, layout="tiny", episodes=0, horizon=10,
-               eval_episodes=5, on_goal="remove", loss_model="bernoulli", params_json="{}", config_json="{}",
+               eval_episodes=5, on_goal="remove", loss_model="bernoulli", executions="planner",
+               params_json="{}", config_json="{}",
                status="done", error="", train_episodes_done=0, wall_s=1.0, peak_mem_mb=400.0, attempts=1,
                versions_json="{}", schema_version=SCHEMA_VERSION)
     store.write_cells([row])
     df = store.read_cells()
     assert df.to_dict("records") == [row]
-    assert pq.read_schema(store.cells_path).metadata[b"schema_version"] == b"1"
+    assert pq.read_schema(store.cells_path).metadata[b"schema_version"] == str(SCHEMA_VERSION).encode()
 
 
-def test_rows_to_table__missing_required_column_is_an_error() -> None:
-    with pytest.raises(KeyError, match="steps"):
-        rows_to_table([{k: v for k, v in _metric_row(0).items() if k != "steps"} | {"cell_id": "a"}], EVAL_SCHEMA)
+@pytest.mark.parametrize("column", ["steps", "execution"])
+def test_rows_to_table__missing_required_column_is_an_error(column: str) -> None:
+    with pytest.raises(KeyError, match=column):
+        rows_to_table([{k: v for k, v in _metric_row(0).items() if k != column} | {"cell_id": "a"}], EVAL_SCHEMA)
 
 
 def test_read__other_schema_version_is_refused(tmp_path: Path) -> None:
@@ -137,6 +140,12 @@ def test_checkpoint__round_trip_with_weights_only_and_format_check(tmp_path: Pat
     torch.save({"something": "else"}, tmp_path / "foreign.pt")
     with pytest.raises(BenchError, match="not a bench checkpoint"):
         load_checkpoint(tmp_path / "foreign.pt")
+    old = {**torch.load(store.ckpt_path(CID), weights_only=True), "schema_version": 1}
+    torch.save(old, tmp_path / "v1.pt")  # schema 2 changed eval rows only: v1 checkpoints load
+    assert torch.equal(load_checkpoint(tmp_path / "v1.pt")["state"]["w"], state["w"])
+    torch.save({**old, "schema_version": SCHEMA_VERSION + 1}, tmp_path / "vnext.pt")
+    with pytest.raises(BenchError, match=f"schema version {SCHEMA_VERSION + 1}"):
+        load_checkpoint(tmp_path / "vnext.pt")
     (tmp_path / "torn.pt").write_bytes(store.ckpt_path(CID).read_bytes()[:100])
     with pytest.raises(BenchError, match="corrupt checkpoint"):
         load_checkpoint(tmp_path / "torn.pt")

@@ -41,15 +41,18 @@ def test_train_chunks__resuming_from_each_checkpoint_equals_one_straight_run(toy
     assert state["episodes_done"] == 6
 
 
-@pytest.mark.parametrize("method", ["toy", "decentralized"])  # greedy; sampled evaluation
-def test_eval_chunks__same_rows_in_any_order_and_on_any_worker(toy: str, method: str) -> None:
+@pytest.mark.parametrize("method", ["toy", "decentralized"])
+@pytest.mark.parametrize("mode", ["argmax", "sample", "sample@0.5"])
+def test_eval_chunks__same_rows_in_any_order_and_on_any_worker(toy: str, method: str, mode: str) -> None:
     spec = cell_spec(Cell.make(**toy_spec(method=method, eval_episodes=6)))
     _, state = _train_all(CellWorker(), spec, k=10, restart_every_chunk=False)
     one = CellWorker()
-    forward = [r for c in (0, 1, 2) for r in one.eval_chunk(spec, [state], c)["rows"]]
-    backward = {c: CellWorker().eval_chunk(spec, [state], c)["rows"] for c in (2, 1, 0)}
+    one.eval_chunk(spec, [state], 1, "sample")  # another mode first on the same worker
+    forward = [r for c in (0, 1, 2) for r in one.eval_chunk(spec, [state], c, mode)["rows"]]
+    backward = {c: CellWorker().eval_chunk(spec, [state], c, mode)["rows"] for c in (2, 1, 0)}
     again = [r for c in (0, 1, 2) for r in backward[c]]
     assert [r["episode"] for r in forward] == list(range(6))
+    assert {r["execution"] for r in forward} == {mode}
     assert pd.DataFrame(forward).equals(pd.DataFrame(again))
 
 

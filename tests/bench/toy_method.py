@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from algorithms.base import Method, MethodParams, masked_logits, sample_categorical
+from algorithms.base import ActionChoice, Method, MethodParams, masked_logits
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.trainer import mc_returns
 from envs.observations import action_progress
@@ -59,15 +59,15 @@ class ToyMethod(Method):
     def modules(self) -> dict[str, Any]:
         return {"policy": self.policy, "opt": self.opt}
 
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> dict[str, list[Any]]:
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> dict[str, list[Any]]:
         return {"prog": [], "act": [], "rew": [], "run": []}
 
-    def decide(self, batch: EpisodeBatch, state: dict[str, list[Any]], greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: dict[str, list[Any]], choice: ActionChoice) -> Decision:
         core = batch.core
         prog = torch.as_tensor(action_progress(core))
         mask = core.layout.move_valid[core.pos]
         logits = masked_logits(self.policy(prog), mask)
-        actions = sample_categorical(logits, greedy, self.torch_gen).numpy()
+        actions = choice(logits).numpy()
         actions = np.where(core.done | core.ended[:, None], 4, actions)
         state["prog"].append(prog)
         state["act"].append(torch.as_tensor(actions))

@@ -1,8 +1,8 @@
 """The PettingZoo adapter: API contract, seeding, equivalence with the core, rendering."""
 from __future__ import annotations
 
+import io
 import pickle
-import warnings
 
 import imageio.v3 as iio
 import numpy as np
@@ -14,7 +14,8 @@ from envs.config import EnvConfig
 from envs.core import WarehouseCore
 from envs.errors import BenchError
 from envs.layouts import from_ascii, load_layout
-from envs.render import render_ansi, render_rgb, write_gif
+from envs.observations import robot_features
+from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.scenarios import sample_scenarios
 from envs.warehouse_v0 import parallel_env
 
@@ -51,26 +52,43 @@ def test_warehouse_v0__passes_parallel_seed_test():
 
 
 def test_warehouse_v0__passes_aec_api_test():
-    with warnings.catch_warnings():
-        # Dict {"observation", "action_mask"} is PettingZoo's masked-action pattern; the
-        # checker still recommends plain Box/Discrete observations.
-        warnings.filterwarnings("ignore", "Observation space for each agent probably")
-        warnings.filterwarnings("ignore", "Observation is not a NumPy array")
-        api_test(parallel_to_aec(parallel_env(**SMALL)), num_cycles=30)
+    api_test(parallel_to_aec(parallel_env(**SMALL)), num_cycles=30)
 
 
-def test_warehouse_v0__passes_render_test():
-    def env_fn(render_mode=None):
-        # render_test probes render_mode="human" first; this env renders to arrays/text only.
-        mode = None if render_mode == "human" else render_mode
-        return parallel_to_aec(parallel_env(**SMALL, render_mode=mode))
+@pytest.mark.parametrize("flat_obs", [False, True])
+def test_warehouse_v0__passes_checkers_with_flat_observations(flat_obs):
+    parallel_api_test(parallel_env(**SMALL, flat_obs=flat_obs), num_cycles=40)
+    api_test(parallel_to_aec(parallel_env(**SMALL, flat_obs=flat_obs)), num_cycles=20)
 
-    render_test(env_fn)
+
+def test_warehouse_v0__passes_render_test_unmodified(capsys):
+    render_test(lambda render_mode=None: parallel_to_aec(
+        parallel_env(**SMALL, render_mode=render_mode)))
+    printed = capsys.readouterr().out  # "human": text frames on stdout, render() -> None
+    assert printed.count("t=") >= 5 and "@" in printed
+
+
+def test_warehouse_v0__human_mode_prints_the_ansi_frame(capsys):
+    env = parallel_env(**SMALL, render_mode="human")
+    env.reset(seed=1)
+    assert env.render() is None
+    text = parallel_env(**SMALL, render_mode="ansi")
+    text.reset(seed=1)
+    assert capsys.readouterr().out == text.render() + "\n\n"  # not a TTY: no clear codes
+
+
+def test_show_in_terminal__clears_the_screen_on_a_tty():
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+    out = Tty()
+    show_in_terminal("frame", out)
+    assert out.getvalue() == "\x1b[H\x1b[2Jframe\n"
 
 
 def test_warehouse_v0__unknown_render_mode_is_an_error():
-    with pytest.raises(BenchError, match="render_mode 'human'"):
-        parallel_env(**SMALL, render_mode="human")
+    with pytest.raises(BenchError, match="render_mode 'video'"):
+        parallel_env(**SMALL, render_mode="video")
 
 
 def test_warehouse_v0__bad_config_names_the_field():
@@ -229,7 +247,7 @@ def test_warehouse_v0__action_mask_blocks_walls_and_keeps_wait():
     # From (1, 1): Up wall, Down free, Left wall, Right free, Wait.
     np.testing.assert_array_equal(obs["robot_0"]["action_mask"], [0, 1, 0, 1, 1])
     assert obs["robot_0"]["action_mask"].dtype == np.int8
-    np.testing.assert_array_equal(infos["robot_0"]["action_mask"], [0, 1, 0, 1, 1])
+    assert all("action_mask" not in info for info in infos.values())  # SPEC 2: obs only
     # A masked move still steps: the robot stays in place and the move counts as invalid.
     _, _, _, _, infos = env.step({"robot_0": 0})
     assert infos["robot_0"]["position"] == (1, 1) and infos["robot_0"]["invalid"]
@@ -302,3 +320,55 @@ def test_warehouse_v0__writes_readable_gif_with_one_frame_per_step(tmp_path):
 def test_write_gif__rejects_empty_frames(tmp_path):
     with pytest.raises(BenchError, match="no frames"):
         write_gif([], tmp_path / "x.gif")
+
+
+# --------------------------------------------------- wrappers need (issue 15)
+def test_warehouse_v0__robot_starting_on_its_goal_is_in_reset_and_ends_at_first_step():
+    layout = from_ascii("@@@@@\n@...@\n@...@\n@@@@@", "box")
+    env = parallel_env(n_robots=2, layout=layout, horizon=10)
+    obs, infos = env.reset(options={"starts": [(1, 1), (2, 3)], "goals": [(1, 1), (2, 1)]})
+    assert env.agents == ["robot_0", "robot_1"] and set(obs) == set(infos) == set(env.agents)
+    np.testing.assert_array_equal(obs["robot_0"]["action_mask"], [0, 0, 0, 0, 1])
+    assert infos["robot_0"]["at_goal"]
+    _, rew, term, trunc, _ = env.step({"robot_0": 4, "robot_1": 2})
+    assert term == {"robot_0": True, "robot_1": False} and not any(trunc.values())
+    assert rew["robot_0"] == rew["robot_1"] and env.agents == ["robot_1"]
+
+
+def test_warehouse_v0__sampled_scenarios_never_start_a_robot_on_its_goal():
+    env = parallel_env(n_robots=30, layout="tiny")
+    for seed in range(30):
+        _, infos = env.reset(seed=seed)
+        assert not any(info["at_goal"] for info in infos.values())
+
+
+def test_warehouse_v0__groups_default_to_min_4_n():
+    assert parallel_env(n_robots=2, layout="tiny").config.groups == 2
+    assert parallel_env(n_robots=3, layout="tiny").config.groups == 3
+    assert parallel_env(n_robots=9, layout="tiny").config.groups == 4
+    assert parallel_env(n_robots=2, groups=1, layout="tiny").config.groups == 1
+    assert EnvConfig.make(n_robots=2).groups == 2
+    with pytest.raises(BenchError, match="groups=4 exceeds n_robots=2"):
+        parallel_env(n_robots=2, groups=4, layout="tiny")
+
+
+def test_warehouse_v0__flat_observation_is_features_then_mask():
+    env = parallel_env(**SMALL, flat_obs=True)
+    ref = parallel_env(**SMALL)
+    obs, _ = env.reset(seed=3)
+    obs_ref, _ = ref.reset(seed=3)
+    for a in env.agents:
+        assert obs[a].dtype == np.float32 and env.observation_space(a).contains(obs[a])
+        np.testing.assert_array_equal(obs[a], np.concatenate(
+            [obs_ref[a]["observation"], obs_ref[a]["action_mask"].astype(np.float32)]))
+
+
+def test_warehouse_v0__observations_are_views_of_one_batched_array():
+    env = parallel_env(**SMALL)
+    obs, _ = env.reset(seed=0)
+    base = obs["robot_0"]["observation"].base
+    assert base is not None and all(obs[a]["observation"].base is base for a in env.agents)
+    feats = robot_features(env.core, env.patch, env.groups)[0]
+    np.testing.assert_array_equal(np.stack([obs[a]["observation"] for a in env.agents]), feats)
+    _, infos = env.reset(seed=0)
+    infos["robot_0"]["terminal_observation"] = 1  # SuperSuit writes into infos

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from bench.schema import SCHEMA_VERSION
 from bench.store import RunStore
 
 D_M, Z = 3, 4
@@ -66,7 +67,8 @@ def frames(seeds: int = 2, episodes: int = 120, eval_eps: int = 20, hold: bool =
             "c_max": 500, "safety_filter": filt, "layout": "wh20", "episodes": episodes, "horizon": 50,
             "eval_episodes": eval_eps, "on_goal": "remove", "loss_model": "bernoulli", "params_json": "{}",
             "config_json": json.dumps(spec), "status": "done", "error": "", "train_episodes_done": episodes,
-            "wall_s": 1.0, "peak_mem_mb": 100.0, "attempts": 1, "versions_json": "{}", "schema_version": 1,
+            "wall_s": 1.0, "peak_mem_mb": 100.0, "attempts": 1, "versions_json": "{}", "schema_version": SCHEMA_VERSION,
+            "executions": "planner" if m == "pibt" else "argmax",
         })
         curve = _train_curve(m, n, episodes, rng, hold)
         payload = {"hierarchical": n * (Z - 1) * D_M, "decentralized": n * (n - 1) * D_M}.get(m, n * 16.0)
@@ -79,7 +81,8 @@ def frames(seeds: int = 2, episodes: int = 120, eval_eps: int = 20, hold: bool =
         good = (m == "hierarchical") == hold
         succ = np.clip(rng.beta(9, 2, eval_eps) if good else rng.beta(2, 5, eval_eps), 0, 1)
         for e in range(eval_eps):
-            row = {"cell_id": cid, "episode": e, "team_return": 10 * succ[e], "success_rate": succ[e],
+            row = {"cell_id": cid, "episode": e, "execution": "planner" if m == "pibt" else "argmax",
+                   "scenario": f"{e:016x}", "team_return": 10 * succ[e], "success_rate": succ[e],
                    "collision_rate": 0.0 if hold else 0.01, "invalid_rate": 0.0,
                    "correction_rate": np.nan, "payload_scalars_per_step": payload,
                    "payload_dec_per_step": n * (n - 1) * D_M, "steps": 50}
@@ -111,6 +114,6 @@ def write_store(run: Path, cells: pd.DataFrame, train: pd.DataFrame, evals: pd.D
     for cid, g in evals.groupby("cell_id"):
         rs.write_eval(str(cid), g.to_dict("records"), {"wall_s": 1.0})
     rs.write_manifest(manifest if manifest is not None else {
-        "schema_version": 1, "package_version": "0.1.0", "git_sha": "deadbeef", "grid": "synthetic",
+        "schema_version": SCHEMA_VERSION, "package_version": "0.1.0", "git_sha": "deadbeef", "grid": "synthetic",
         "command": "bench run --grid synthetic", "versions": {"python": "3.12", "torch": "2.13"}})
     return run

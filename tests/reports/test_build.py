@@ -64,7 +64,28 @@ def test_build_report__index_links_everything_with_the_manifest(paper_run):
     assert "deadbeef" in md and "deadbeef" in html  # git sha of the manifest
     assert "bench run --grid synthetic" in html
     assert "Every cell of the store is done." in md
-    assert md.count("**holds**") == 6
+    assert md.count("**not enough seeds**") == 6  # 2 seeds per configuration
+    assert "**supported**" not in md
+
+
+def test_build_report__two_seeds_never_print_supported(paper_run):
+    run, out = paper_run
+    for at in ("paper", "run"):
+        build_report(run, claims_at=at)
+        claims = pd.read_csv(out / "claims.csv")
+        assert "supported" not in set(claims["verdict"]), at
+        assert "**supported**" not in (out / "index.md").read_text()
+        assert "| supported |" not in (out / "claims.md").read_text()
+    assert set(claims["scope"]) == {"paper", "run"}
+    build_report(run)
+
+
+def test_build_report__claims_page_links_the_calibration_table(paper_run):
+    _, out = paper_run
+    assert "[calibration](calibration.md)" in (out / "claims.md").read_text()
+    cal = (out / "calibration.md").read_text()
+    assert "| no_collisions | null |" in cal and "**NO**" not in cal
+    assert (out / "calibration.json").exists()
 
 
 def test_build_report__is_deterministic(paper_run):
@@ -95,8 +116,9 @@ def test_build_report__missing_and_failed_cells_still_build_and_are_listed(tmp_p
     t1 = (out / "table1_safety.md").read_text()
     assert "| 80 | not run |" in t1 and "lacks: 80" in t1
     claims = (out / "claims.md").read_text()
-    assert "| [hier_above_dec](#hier_above_dec) | **not enough data** |" in claims
-    assert "| N = 80, p = 0.2 | not enough data | configuration missing |" in claims
+    assert ("| [hier_above_dec](#hier_above_dec) | Hierarchical above decentralized (final training "
+            "reward) | **not enough seeds** | training (sampled): not enough seeds |") in claims
+    assert "| paper | N = 80, p = 0.2 | training (sampled) | not enough seeds | 0 seeds" in claims
 
 
 def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
@@ -109,8 +131,9 @@ def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
     assert "(a) the run has no training data for N = 20, 40, 60 at p = 0.2" in md
     assert "the run has no hierarchical or IC3Net evaluation for N = 40, 60" in md
     claims = (out / "claims.md").read_text()
-    assert "| [payload_ratio](#payload_ratio) | **holds** |" in claims
-    assert claims.count("**not enough data**") >= 5
+    assert ("| [payload_ratio](#payload_ratio) | Payload ratio equals (Z-1)/(N-1) | "
+            "**verified by construction** |") in claims
+    assert claims.count("**not enough seeds**") >= 5
     s = pd.read_csv(out / "summary.csv")
     assert set(s["method"]) == {"hierarchical", "decentralized", "ic3net", "pibt"}
     assert (s["ci_over"] == "episodes").all()

@@ -1,5 +1,6 @@
-"""Each claim's verdict on synthetic tables built to hold, built to fail, and with
-configurations missing (reports/claims.py). Runtime: about 3 s."""
+"""Each claim's verdict on synthetic tables built to hold, built to fail, with too few
+seeds, per execution mode and at the run's own configurations (reports/claims.py,
+reports/verdicts.py, reports/claims_page.py). Runtime: about 5 s."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,111 +8,235 @@ import pandas as pd
 import pytest
 
 from reports.claims import (
-    FAILS,
-    HOLDS,
-    NO_DATA,
     all_claims,
     claim_above_ic3net,
     claim_convergence,
+    claim_few_corrections,
     claim_gap_widens,
     claim_hier_above_dec,
+    claim_lemma1,
+    claim_no_collisions,
     claim_payload_ratio,
-    claim_safety,
-    claims_markdown,
-    combine,
+    final_means,
+    per_cell,
+    with_execution,
 )
-from tests.reports.synthetic import frames, joined
+from reports.claims_page import calibration_markdown, claims_frame, claims_markdown, claims_summary
+from reports.stats import t_test
+from reports.verdicts import (
+    BY_CONSTRUCTION,
+    CONTRADICTED,
+    INCONCLUSIVE,
+    NOT_ENOUGH,
+    SUPPORTED,
+    check_collisions,
+    check_corrections,
+    check_curves,
+    check_greater,
+    combine,
+    decide,
+    lemma1_bound,
+)
+from tests.reports.synthetic import frames, joined, smoke_specs
 
-KEYS = ["hier_above_dec", "gap_widens", "convergence", "above_ic3net", "payload_ratio", "safety"]
+KEYS = ["hier_above_dec", "gap_widens", "convergence", "above_ic3net", "no_collisions",
+        "few_corrections", "payload_ratio", "lemma1_budget"]
+STATISTICAL = KEYS[:6]
+
+
+def _tables(seeds: int, hold: bool, seed: int = 0, **kw) -> tuple[pd.DataFrame, pd.DataFrame]:
+    cells, train, evals = frames(seeds=seeds, hold=hold, seed=seed, **kw)
+    return joined(cells, train), joined(cells, evals)
 
 
 @pytest.fixture(scope="module")
 def holding():
-    cells, train, evals = frames(seeds=2, hold=True)
-    return joined(cells, train), joined(cells, evals)
+    return _tables(3, True)
 
 
-@pytest.fixture(scope="module")
-def failing():
-    cells, train, evals = frames(seeds=2, hold=False, seed=1)
-    return joined(cells, train), joined(cells, evals)
+def test_combine__contradicted_dominates_then_inconclusive_then_missing():
+    assert combine([SUPPORTED, SUPPORTED]) == SUPPORTED
+    assert combine([SUPPORTED, BY_CONSTRUCTION]) == SUPPORTED
+    assert combine([BY_CONSTRUCTION, BY_CONSTRUCTION]) == BY_CONSTRUCTION
+    assert combine([SUPPORTED, NOT_ENOUGH]) == NOT_ENOUGH
+    assert combine([INCONCLUSIVE, NOT_ENOUGH, SUPPORTED]) == INCONCLUSIVE
+    assert combine([NOT_ENOUGH, CONTRADICTED, SUPPORTED]) == CONTRADICTED
+    assert combine([]) == NOT_ENOUGH
 
 
-def test_combine__failure_dominates_then_missing_data():
-    assert combine([HOLDS, HOLDS]) == HOLDS
-    assert combine([HOLDS, NO_DATA]) == NO_DATA
-    assert combine([NO_DATA, FAILS, HOLDS]) == FAILS
-    assert combine([]) == NO_DATA
+def test_decide__direction_of_significance():
+    assert decide(t_test([[3.0, 4.0, 5.0]], [1.0])) == SUPPORTED
+    assert decide(t_test([[-3.0, -4.0, -5.0]], [1.0])) == CONTRADICTED
+    assert decide(t_test([[-1.0, 0.0, 2.0]], [1.0])) == INCONCLUSIVE
+    assert decide(t_test([[1.0]], [1.0])) == NOT_ENOUGH
+    assert decide(t_test([[3.0, 4.0, 5.0]], [1.0]), alpha=0.001) == INCONCLUSIVE  # p = 0.0126
 
 
-def test_claims__all_hold_on_tables_built_to_hold(holding):
+def test_claims__supported_on_tables_built_to_hold_with_three_seeds(holding):
     claims = all_claims(*holding)
     assert [c.key for c in claims] == KEYS
-    for c in claims:
-        assert c.verdict == HOLDS, (c.key, [k.numbers for k in c.checks])
-        assert "bootstrap CI over seeds" in " ".join(k.test for k in c.checks) or c.key in (
-            "convergence", "payload_ratio")
+    for c in claims[:6]:
+        assert c.verdict == SUPPORTED, (c.key, [k.numbers for k in c.checks])
+    assert claims[6].verdict == BY_CONSTRUCTION
+    assert claims[7].verdict == CONTRADICTED  # Lemma 1 fails from N = 40 at the paper's settings
 
 
-def test_claims__none_holds_on_tables_built_to_fail(failing):
-    for c in all_claims(*failing):
-        assert c.verdict == FAILS, (c.key, [k.numbers for k in c.checks])
+def test_claims__contradicted_on_tables_built_to_fail():
+    for c in all_claims(*_tables(3, False, seed=1)):
+        # the failing tables give the decentralized method the same level at every N:
+        # equal gaps, so "the gap widens" is neither shown nor refuted
+        want = INCONCLUSIVE if c.key == "gap_widens" else CONTRADICTED
+        assert c.verdict == want, (c.key, [k.numbers for k in c.checks])
 
 
-def test_claims__single_seed_uses_mann_whitney_over_episodes():
-    cells, train, evals = frames(seeds=1, hold=True, seed=2)
-    tr, ev = joined(cells, train), joined(cells, evals)
-    c = claim_hier_above_dec(tr)
-    assert c.verdict == HOLDS
-    assert all("Mann-Whitney" in k.test for k in c.checks)
-    assert claim_above_ic3net(ev).verdict == HOLDS
-    c = claim_hier_above_dec(joined(*frames(seeds=1, hold=False, seed=2)[:2]))
-    assert c.verdict == FAILS
+def test_claims__two_seeds_are_never_supported():
+    for hold in (True, False):
+        for c in all_claims(*_tables(2, hold, seed=3), at="run"):
+            if c.key in STATISTICAL:
+                assert {k.verdict for k in c.checks} == {NOT_ENOUGH}, c.key
+            assert SUPPORTED not in {k.verdict for k in c.checks}
+    claims = all_claims(*_tables(2, True))
+    assert SUPPORTED not in set(claims_frame(claims)["verdict"])
+    assert "**Verdict: supported**" not in claims_markdown(claims)
 
 
-def test_claims__missing_configurations_are_not_enough_data(holding):
-    train, evals = holding
-    no_dec60 = train[~((train["method"] == "decentralized") & (train["n_robots"] == 60))]
-    c = claim_hier_above_dec(no_dec60)
-    assert c.verdict == NO_DATA
-    assert [k.verdict for k in c.checks] == [HOLDS, HOLDS, NO_DATA]
-    assert claim_gap_widens(no_dec60).verdict == NO_DATA
-    assert claim_convergence(train[train["n_robots"] != 90]).verdict == NO_DATA
-    assert claim_above_ic3net(evals[evals["method"] != "ic3net"]).verdict == NO_DATA
-    assert claim_safety(evals[evals["loss_p"] != 0.2]).verdict == NO_DATA
-    assert claim_payload_ratio(evals[evals["method"] != "hierarchical"]).verdict == NO_DATA
-    empty_t, empty_e = train.iloc[0:0], evals.iloc[0:0]
-    assert {c.verdict for c in all_claims(empty_t, empty_e)} == {NO_DATA}
+def test_claims__per_seed_values_not_pooled_episodes():
+    # 3 vs 3 seeds whose episodes differ a lot but whose seed means overlap: pooling
+    # 300 episodes per side would be "significant"; the seed-level test is not.
+    a = [np.full(100, v) for v in (1.0, 3.0, 5.0)]
+    b = [np.full(100, v) for v in (0.5, 2.5, 4.5)]
+    v, nums, test = check_greater(np.array([x.mean() for x in a]), np.array([x.mean() for x in b]), "r")
+    assert v == INCONCLUSIVE and "3 vs 3 seeds" in test and "P(improvement) = 0.67" in nums
 
 
-def test_claims__too_short_training_is_not_enough_data():
-    cells, train, _ = frames(seeds=1, episodes=20)
-    c = claim_convergence(joined(cells, train))
-    assert c.verdict == NO_DATA  # windows of 4 episodes
+def test_final_means__last_fifth_of_each_cell_in_episode_order():
+    tr = pd.DataFrame({"cell_id": ["b"] * 10 + ["a"] * 5, "episode": [*range(9, -1, -1), *range(5)],
+                       "team_return": [*np.arange(10.0)[::-1], 1.0, 1.0, 1.0, 1.0, 9.0]})
+    # cell a: last 1 of 5 -> 9; cell b (episode e has return e): last 2 -> 8.5
+    np.testing.assert_array_equal(final_means(tr), [9.0, 8.5])
+    assert [list(x) for x in per_cell(tr.iloc[10:], "team_return")] == [[1.0, 1.0, 1.0, 1.0, 9.0]]
 
 
-def _eval_rows(method: str, success: np.ndarray, n: int = 40, p: float = 0.2, cell: str = "") -> pd.DataFrame:
-    return pd.DataFrame({"cell_id": cell or method, "episode": np.arange(len(success)),
-                         "success_rate": success, "method": method, "n_robots": n, "loss_p": p,
-                         "seed": 0, "groups": 4, "safety_filter": method == "hierarchical"})
+def test_convergence__rise_then_collapse_is_contradicted_and_plateau_supported():
+    e = np.arange(200.0)
+    rng = np.random.default_rng(0)
+    rows = []
+    for s in range(3):
+        rise = 10 * np.minimum(e / 100, 1.0)
+        collapse = rise - np.where(e >= 160, (e - 160) / 40 * 3, 0.0)  # best window then -3
+        for name, y in (("plateau", rise), ("collapse", collapse)):
+            rows.append(pd.DataFrame({"cell_id": f"{name}{s}", "episode": e,
+                                      "team_return": y + rng.normal(0, 0.3, e.size),
+                                      "method": "hierarchical", "n_robots": 80 if name == "plateau" else 90,
+                                      "loss_p": 0.2}))
+    tr = pd.concat(rows)
+    c = claim_convergence(tr, configs=[(80, 0.2), (90, 0.2)])
+    assert [k.verdict for k in c.checks] == [SUPPORTED, CONTRADICTED]
+    assert "windows of 40 episodes" in c.checks[0].test
 
 
-def test_above_ic3net__higher_mean_but_crossing_curves_does_not_hold():
-    # Hierarchical: two failed episodes, otherwise perfect; IC3Net: always 0.5. The mean is
-    # higher (0.9 vs 0.5, significant) but the lowest 10% of episodes are below IC3Net.
-    hier = np.r_[np.zeros(2), np.ones(18)]
-    ic3 = np.full(20, 0.5)
-    ev = pd.concat([_eval_rows("hierarchical", hier), _eval_rows("ic3net", ic3)])
-    c = claim_above_ic3net(ev, ns=(40,), ps=(0.2,))
-    assert c.verdict == FAILS
-    assert "curve difference min -0.5" in c.checks[0].numbers
-    ev2 = pd.concat([_eval_rows("hierarchical", np.full(20, 0.6)), _eval_rows("ic3net", ic3)])
-    assert claim_above_ic3net(ev2, ns=(40,), ps=(0.2,)).verdict == HOLDS
+def _ev(method: str, succ: np.ndarray, n: int = 40, p: float = 0.2, mode: str | None = None,
+        **cols) -> pd.DataFrame:
+    """(S, E) success rates -> evaluation rows, one cell per seed."""
+    s, e = succ.shape
+    df = pd.DataFrame({"cell_id": np.repeat([f"{method}{n}{mode}{k}" for k in range(s)], e),
+                       "episode": np.tile(np.arange(e), s), "success_rate": succ.reshape(-1),
+                       "method": method, "n_robots": n, "loss_p": p, "seed": np.repeat(range(s), e),
+                       "groups": 4, "safety_filter": method == "hierarchical",
+                       **{k: np.asarray(v).reshape(-1) for k, v in cols.items()}})
+    if mode is not None:
+        df["execution"] = mode
+    return df
 
 
-def test_above_ic3net__identical_results_do_not_hold():
-    ev = pd.concat([_eval_rows("hierarchical", np.ones(20)), _eval_rows("ic3net", np.ones(20))])
-    assert claim_above_ic3net(ev, ns=(40,), ps=(0.2,)).verdict == FAILS
+def test_above_ic3net__crossing_curves_are_contradicted_despite_a_higher_mean():
+    # hierarchical: 30% of episodes fail, the rest perfect (mean 0.7); IC3Net always 0.5.
+    rng = np.random.default_rng(0)
+    hier = np.r_[np.zeros(6), np.ones(14)][None, :] + rng.normal(0, 0.01, (4, 20))
+    ic3 = 0.5 + rng.normal(0, 0.01, (4, 20))
+    v, nums, test = check_curves(list(hier), list(ic3))
+    assert v == CONTRADICTED and "10th percentile" in nums and "Bonferroni" in test
+    v, _, _ = check_curves(list(ic3 + 0.2), list(ic3))
+    assert v == SUPPORTED
+    # higher on its best 70% of episodes, 0.05 lower on its worst 30%: the mean is clearly
+    # higher but the band cannot exclude "more than 0.05 below" there: inconclusive
+    q = np.sort(rng.normal(0, 0.2, 20))
+    shift = np.where(np.arange(20) < 6, -0.05, 0.3)
+    v, nums, _ = check_curves(list(0.5 + q + shift + rng.normal(0, 0.05, (4, 1))),
+                              list(0.5 + q + rng.normal(0, 0.05, (4, 1))))
+    assert v == INCONCLUSIVE and "at the 10th percentile" in nums
+    v, _, _ = check_curves(list(ic3 - 0.04), list(ic3))  # within tolerance but lower mean
+    assert v == CONTRADICTED
+    v, _, _ = check_curves(list(ic3), list(ic3 + rng.normal(0, 0.01, ic3.shape)))
+    assert v == INCONCLUSIVE
+    assert check_curves(list(ic3[:2]), list(ic3))[0] == NOT_ENOUGH
+
+
+def test_above_ic3net__one_check_per_shared_execution_mode():
+    rng = np.random.default_rng(1)
+    lift = {"argmax": 0.5, "sample": -0.5, "sample@0.5": 0.0}  # hierarchical minus IC3Net
+    parts = [_ev(m, rng.uniform(0, 0.2, (3, 10)) + (lift[x] if m == "hierarchical" else 0.0), mode=x)
+             for m in ("hierarchical", "ic3net") for x in ("argmax", "sample", "sample@0.5")]
+    c = claim_above_ic3net(pd.concat(parts), configs=[(40, 0.2)])
+    assert [k.execution for k in c.checks] == ["argmax", "sample", "sample@0.5"]
+    assert [k.verdict for k in c.checks] == [SUPPORTED, CONTRADICTED, INCONCLUSIVE]
+    # a store without the column: each method in its old default mode
+    old = pd.concat([_ev("hierarchical", rng.uniform(0.5, 1, (3, 10))), _ev("ic3net", rng.uniform(0, 0.5, (3, 10)))])
+    c = claim_above_ic3net(old, configs=[(40, 0.2)])
+    assert [k.execution for k in c.checks] == ["argmax vs sample"]
+
+
+def test_with_execution__fills_missing_modes_with_each_methods_default():
+    df = pd.DataFrame({"method": ["hierarchical", "ic3net", "pibt", "decentralized"],
+                       "execution": [None, "sample@0.5", "", np.nan]})
+    assert list(with_execution(df)["execution"]) == ["argmax", "sample@0.5", "planner", "sample"]
+    assert list(with_execution(df.drop(columns="execution"))["execution"]) == [
+        "argmax", "sample", "planner", "sample"]
+
+
+def test_safety__collisions_and_corrections():
+    z = [np.zeros(20)] * 3
+    v, nums, _ = check_collisions(z)
+    assert v == SUPPORTED and "< 4.87% (95%)" in nums  # 1 - 0.05^(1/60)
+    one = [np.zeros(20), np.r_[np.zeros(19), 0.002], np.zeros(20)]
+    v, nums, _ = check_collisions(one)
+    assert v == CONTRADICTED and "1/60" in nums and "0.003%" in nums
+    assert check_collisions(z[:2])[0] == NOT_ENOUGH
+    assert check_corrections(np.array([0.03, 0.031, 0.029]))[0] == SUPPORTED
+    assert check_corrections(np.array([0.12, 0.11, 0.13]))[0] == CONTRADICTED
+    assert check_corrections(np.array([0.07, 0.09, 0.081]))[0] == INCONCLUSIVE
+    assert check_corrections(np.array([0.03, 0.03]))[0] == NOT_ENOUGH
+
+
+def test_safety__per_execution_mode_with_the_measured_collision_rate():
+    rng = np.random.default_rng(2)
+    ok = np.zeros((3, 10))
+    coll = np.zeros((3, 10))
+    coll[1, 4] = 0.01
+    corr = 0.03 + rng.normal(0, 0.002, (3, 10))
+    ev = pd.concat([_ev("hierarchical", ok + 0.5, mode="argmax", collision_rate=coll, correction_rate=corr),
+                    _ev("hierarchical", ok + 0.5, mode="sample", collision_rate=ok, correction_rate=corr)])
+    c = claim_no_collisions(ev, configs=[(40, 0.2)])
+    assert [(k.execution, k.verdict) for k in c.checks] == [("argmax", CONTRADICTED), ("sample", SUPPORTED)]
+    assert "collision rate 0.033%" in c.checks[0].numbers
+    assert c.verdict == CONTRADICTED
+    assert c.verdict_by_mode() == {"argmax": CONTRADICTED, "sample": SUPPORTED}
+    assert claims_summary([c])["by_mode"].item() == "argmax: contradicted; sample: supported"
+    c = claim_few_corrections(ev, configs=[(40, 0.2)])
+    assert [(k.execution, k.verdict) for k in c.checks] == [("argmax", SUPPORTED), ("sample", SUPPORTED)]
+
+
+def test_lemma1__bound_per_n_at_the_papers_settings():
+    assert lemma1_bound(10, 2) == 761 and lemma1_bound(25, 2) == 4901 and lemma1_bound(5, 2) == 181
+    assert lemma1_bound(3, 0) == 1 and lemma1_bound(3, 1, m=3) == 7
+    c = claim_lemma1()
+    got = [(k.config, k.verdict) for k in c.checks]
+    assert got[0] == ("N = 20, Z = 4, L = 2, C_max = 500", BY_CONSTRUCTION)
+    assert all(v == CONTRADICTED for _, v in got[1:])
+    assert "n_z = 10: bound 761 > C_max = 500" in c.checks[1].numbers
+    assert "n_z = 23: bound 4,141" in c.checks[4].numbers  # N = 90: groups of 23 and 22
+    assert "bound 4,901" in c.checks[5].numbers
+    assert claim_lemma1(configs=[], run=[(8, 2, 1, 500)]).checks[0].verdict == BY_CONSTRUCTION
 
 
 def _payload_rows(c_hier: float, n: int = 40, z: int = 4) -> pd.DataFrame:
@@ -120,32 +245,86 @@ def _payload_rows(c_hier: float, n: int = 40, z: int = 4) -> pd.DataFrame:
                          "n_robots": n, "loss_p": 0.2, "seed": 0, "groups": z, "safety_filter": True})
 
 
-def test_payload_ratio__at_bound_holds_above_or_below_does_not():
-    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0)).verdict == HOLDS
-    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0 * 1.05)).verdict == FAILS  # above the bound
-    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0 * 0.9)).verdict == FAILS  # not equal
+def test_payload_ratio__verified_by_construction_or_contradicted():
+    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0)).verdict == BY_CONSTRUCTION
+    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0 * 1.05)).verdict == CONTRADICTED
+    assert claim_payload_ratio(_payload_rows(40 * 3 * 3.0 * 0.9)).verdict == CONTRADICTED
+    assert claim_payload_ratio(_payload_rows(1.0).iloc[0:0]).verdict == NOT_ENOUGH
 
 
-def _safety_rows(coll: np.ndarray, corr: np.ndarray, n: int = 40) -> pd.DataFrame:
-    return pd.DataFrame({"cell_id": "h", "episode": np.arange(len(coll)), "collision_rate": coll,
-                         "correction_rate": corr, "method": "hierarchical", "n_robots": n,
-                         "loss_p": 0.2, "seed": 0, "groups": 4, "safety_filter": True})
+def test_claims__missing_configurations_are_not_enough_seeds(holding):
+    train, evals = holding
+    no_dec60 = train[~((train["method"] == "decentralized") & (train["n_robots"] == 60))]
+    c = claim_hier_above_dec(no_dec60)
+    assert [k.verdict for k in c.checks] == [SUPPORTED, SUPPORTED, NOT_ENOUGH]
+    assert c.verdict == NOT_ENOUGH
+    assert claim_gap_widens(no_dec60).verdict == NOT_ENOUGH
+    assert claim_convergence(train[train["n_robots"] != 90]).verdict == NOT_ENOUGH
+    assert claim_above_ic3net(evals[evals["method"] != "ic3net"]).verdict == NOT_ENOUGH
+    assert claim_no_collisions(evals[evals["loss_p"] != 0.2]).verdict == NOT_ENOUGH
+    empty = all_claims(train.iloc[0:0], evals.iloc[0:0])
+    assert {c.verdict for c in empty if c.key != "lemma1_budget"} == {NOT_ENOUGH}
 
 
-def test_safety__one_collision_or_corrections_near_8_percent_fail():
-    z, c3 = np.zeros(30), np.full(30, 0.03)
-    assert claim_safety(_safety_rows(z, c3), ns=(40,)).verdict == HOLDS
-    one = z.copy()
-    one[7] = 0.001
-    assert claim_safety(_safety_rows(one, c3), ns=(40,)).verdict == FAILS
-    rng = np.random.default_rng(0)
-    near = 0.079 + rng.normal(0, 0.01, 30)  # mean just below 8%, CI reaching above it
-    assert claim_safety(_safety_rows(z, near), ns=(40,)).verdict == FAILS
+def test_claims__too_short_training_is_not_enough():
+    train, _ = _tables(3, True, episodes=40)
+    c = claim_convergence(train)
+    assert c.verdict == NOT_ENOUGH and "too few training episodes" in c.checks[0].numbers
 
 
-def test_claims_markdown__lists_every_claim_with_its_verdict(holding):
-    md = claims_markdown(all_claims(*holding))
+def test_claims_at_run__checks_the_runs_own_configurations():
+    specs = [dict(method=m, n_robots=n, loss_p=0.2, seed=s)
+             for m in ("hierarchical", "decentralized", "ic3net") for n in (4, 8) for s in range(3)]
+    cells, train, evals = frames(episodes=60, eval_eps=40, specs=specs)
+    tr, ev = joined(cells, train), joined(cells, evals)
+    paper = all_claims(tr, ev)
+    assert all(k.scope == "paper" for c in paper for k in c.checks)
+    run = all_claims(tr, ev, at="run", cells=cells)
+    by = {c.key: c for c in run}
+    assert by["hier_above_dec"].verdict == NOT_ENOUGH  # the paper's N are absent
+    assert [k.config for k in by["hier_above_dec"].checks if k.scope == "run"] == [
+        "N = 4, p = 0.2", "N = 8, p = 0.2"]
+    assert by["hier_above_dec"].verdict_at("run") == SUPPORTED
+    assert [k.config for k in by["gap_widens"].checks if k.scope == "run"] == ["Gap(8) vs Gap(4), p = 0.2"]
+    assert by["above_ic3net"].verdict_at("run") == SUPPORTED
+    assert by["no_collisions"].verdict_at("run") == SUPPORTED
+    assert [k.config for k in by["lemma1_budget"].checks if k.scope == "run"] == [
+        "N = 4, Z = 4, L = 2, C_max = 500", "N = 8, Z = 4, L = 2, C_max = 500"]
+    with pytest.raises(ValueError):
+        all_claims(tr, ev, at="everywhere")
+
+
+def test_claims_page__frame_summary_and_markdown(holding):
+    claims = all_claims(*holding)
+    f = claims_frame(claims)
+    assert list(f.columns) == ["claim", "name", "scope", "configuration", "execution", "verdict",
+                               "numbers", "test"]
+    assert set(f["claim"]) == set(KEYS) and set(f["scope"]) == {"paper"}
+    assert f.loc[f["claim"] == "hier_above_dec", "execution"].unique().tolist() == ["training (sampled)"]
+    s = claims_summary(claims)
+    assert s["verdict"].tolist()[:6] == [SUPPORTED] * 6 and (s["verdict_run"] == "").all()
+    assert s["by_mode"].tolist()[0] == "training (sampled): supported"
+    assert s["by_mode"].tolist()[3] == "argmax: supported"
+    md = claims_markdown(claims, "calibration.md")
     for key in KEYS:
         assert f"## {key}" in md
-    assert md.count("**Verdict: holds**") == len(KEYS)
-    assert md.count("| **holds** |") == len(KEYS)
+    assert md.count("**Verdict: supported**") == 6
+    assert "[calibration](calibration.md)" in md
+    assert "bound 761 > C_max = 500" in md
+
+
+def test_calibration_markdown__flags_a_null_rate_above_the_limit():
+    cal = pd.DataFrame([{"test": "t", "truth": "null", "scenario": "s", "seeds": 3, "sims": 10,
+                         "rate": 0.2, "mc_se": 0.1, "null_ok": False},
+                        {"test": "t", "truth": "effect", "scenario": "e", "seeds": 3, "sims": 10,
+                         "rate": 0.9, "mc_se": 0.1, "null_ok": True}])
+    md = calibration_markdown(cal, {"sims": 10})
+    assert "| t | null | s | 3 | 10 | 0.200 | 0.100 | **NO** |" in md
+    assert "| t | effect | e | 3 | 10 | 0.900 | 0.100 |  |" in md
+
+
+def test_smoke_store__every_statistical_claim_lacks_seeds():
+    cells, train, evals = frames(episodes=8, eval_eps=4, specs=smoke_specs())
+    for c in all_claims(joined(cells, train), joined(cells, evals), at="run", cells=cells):
+        if c.key in STATISTICAL:
+            assert {k.verdict for k in c.checks} == {NOT_ENOUGH}, c.key

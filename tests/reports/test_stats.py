@@ -1,139 +1,359 @@
-"""Statistics on hand-worked examples (reports/stats.py). Runtime: < 1 s."""
+"""Statistics on hand-worked examples and by simulation (reports/stats.py). Runtime: ~2 s.
+
+Closed forms used for Student t with 2 degrees of freedom (no table needed):
+cdf(t) = 1/2 + t / (2 sqrt(2 + t^2)) and the quantile t_p = (2p - 1) / sqrt(2 p (1 - p)).
+"""
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pytest
 
 from reports.stats import (
+    Convergence,
+    CurveShape,
+    TTest,
     bootstrap_band,
     bootstrap_ci,
-    bootstrap_contrast_ci,
     convergence_test,
+    curve_shape,
     iqm,
-    mann_whitney_greater,
+    mean_ci,
     percentile_curve,
+    probability_of_improvement,
     quantile_curve,
-    slope_ci,
+    simultaneous_band,
     smooth,
     smoothing_window,
+    t_test,
+    welch_parts,
+    zero_events_bound,
 )
 
 
-def test_bootstrap_ci__of_a_constant_is_that_constant():
+def t2_sf(t: float) -> float:
+    return 0.5 - t / (2.0 * np.sqrt(2.0 + t * t))
+
+
+def t2_ppf(p: float) -> float:
+    return (2 * p - 1) / np.sqrt(2 * p * (1 - p))
+
+
+# ---------------------------------------------------------------- t tests
+def test_t_test__one_sample_worked_by_hand():
+    # x = 1, 2, 3: mean 2, s = 1, se = 1/sqrt(3), df = 2, t = 2 sqrt(3)
+    t = t_test([[1.0, 2.0, 3.0]], [1.0])
+    se = 1 / np.sqrt(3)
+    assert t.estimate == pytest.approx(2.0) and t.se == pytest.approx(se) and t.df == pytest.approx(2.0)
+    half = t2_ppf(0.975) * se  # 4.3027 x 0.5774
+    assert (t.lo, t.hi) == (pytest.approx(2 - half), pytest.approx(2 + half))
+    assert t.p_greater == pytest.approx(t2_sf(2 * np.sqrt(3)))  # 0.0371
+    assert t.p_less == pytest.approx(1 - t2_sf(2 * np.sqrt(3)))
+    assert t.valid
+
+
+def test_t_test__null_is_subtracted_from_the_estimate_not_the_interval():
+    t = t_test([[1.0, 2.0, 3.0]], [1.0], null=2.0)
+    assert t.estimate == pytest.approx(0.0)
+    assert t.p_greater == pytest.approx(0.5) and t.p_less == pytest.approx(0.5)
+    assert t.lo < 2.0 < t.hi  # CI of the mean itself
+
+
+def test_t_test__level_sets_the_interval_width():
+    t = t_test([[1.0, 2.0, 3.0]], [1.0], level=0.9)
+    half = t2_ppf(0.95) / np.sqrt(3)  # 2.92 / sqrt(3)
+    assert (t.lo, t.hi) == (pytest.approx(2 - half), pytest.approx(2 + half))
+
+
+def test_t_test__weights_scale_estimate_and_error():
+    t = t_test([[1.0, 2.0, 3.0]], [2.0])  # 2 x mean, 2 x se, the same t
+    assert (t.estimate, t.se, t.df) == (pytest.approx(4.0), pytest.approx(2 / np.sqrt(3)), pytest.approx(2.0))
+    assert t.p_greater == pytest.approx(t2_sf(2 * np.sqrt(3)))
+
+
+def test_t_test__welch_two_samples_worked_by_hand():
+    # means 2 and 6, variances 1 and 4, n = 3: c = 1/3, 4/3; se^2 = 5/3;
+    # df = (5/3)^2 / ((1/9 + 16/9) / 2) = 50/17
+    t = t_test([[1.0, 2.0, 3.0], [4.0, 6.0, 8.0]], [1.0, -1.0])
+    assert t.estimate == pytest.approx(-4.0)
+    assert t.se == pytest.approx(np.sqrt(5 / 3))
+    assert t.df == pytest.approx(50 / 17)
+    assert t.p_less < 0.05 < t.p_greater
+    assert t.p_less + t.p_greater == pytest.approx(1.0)
+
+
+def test_t_test__contrast_of_four_means():
+    # (5 - 1) - (2 - 1) = 3, every variance 2 and n = 2: c = 1 each, se^2 = 4
+    t = t_test([[4.0, 6.0], [0.0, 2.0], [1.0, 3.0], [0.0, 2.0]], [1, -1, -1, 1])
+    assert t.estimate == pytest.approx(3.0) and t.se == pytest.approx(2.0)
+    assert t.df == pytest.approx(4.0)  # (4 c)^2 / (4 c^2 / 1)
+
+
+def test_t_test__no_variance_is_decided_exactly_and_too_few_values_give_nan():
+    t = t_test([[2.0, 2.0, 2.0]], [1.0])
+    assert (t.estimate, t.lo, t.hi, t.p_greater, t.p_less) == (2.0, 2.0, 2.0, 0.0, 1.0)
+    assert t.se == 0.0 and np.isinf(t.df) and t.valid
+    t = t_test([[2.0, 2.0, 2.0]], [1.0], null=3.0)
+    assert (t.p_greater, t.p_less) == (1.0, 0.0)
+    t = t_test([[2.0, 2.0, 2.0]], [1.0], null=2.0)
+    assert (t.p_greater, t.p_less) == (1.0, 1.0)  # exactly at the null: no evidence either way
+    assert not t_test([[1.0], [1.0, 2.0]], [1, -1]).valid
+    assert not t_test([], []).valid
+    assert not t_test([[1.0, np.nan], [1.0, 2.0]], [1, -1]).valid  # NaNs are dropped first
+    with pytest.raises(ValueError, match="^samples and weights must have the same length$"):
+        t_test([[1.0, 2.0]], [1.0, -1.0])
+    t = t_test([[0.5, 0.5, 0.5]], [1.0])  # exact and positive, however small
+    assert (t.p_greater, t.p_less) == (0.0, 1.0)
+
+
+def test_welch_parts__vectorized_over_columns():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a column without variance is not a numerical accident
+        est, se, df = welch_parts(np.array([[1.0, 2.0], [0.0, 0.0]]), np.array([[1.0, 0.0], [1.0, 0.0]]),
+                                  np.array([3, 3]), np.array([1.0, -1.0]))
+    np.testing.assert_allclose(est, [1.0, 2.0])
+    np.testing.assert_allclose(se, [np.sqrt(2 / 3), 0.0])
+    assert df[0] == pytest.approx(4.0) and np.isinf(df[1])
+    with pytest.raises(ValueError):  # one weight per sample
+        welch_parts(np.zeros(2), np.ones(2), np.array([3, 3, 3]), np.ones(2))
+    with pytest.raises(ValueError):
+        welch_parts(np.zeros(2), np.ones(2), np.array([3, 3]), np.ones(3))
+
+
+def test_mean_ci__is_the_t_interval_and_handles_small_samples():
+    m, lo, hi = mean_ci([1.0, 2.0, 3.0])
+    half = t2_ppf(0.975) / np.sqrt(3)
+    assert (m, lo, hi) == (2.0, pytest.approx(2 - half), pytest.approx(2 + half))
+    assert lo < hi
+    m, lo, hi = mean_ci([1.0, 2.0, 3.0], level=0.9)
+    assert lo == pytest.approx(2 - t2_ppf(0.95) / np.sqrt(3))
+    m, lo, hi = mean_ci([4.0])
+    assert m == 4.0 and np.isnan(lo) and np.isnan(hi)
+    assert all(np.isnan(mean_ci([])))
+    assert mean_ci([1.0, np.nan, 3.0])[0] == 2.0
+
+
+def test_simultaneous_band__bonferroni_over_points_worked_by_hand():
+    a = np.array([[1.0, 10.0], [2.0, 11.0], [3.0, 12.0]])
+    b = np.array([[0.0, 9.0], [1.0, 10.0], [2.0, 11.0]])
+    diff, lo, hi = simultaneous_band(a, b)
+    # every column: difference 1, variances 1 and 1, n = 3 -> se sqrt(2/3), df 4;
+    # one-sided level 0.05 / 2 points -> t_{0.975, 4} = 2.776445
+    half = 2.7764451051977987 * np.sqrt(2 / 3)
+    np.testing.assert_allclose(diff, [1.0, 1.0])
+    np.testing.assert_allclose(lo, [1 - half, 1 - half])
+    np.testing.assert_allclose(hi, [1 + half, 1 + half])
+    for bad in ((a[:1], b), (a, b[:1]), (a[:, 0], b), (a, b[:, 0]), (a, b[:, :1])):
+        with pytest.raises(ValueError, match="equal G"):
+            simultaneous_band(*bad)
+    # a column without variance is exact (df infinite); alpha sets the width
+    _, lo, _ = simultaneous_band(np.array([[1.0, 2.0], [1.0, 3.0]]), np.array([[0.0, 0.0], [0.0, 1.0]]))
+    assert lo[0] == 1.0
+    _, lo01, _ = simultaneous_band(a, b, alpha=0.1)
+    np.testing.assert_allclose(lo01, 1 - 2.1318467813362907 * np.sqrt(2 / 3))  # t_{0.95, 4}
+
+
+def test_zero_events_bound__exact_and_near_rule_of_three():
+    assert zero_events_bound(3) == pytest.approx(1 - 0.05 ** (1 / 3))  # 0.6316
+    assert zero_events_bound(300) == pytest.approx(3 / 300, rel=0.01)
+    assert zero_events_bound(1) == pytest.approx(0.95)
+    assert zero_events_bound(1, alpha=0.1) == pytest.approx(0.9)
+    assert np.isnan(zero_events_bound(0))
+
+
+# ----------------------------------------------------------------- rliable
+def test_iqm__worked_by_hand():
+    # sorted: 1 2 3 4 6 7 8 100; drop 2 from each end -> 3 4 6 7 -> 20 / 4 = 5
+    assert iqm([1, 2, 3, 4, 100, 6, 7, 8]) == 5.0
+    assert iqm([5, 1, 4, 2, 3]) == 3.0  # one dropped from each end
+    assert iqm([7.0]) == 7.0
+    assert np.isnan(iqm([]))
+
+
+def test_probability_of_improvement__worked_by_hand():
+    assert probability_of_improvement([3.0, 4.0], [1.0, 2.0]) == 1.0
+    assert probability_of_improvement([1.0, 2.0], [2.0, 3.0]) == 0.125  # one tie of four pairs
+    assert probability_of_improvement([2.0], [2.0]) == 0.5
+    assert np.isnan(probability_of_improvement([], [1.0]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # decided here, not by a warning deep in scipy
+        assert np.isnan(probability_of_improvement([1.0], [np.nan]))
+        assert np.isnan(probability_of_improvement([], []))
+
+
+# ---------------------------------------------------------------- bootstrap
+def test_bootstrap_ci__constants_single_values_and_nans():
     assert bootstrap_ci([2.5] * 7) == (2.5, 2.5)
-
-
-def test_bootstrap_ci__of_one_value_and_of_nothing():
     assert bootstrap_ci([4.0]) == (4.0, 4.0)
-    lo, hi = bootstrap_ci([])
-    assert np.isnan(lo) and np.isnan(hi)
+    assert bootstrap_ci([1.0, np.nan, 1.0]) == (1.0, 1.0)
+    assert all(np.isnan(bootstrap_ci([])))
 
 
-def test_bootstrap_ci__brackets_the_mean_and_lies_within_the_data():
+def test_bootstrap_ci__two_values_quantiles_worked_by_hand():
+    # Resampled means of {0, 1} are 0, 0.5, 1 w.p. 1/4, 1/2, 1/4: the 2.5/97.5% quantiles
+    # are 0 and 1; at level 0.2 the 40/60% quantiles are both 0.5.
+    assert bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
+    assert bootstrap_ci([0.0, 1.0], level=0.2) == (0.5, 0.5)
+    assert bootstrap_ci([0.0, 1.0], level=0.4) == (0.5, 0.5)  # 30/70% quantiles
+    assert bootstrap_ci([0.0, 1.0], level=0.6) == (0.0, 1.0)  # 20/80% quantiles
+    assert bootstrap_ci([0.0, 1.0], statistic=lambda m: m.max(axis=-1), level=0.2) == (1.0, 1.0)
+
+
+def test_bootstrap_ci__is_seeded():
     x = np.array([0.0, 1.0, 2.0, 3.0, 10.0])
     lo, hi = bootstrap_ci(x, seed=3)
     assert 0.0 <= lo < x.mean() < hi <= 10.0
-    assert bootstrap_ci(x, seed=3) == (lo, hi)  # seeded: same interval every time
+    assert bootstrap_ci(x, seed=3) == (lo, hi)
+    assert bootstrap_ci(x, seed=4) != (lo, hi)
+    assert bootstrap_ci(x, n_boot=50, seed=3) != (lo, hi)
+    assert bootstrap_ci(x) == bootstrap_ci(x, n_boot=2000, level=0.95, seed=0)  # the defaults
 
 
-def test_bootstrap_ci__two_values_spans_them():
-    # Resampled means of {0, 1} with n = 2 are 0, 0.5, 1 w.p. 1/4, 1/2, 1/4: the 2.5% and
-    # 97.5% quantiles of 2000 resamples are 0 and 1.
-    assert bootstrap_ci([0.0, 1.0]) == (0.0, 1.0)
-
-
-def test_bootstrap_ci__ignores_nans():
-    assert bootstrap_ci([1.0, np.nan, 1.0]) == (1.0, 1.0)
-
-
-def test_bootstrap_contrast_ci__difference_of_constants_is_exact():
-    est, lo, hi = bootstrap_contrast_ci([[3.0, 3.0], [1.0, 1.0, 1.0]], [1, -1])
-    assert (est, lo, hi) == (2.0, 2.0, 2.0)
-    est, lo, hi = bootstrap_contrast_ci([[5.0], [1.0], [2.0], [1.0]], [1, -1, -1, 1])
-    assert est == lo == hi == 3.0  # (5 - 1) - (2 - 1)
-
-
-def test_bootstrap_contrast_ci__empty_sample_gives_nan():
-    assert all(np.isnan(v) for v in bootstrap_contrast_ci([[1.0], []], [1, -1]))
-
-
-def test_bootstrap_band__one_run_collapses_and_identical_runs_have_no_width():
+def test_bootstrap_band__collapses_spans_and_is_seeded():
     c = np.array([[1.0, 2.0, 3.0]])
     mean, lo, hi = bootstrap_band(c)
-    np.testing.assert_array_equal(mean, c[0])
     np.testing.assert_array_equal(lo, c[0])
-    mean, lo, hi = bootstrap_band(np.tile([1.0, 5.0], (4, 1)))
-    np.testing.assert_array_equal(lo, [1.0, 5.0])
-    np.testing.assert_array_equal(hi, [1.0, 5.0])
-
-
-def test_bootstrap_band__two_runs_band_spans_them():
+    np.testing.assert_array_equal(hi, c[0])
     mean, lo, hi = bootstrap_band(np.array([[0.0, 0.0], [2.0, 4.0]]))
     np.testing.assert_array_equal(mean, [1.0, 2.0])
     np.testing.assert_array_equal(lo, [0.0, 0.0])
     np.testing.assert_array_equal(hi, [2.0, 4.0])
+    mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.2)
+    assert (lo[0], hi[0]) == (0.5, 0.5)
+    mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.4)  # 30/70% quantiles
+    assert (lo[0], hi[0]) == (0.5, 0.5)
+    rng = np.random.default_rng(0)
+    curves = rng.normal(size=(30, 4))
+    _, lo1, _ = bootstrap_band(curves, seed=1)
+    np.testing.assert_array_equal(bootstrap_band(curves, seed=1)[1], lo1)
+    assert not np.array_equal(bootstrap_band(curves, seed=2)[1], lo1)
+    assert not np.array_equal(bootstrap_band(curves, n_boot=30, seed=1)[1], lo1)
+    for got, want in zip(bootstrap_band(curves), bootstrap_band(curves, n_boot=1000, level=0.95, seed=0),
+                         strict=True):
+        np.testing.assert_array_equal(got, want)  # the defaults
+    mean, lo, hi = bootstrap_band(np.array([[0.0, np.nan], [2.0, 4.0]]))
+    assert mean[1] == 4.0 and lo[1] == 4.0  # NaNs ignored per column
+    for bad in (np.zeros((0, 3)), np.zeros(3)):
+        with pytest.raises(ValueError, match=r"\(S, T\)"):
+            bootstrap_band(bad)
 
 
-def test_iqm__worked_by_hand():
-    # sorted: 1 2 3 4 6 7 8 100; drop 2 from each end -> 3 4 6 7 -> 20 / 4 = 5
-    assert iqm([1, 2, 3, 4, 100, 6, 7, 8]) == 5.0
-    # n = 5: int(0.25 * 5) = 1 dropped from each end -> 2 3 4 -> 3
-    assert iqm([5, 1, 4, 2, 3]) == 3.0
-    assert np.isnan(iqm([]))
-
-
-def test_percentile_curve__tiny_array():
+# ------------------------------------------------------------------ curves
+def test_percentile_and_quantile_curves__tiny_array():
     pct, val = percentile_curve([0.3, 0.1, 0.2, 0.4])
     np.testing.assert_allclose(pct, [12.5, 37.5, 62.5, 87.5])
     np.testing.assert_allclose(val, [0.1, 0.2, 0.3, 0.4])
-
-
-def test_quantile_curve__interpolates_between_plotting_positions():
-    x = [0.3, 0.1, 0.2, 0.4]
-    q = quantile_curve(x, np.array([0.0, 12.5, 25.0, 50.0, 87.5, 100.0]))
-    # flat beyond the ends, exact at the Hazen positions, linear in between
+    q = quantile_curve([0.3, 0.1, 0.2, 0.4], np.array([0.0, 12.5, 25.0, 50.0, 87.5, 100.0]))
     np.testing.assert_allclose(q, [0.1, 0.1, 0.15, 0.25, 0.4, 0.4])
+    empty = quantile_curve([], np.array([50.0, 60.0]))
+    assert empty.shape == (2,) and np.isnan(empty).all()
+    np.testing.assert_allclose(quantile_curve([0.0, 1.0], [50, 75]), [0.5, 1.0])  # integer percentiles
+    pct, val = percentile_curve([np.nan])
+    assert pct.size == 0 and val.size == 0
+    assert percentile_curve([3, 1, 2])[1].dtype == np.float64  # integers become floats
 
 
 def test_smooth__trailing_mean():
     np.testing.assert_allclose(smooth([1, 2, 3, 4], 2), [1.0, 1.5, 2.5, 3.5])
     np.testing.assert_allclose(smooth([1, 2, 3], 1), [1, 2, 3])
+    np.testing.assert_allclose(smooth([1, 2, 3], 0), [1, 2, 3])  # window at least 1
+    np.testing.assert_allclose(smooth([1, 3], 5), [1.0, 2.0])
+    assert smooth([], 3).size == 0
+    np.testing.assert_allclose(smooth(np.array([[1.0], [3.0]]), 2), [1.0, 2.0])  # a column is a curve
     assert smoothing_window(2000) == 100 and smoothing_window(10) == 1 and smoothing_window(200) == 10
+    assert smoothing_window(5000) == 100  # capped
 
 
-def test_mann_whitney_greater__direction_and_degenerate_cases():
-    a, b = np.arange(10, 20), np.arange(0, 10)
-    assert mann_whitney_greater(a, b) < 0.001
-    assert mann_whitney_greater(b, a) > 0.99
-    assert np.isnan(mann_whitney_greater([1, 1], [1, 1]))
-    assert np.isnan(mann_whitney_greater([], [1]))
+# ------------------------------------------------------------- convergence
+def test_curve_shape__reads_the_first_and_last_windows():
+    # T = 50, frac 0.2 -> windows of 10: first all 0, middle 7, last 10..19 (mean 14.5, slope 1)
+    y = np.r_[np.zeros(10), np.full(30, 7.0), 10.0 + np.arange(10.0)]
+    s = curve_shape(y)
+    assert s == CurveShape(gain=14.5, drift=10.0, window=10)
+    s = curve_shape(np.r_[np.full(10, 3.0), np.zeros(30), np.full(10, 1.0)])
+    assert (s.gain, s.drift) == (pytest.approx(-2.0), pytest.approx(0.0))
+    assert curve_shape(np.arange(45.0)) is None  # windows of 9 < 10
+    assert curve_shape(np.arange(50.0)).window == 10
+    assert curve_shape(np.arange(50.0), frac=0.4).window == 20
+    assert curve_shape(np.arange(45.0), min_window=9).window == 9
+    assert curve_shape(np.arange(10.0), min_window=2) == CurveShape(8.0, 2.0, 2)  # [8, 9] - [0, 1]
+    assert curve_shape(np.arange(5.0), min_window=1) is None  # one episode has no slope
 
 
-def test_slope_ci__straight_line_is_exact():
-    s, lo, hi = slope_ci(2.0 * np.arange(10) + 1.0)
-    assert s == pytest.approx(2.0) and lo == pytest.approx(2.0) and hi == pytest.approx(2.0)
-    assert np.isnan(slope_ci([1.0, 2.0])[0])
+def test_convergence_test__worked_by_hand():
+    # gains 4 5 6, drifts 0 0.1 -0.1, tol 0.2: d - 0.2 g = -0.8 -0.9 -1.3 (mean -1, se 0.1528),
+    # d + 0.2 g = 0.8 1.1 1.1 (mean 1, se 0.1): every part significant at 0.05 with df 2.
+    shapes = [CurveShape(g, d, 40) for g, d in zip((4.0, 5.0, 6.0), (0.0, 0.1, -0.1), strict=True)]
+    r = convergence_test(shapes, rel_tol=0.2)
+    assert r.window == 40 and r.rel_tol == 0.2
+    assert r.gain.estimate == pytest.approx(5.0)
+    assert r.above.estimate == pytest.approx(-1.0)
+    assert r.above.p_less == pytest.approx(1 - t2_sf(-1.0 / np.sqrt(0.07 / 3)))
+    assert r.below.estimate == pytest.approx(1.0) and r.below.se == pytest.approx(0.1)
+    assert r.below.p_greater == pytest.approx(t2_sf(10.0))
+    assert r.supported() and not r.contradicted()
+    # still rising: drifts 2 2.2 1.8 -> d - 0.2 g = 1.2 1.2 0.6 (mean 1, se 0.2, t = 5)
+    rising = convergence_test([CurveShape(g, d, 40) for g, d in
+                               zip((4.0, 5.0, 6.0), (2.0, 2.2, 1.8), strict=True)])
+    assert rising.above.p_greater == pytest.approx(t2_sf(5.0))
+    assert rising.contradicted() and not rising.supported()
+    # collapsing: drifts -2 -2.2 -1.8 -> d + 0.2 g = -1.2 -1.2 -0.6
+    falling = convergence_test([CurveShape(g, -d, 40) for g, d in
+                                zip((4.0, 5.0, 6.0), (2.0, 2.2, 1.8), strict=True)])
+    assert falling.below.p_less == pytest.approx(t2_sf(5.0))
+    assert falling.contradicted() and not falling.supported()
+    # a loss of reward is contradicted even with a flat end
+    lost = convergence_test([CurveShape(-g, 0.0, 40) for g in (4.0, 5.0, 6.0)])
+    assert lost.contradicted() and not lost.supported()
+    # alpha is honoured: p(gain) = 0.0066 passes at 0.05 and fails at 0.001
+    assert not r.supported(alpha=0.001)
+    assert not rising.contradicted(alpha=0.001)  # p = 0.0189
+    assert convergence_test([]).window == 0
+    assert convergence_test([CurveShape(1.0, 0.0, 40), CurveShape(2.0, 0.0, 30)]).window == 30
 
 
-def test_convergence_test__rise_then_plateau_converges():
+# -------------------------------------------------------------- simulation
+def test_t_test__rate_under_the_null_and_power_by_simulation():
+    # 3 vs 3 seeds, unequal variances: one-sided rejection rate at 0.05 under the null,
+    # +- 2 MC s.e. (1000 sims: 0.0138); power at a difference of 3 seed s.d. is high.
     rng = np.random.default_rng(0)
-    t = np.arange(500)
-    y = 10 * (1 - np.exp(-t / 60)) + rng.normal(0, 0.5, t.size)
-    r = convergence_test(y)
-    assert r is not None and r.converged and r.window == 100
-    # first window mean = 10 (1 - 0.6 (1 - e^(-5/3))) = 5.1, last = 10: gain about 4.9
-    assert 4.5 < r.gain < 5.3
+    sims = 1000
+    null = sum(t_test([rng.normal(0, 1, 3), rng.normal(0, 2, 3)], [1, -1]).p_greater < 0.05
+               for _ in range(sims)) / sims
+    power = sum(t_test([rng.normal(3, 1, 3), rng.normal(0, 1, 3)], [1, -1]).p_greater < 0.05
+                for _ in range(sims)) / sims
+    assert null <= 0.05 + 0.0138
+    assert null > 0.02  # not vacuous either
+    assert power > 0.6
 
 
-def test_convergence_test__still_rising_fails_and_flat_fails():
+def test_mean_ci__covers_the_mean_95_percent_at_three_seeds():
     rng = np.random.default_rng(1)
-    t = np.arange(500)
-    rising = convergence_test(10 * (t / 500) ** 2 + rng.normal(0, 0.5, t.size))
-    # gain = 10 (0.81 - 0.01) = 8; drift over the last window = 10 (1 - 0.64) = 3.6 > 20% of 8
-    assert rising is not None and not rising.converged and rising.drift_lo > rising.tolerance
-    flat = convergence_test(rng.normal(0, 0.5, t.size))
-    assert flat is not None and not flat.converged  # no gain
+    hits = 0
+    for _ in range(1000):
+        _, lo, hi = mean_ci(rng.normal(1.0, 2.0, 3))
+        hits += lo <= 1.0 <= hi
+    assert abs(hits / 1000 - 0.95) < 0.02
 
 
-def test_convergence_test__too_short_is_none():
-    assert convergence_test(np.arange(40.0)) is None  # windows of 8 < 10 episodes
+def _p(greater: float, less: float) -> TTest:
+    return TTest(0.0, 1.0, 2.0, -1.0, 1.0, greater, less)
+
+
+def _support(p_gain: float, p_not_rising: float, p_not_falling: float) -> Convergence:
+    return Convergence(_p(p_gain, 1.0), _p(1.0, p_not_rising), _p(p_not_falling, 1.0), 0.2, 40)
+
+
+def _contra(p_loss: float, p_rising: float, p_falling: float) -> Convergence:
+    return Convergence(_p(1.0, p_loss), _p(p_rising, 1.0), _p(1.0, p_falling), 0.2, 40)
+
+
+def test_convergence__significance_is_strictly_below_alpha():
+    # each part exactly at alpha (the others well below, or absent) is not significant
+    at = 0.05
+    for k in range(3):
+        sup = _support(*(at if i == k else 0.001 for i in range(3)))
+        assert not sup.supported(alpha=at) and sup.supported(alpha=at + 1e-9), k
+        con = _contra(*(at if i == k else 1.0 for i in range(3)))
+        assert not con.contradicted(alpha=at) and con.contradicted(alpha=at + 1e-9), k

@@ -33,4 +33,4 @@ def make_study(directory: Path, settings: TrialSettings, name: str = "s", seed: 
                pruner: str = "median") -> optuna.Study:
     store = open_storage(None, directory / name)
     return open_study(name, store, settings.directions, seed,
-                      make_pruner(pruner, settings.multi_objective))
+                      make_pruner(pruner, settings.multi_objective, settings.iterations))

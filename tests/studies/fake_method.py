@@ -31,10 +31,10 @@ class FakeHierarchical(Method):
     name = "fake_hier"
     Params = FakeParams
 
-    def begin(self, batch: EpisodeBatch, greedy: bool) -> Any:
+    def begin(self, batch: EpisodeBatch, choice: Any) -> Any:
         return np.random.default_rng(batch.rng.integers(2**31))
 
-    def decide(self, batch: EpisodeBatch, state: Any, greedy: bool) -> Decision:
+    def decide(self, batch: EpisodeBatch, state: Any, choice: Any) -> Decision:
         core = batch.core
         prog = action_progress(core)
         actions = prog.argmax(axis=-1)

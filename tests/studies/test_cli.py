@@ -24,23 +24,31 @@ def _bench(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, st
     return int(exc.value.code or 0), out.out, out.err
 
 
+SMALL = ["--param", "ref_size=2,32", "--param", "search_radius=1"]  # 2 configurations
+
+
 def test_cli__tune_runs_resumes_and_prints_the_best_as_a_grid_file(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = _bench(["tune", "--study", "demo", "--trials", "3", "--out", str(tmp_path), *TINY], capsys)
+    code, out, err = _bench(["tune", "--study", "demo", "--trials", "3", "--out", str(tmp_path), *TINY, *SMALL],
+                            capsys)
     assert code == 0, err
     assert "3/3 finished trials" in out and "reason:" in out
+    assert "best: withheld, no best configuration yet: 1 of 2 configurations have 2 finished" in out
+    assert "[3/3 finished, " in err and "ETA" in err  # progress on every finished trial
     assert (tmp_path / "demo" / "trials.parquet").exists()
     assert (tmp_path / "demo" / "report" / "study_landscape.png").exists()
-    # resume: omitted options come from the study; only 2 more trials run
-    code, out, err = _bench(["tune", "--study", "demo", "--trials", "5", "--out", str(tmp_path),
-                             "--inline"], capsys)
+    code, _out, err = _bench(["tune", "--best", "demo", "--out", str(tmp_path)], capsys)
+    assert code == 2 and "no best configuration yet" in err
+    # resume: omitted options come from the study; the default count completes the grid
+    code, out, err = _bench(["tune", "--study", "demo", "--out", str(tmp_path), "--inline"], capsys)
     assert code == 0, err
-    assert "5/5 finished trials" in out and "2 run now" in out
+    assert "4/4 finished trials" in out and "1 run now" in out
+    assert "best: ref_size=32, search_radius=1: mean objective" in out and "over 2 replicates" in out
     code, out, err = _bench(["tune", "--best", "demo", "--out", str(tmp_path)], capsys)
     assert code == 0, err
     grid = tomllib.loads(out)
     assert grid["base"]["method"] == "fake_hier" and grid["base"]["n_robots"] == 4
-    assert {"ref_size", "search_radius"} <= set(grid["base"])
+    assert (grid["base"]["ref_size"], grid["base"]["search_radius"]) == (32, 1)
 
 
 def test_cli__resuming_with_a_different_setting_is_one_clear_error(
@@ -61,6 +69,10 @@ def test_cli__resuming_with_a_different_setting_is_one_clear_error(
     (["--storage", "nosuchdb://host/db"], "cannot open study storage nosuchdb:"),
     (["--objectives", "speed"], "objectives"),
     (["--trials", "0"], "--trials must be >= 1"),
+    (["--search", "random"], "unknown search 'random'"),
+    (["--replicates", "0"], "--replicates must be >= 1"),
+    (["--prune-warmup", "1.5"], "--prune-warmup must be in [0, 1]"),
+    (["--prune-min-rho", "2"], "--prune-min-rho must be in [-1, 1]"),
 ])
 def test_cli__bad_input_is_one_line_on_stderr_and_exit_2(
         args: list[str], message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -81,5 +93,5 @@ def test_cli__tune_help_works(capsys: pytest.CaptureFixture[str]) -> None:
     assert code == 0
     for option in ("--study", "--trials", "--n-robots", "--loss-p", "--layout", "--episodes",
                    "--horizon", "--storage", "--objectives", "--c-max", "--seed", "--workers",
-                   "--address", "--best"):
+                   "--address", "--best", "--search", "--replicates", "--prune-warmup", "--prune-min-rho"):
         assert option in out

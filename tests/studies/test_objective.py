@@ -10,15 +10,16 @@ from studies.objective import (
     eval_seed,
     objective_values,
     squash_return,
-    trial_seed,
 )
 
 
-def test_trial_seed__derives_from_study_seed_and_number() -> None:
-    seeds = {trial_seed(0, n) for n in range(100)}
+def test_replicate_seed__derives_from_study_seed_and_replicate() -> None:
+    from studies.schedule import replicate_seed
+
+    seeds = {replicate_seed(0, n) for n in range(100)}
     assert len(seeds) == 100
-    assert trial_seed(0, 5) == trial_seed(0, 5)
-    assert trial_seed(1, 5) != trial_seed(0, 5)
+    assert replicate_seed(0, 5) == replicate_seed(0, 5)
+    assert replicate_seed(1, 5) != replicate_seed(0, 5)
     assert eval_seed(0) not in seeds
 
 
@@ -42,7 +43,7 @@ def test_worker__streams_one_segment_per_eval_every_and_ends_done(settings: Tria
     segs = [worker.step() for _ in range(settings.iterations)]
     assert [s.step for s in segs] == [1, 2, 3]
     assert [s.done for s in segs] == [False, False, True]
-    assert [s.eval_episodes for s in segs] == [5, 5, 10]  # report_chunks=1 chunk, then all
+    assert [s.eval_episodes for s in segs] == [10, 10, 10]  # report_chunks=2 chunks of 5, then all
     assert segs[-1].episodes == 12
     assert all(0.0 <= s.success_rate <= 1.0 for s in segs)
 

@@ -13,8 +13,9 @@ from optuna.trial import TrialState
 
 from envs.errors import BenchError
 from studies.executors import SequentialExecutor
-from studies.objective import TrialSettings, trial_seed
+from studies.objective import TrialSettings
 from studies.runner import run_study
+from studies.schedule import replicate_seed
 from studies.space import distributions, search_space
 from studies.storage import LEASE_BEAT, LEASE_HOST, LEASE_PID, RETRY_OF
 from tests.studies.conftest import make_study
@@ -28,7 +29,7 @@ def _states(study: optuna.Study) -> list[str]:
     return [t.state.name for t in study.get_trials(deepcopy=False)]
 
 
-def test_runner__reports_each_segment_and_prunes_a_bad_trial(
+def test_runner__reports_each_segment_and_prunes_a_bad_trial_only_after_the_warmup(
         tmp_path: Path, settings: TrialSettings, monkeypatch: pytest.MonkeyPatch) -> None:
     calls = {"report": 0, "should_prune": 0}
     report, should_prune = optuna.trial.Trial.report, optuna.trial.Trial.should_prune
@@ -43,19 +44,25 @@ def test_runner__reports_each_segment_and_prunes_a_bad_trial(
 
     monkeypatch.setattr(optuna.trial.Trial, "report", spy_report)
     monkeypatch.setattr(optuna.trial.Trial, "should_prune", spy_prune)
-    study = make_study(tmp_path, settings)
-    for params in (GOOD, GOOD, GOOD, BAD):
+    study = make_study(tmp_path, settings)  # 3 updates, warm-up 0.5: pruning from update 2
+    ranked = [{"ref_size": r, "search_radius": 2} for r in (2, 4, 8, 16, 32)]
+    for params in (*ranked, BAD):
         study.enqueue_trial(params)
-    summary = run_study(study, settings, SPACE, 0, 4, SequentialExecutor(1))
-    assert (summary.complete, summary.pruned, summary.finished) == (3, 1, 4)
+    space = search_space(overrides={"ref_size": [1, 2, 4, 8, 16, 32]})
+    logs: list[str] = []
+    summary = run_study(study, settings, space, 0, 6, SequentialExecutor(1), log=logs.append)
+    assert (summary.complete, summary.pruned, summary.finished) == (5, 1, 6)
     trials = study.get_trials(deepcopy=False)
-    assert [t.state for t in trials] == [TrialState.COMPLETE] * 3 + [TrialState.PRUNED]
-    assert all(sorted(t.intermediate_values) == [1, 2, 3] for t in trials[:3])
-    assert list(trials[3].intermediate_values) == [1]  # stopped at its first report
-    assert trials[3].user_attrs["pruned_at_step"] == 1
-    # 3 reports per complete trial + 1; the pruner is asked after every non-final segment
-    assert calls == {"report": 10, "should_prune": 7}
+    assert [t.state for t in trials] == [TrialState.COMPLETE] * 5 + [TrialState.PRUNED]
+    assert all(sorted(t.intermediate_values) == [1, 2, 3] for t in trials[:5])
+    assert sorted(trials[5].intermediate_values) == [1, 2]  # not pruned at update 1 (warm-up)
+    assert trials[5].user_attrs["pruned_at_step"] == 2
+    assert trials[5].user_attrs["prune_rho"] >= 0.7 and trials[5].user_attrs["prune_n"] == 5
+    # 3 reports per complete trial + 2; the pruner is asked after every non-final segment
+    assert calls == {"report": 17, "should_prune": 12}
     assert "pruned" in summary.reason()
+    pruned_line = next(m for m in logs if "pruned at step" in m)
+    assert "rank correlation" in pruned_line and "[6/6 finished, 0 running" in pruned_line
 
 
 def test_runner__no_pruning_gives_all_complete_and_says_why(tmp_path: Path, settings: TrialSettings) -> None:
@@ -109,7 +116,7 @@ def test_runner__trials_left_running_by_a_crash_are_failed_requeued_and_finished
     for number, crashed in ((0, no_lease), (1, dead)):
         assert retries[number].state == TrialState.COMPLETE
         assert retries[number].params == crashed.params
-        assert retries[number].user_attrs["seed"] == trial_seed(7, number)  # same as the crashed one
+        assert retries[number].user_attrs["seed"] == replicate_seed(7, 0)  # the crashed one's replicate
     assert summary.finished == 3 and summary.running_elsewhere == 1  # 3 + 1 running = 4
 
 

@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.hierarchical.method import HierarchicalMethod
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
@@ -107,7 +108,7 @@ def collision_rates(env: EnvConfig, safety_filter: bool, batches: int) -> np.nda
     with torch.no_grad():
         for k in range(batches):
             batch = EpisodeBatch(env, 4, batch_rng(11, 7, k), m.layout)
-            _, rows = m.run(batch, greedy=False)  # sampled, untrained: random proposals
+            _, rows = m.run(batch, ActionChoice.train(m.torch_gen))  # sampled, untrained: random proposals
             rates += [r["collision_rate"] for r in rows]
     return np.array(rates)
 
@@ -139,8 +140,8 @@ def test_hierarchical__no_collisions_without_loss_when_finished_robots_stay() ->
 
 
 def test_hierarchical__sampled_execution_is_reproducible_and_leaves_training_alone() -> None:
-    a, b = make(execution="sample"), make(execution="sample")
-    ev = a.evaluate(0)
-    assert same_rows(ev, a.evaluate(0))  # its own stream, seeded by the chunk
+    a, b = make(), make()
+    ev = a.evaluate(0, execution="sample")
+    assert same_rows(ev, a.evaluate(0, execution="sample"))  # its own stream, seeded by the chunk
     assert not same_rows(ev, make().evaluate(0))  # not the argmax controls
     assert same_rows(strip(a.train_iteration()), strip(b.train_iteration()))  # b never evaluated

@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
 from algorithms.hierarchical.messages import MSG_DIM, PRESENT
 from algorithms.hierarchical.method import HierarchicalMethod
 from algorithms.hierarchical.predictor import (
@@ -58,7 +59,7 @@ def test_predictor__training_unroll_reproduces_the_rollout_predictions() -> None
     env = EnvConfig.make(n_robots=10, layout="tiny", horizon=25, loss_p=0.5)
     m = HierarchicalMethod(env, {"batch_episodes": 3}, seed=1)
     with torch.no_grad():
-        state, _ = m.run(EpisodeBatch(env, 3, batch_rng(1, 0, 0), m.layout), greedy=False)
+        state, _ = m.run(EpisodeBatch(env, 3, batch_rng(1, 0, 0), m.layout), ActionChoice.train(m.torch_gen))
         buf, gs = state.buffer, m.gs
         data = predictor_targets(m, buf)
         fast = predictor_loss_on(m.predictor, data, chunk=4)

@@ -1,0 +1,130 @@
+"""The ``infos`` of one PettingZoo step, built lazily from the batched core's arrays.
+
+Most training loops never read infos, yet building N dicts of 14 Python scalars costs more
+than the core step at N = 100. ``StepInfos`` is a real ``dict`` {agent: info} (PettingZoo's
+checkers require ``isinstance(info, dict)``) whose per-agent dicts are made on first access
+from (N, ...) column arrays captured at that step. Every read path (``[]``, ``get``,
+``items``, ``values``, iteration into ``dict(...)``/``{**...}``, ``copy``, pickling,
+``copy.copy``/``deepcopy``, ``==``, ``repr``) returns the built dicts, which are plain,
+mutable ``dict``s: SuperSuit and Stable-Baselines3 write keys such as
+``"terminal_observation"`` into them.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any
+
+import numpy as np
+
+INFO_KEYS = (
+    "position", "goal", "group", "collision", "at_goal", "invalid", "progress",
+    "goal_bonus", "collision_penalty", "time_penalty", "link_available", "payload_hier",
+    "payload_dec", "t",
+)
+_PENDING = object()  # placeholder value of an agent whose info is not built yet
+
+
+class StepInfos(dict):
+    """{agent: info} for one step; see the module docstring.
+
+    ``agent_ids`` maps agent names to robot indices i; ``columns`` (or a function called
+    on the first read that returns them, so nothing is computed for unread infos) holds,
+    per robot i,
+    ``position``/``goal`` (N, 2) (row, col), ``group`` (N,), ``collision``, ``at_goal``,
+    ``invalid`` (N,) bool, the four reward terms (N,) float, ``link_available`` (N, Z)
+    bool (row i: A_t[:, z_i]); ``constants`` are ``payload_hier``, ``payload_dec``, ``t``.
+    The arrays must not be modified afterwards (the adapter passes fresh ones).
+    """
+
+    __slots__ = ("_ids", "_cols", "_lists", "_const")
+
+    def __init__(self, names: list[str], agent_ids: Mapping[str, int],
+                 columns: dict[str, np.ndarray] | Callable[[], dict[str, np.ndarray]],
+                 constants: dict[str, int]) -> None:
+        dict.update(self, dict.fromkeys(names, _PENDING))
+        self._ids, self._cols, self._const = agent_ids, columns, constants
+        self._lists: dict[str, list] | None = None
+
+    def _build(self, agent: str) -> dict[str, Any]:
+        lists = self._lists
+        if lists is None:  # one tolist per column, the first time any info is read
+            if callable(self._cols):
+                self._cols = self._cols()
+            lists = self._lists = {k: v.tolist() for k, v in self._cols.items()
+                                   if k != "link_available"}
+        i = self._ids[agent]
+        info = {
+            "position": tuple(lists["position"][i]), "goal": tuple(lists["goal"][i]),
+            "group": lists["group"][i], "collision": lists["collision"][i],
+            "at_goal": lists["at_goal"][i], "invalid": lists["invalid"][i],
+            "progress": lists["progress"][i], "goal_bonus": lists["goal_bonus"][i],
+            "collision_penalty": lists["collision_penalty"][i],
+            "time_penalty": lists["time_penalty"][i],
+            "link_available": self._cols["link_available"][i],
+        }
+        info.update(self._const)
+        return info
+
+    def __getitem__(self, agent: str) -> dict[str, Any]:
+        value = dict.__getitem__(self, agent)
+        if value is _PENDING:
+            value = self._build(agent)
+            dict.__setitem__(self, agent, value)
+        return value
+
+    def _all(self) -> dict[str, Any]:
+        """A plain dict with every info built."""
+        return {agent: self[agent] for agent in dict.keys(self)}
+
+    # Every other read path goes through __getitem__ or _all.
+    def __iter__(self) -> Iterator[str]:  # also makes dict(x) and {**x} use __getitem__
+        return iter(dict.keys(self))
+
+    def get(self, agent: str, default: Any = None) -> Any:
+        return self[agent] if dict.__contains__(self, agent) else default
+
+    def items(self):  # type: ignore[override]
+        return self._all().items()
+
+    def values(self):  # type: ignore[override]
+        return self._all().values()
+
+    def pop(self, agent: str, *default: Any) -> Any:
+        if dict.__contains__(self, agent):
+            value = self[agent]
+            dict.__delitem__(self, agent)
+            return value
+        return dict.pop(self, agent, *default)
+
+    def popitem(self) -> tuple[str, Any]:
+        agent = next(reversed(dict.keys(self)))
+        return agent, self.pop(agent)
+
+    def setdefault(self, agent: str, default: Any = None) -> Any:
+        return self[agent] if dict.__contains__(self, agent) else dict.setdefault(
+            self, agent, default)
+
+    def copy(self) -> dict[str, Any]:
+        return self._all()
+
+    __copy__ = copy
+
+    def __reduce__(self) -> tuple:
+        return (dict, (self._all(),))
+
+    def __eq__(self, other: object) -> bool:
+        return self._all() == (other._all() if isinstance(other, StepInfos) else other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __or__(self, other: Any) -> dict[str, Any]:
+        return self._all() | other
+
+    def __ror__(self, other: Any) -> dict[str, Any]:
+        return other | self._all()
+
+    def __repr__(self) -> str:
+        return repr(self._all())

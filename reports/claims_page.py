@@ -1,0 +1,89 @@
+"""The claims page: ``reports.claims`` results as a DataFrame (one row per check) and as
+Markdown, with the calibration table of the tests (``reports.calibrate``) beside it.
+
+Pure functions; ``reports.build`` writes the files.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pandas as pd
+
+from reports.claims import Claim
+from reports.verdicts import VERDICTS
+
+CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test"]
+
+
+def claims_frame(claims: Sequence[Claim]) -> pd.DataFrame:
+    """One row per check: claim key, readable name, scope ("paper" or "run"),
+    configuration, execution mode, verdict, numbers and test."""
+    rows = [{"claim": c.key, "name": c.name, "scope": k.scope, "configuration": k.config,
+             "execution": k.execution, "verdict": k.verdict, "numbers": k.numbers, "test": k.test}
+            for c in claims for k in c.checks]
+    return pd.DataFrame(rows, columns=CHECK_COLUMNS)
+
+
+def _by_mode(c: Claim, scope: str = "paper") -> str:
+    return "; ".join(f"{m}: {v}" for m, v in c.verdict_by_mode(scope).items() if m != "-")
+
+
+def claims_summary(claims: Sequence[Claim]) -> pd.DataFrame:
+    """One row per claim: key, name, verdict at the paper's configurations, the same per
+    execution mode ("argmax: supported; sample: inconclusive"), and the verdict at the
+    run's own configurations ("" when not built with ``--claims-at run``)."""
+    return pd.DataFrame([{"claim": c.key, "name": c.name, "verdict": c.verdict, "by_mode": _by_mode(c),
+                          "verdict_run": c.verdict_at("run") or ""} for c in claims],
+                        columns=["claim", "name", "verdict", "by_mode", "verdict_run"])
+
+
+def _esc(s: object) -> str:
+    return str(s).replace("|", "\\|")
+
+
+def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None) -> str:
+    """The calibration table: per test, scenario and seed count, the rate of
+    ``supported`` with its Monte-Carlo standard error."""
+    meta = meta or {}
+    lines = ["# Calibration of the claim tests", "",
+             "Simulated tables with known truth pushed through the claims' own functions "
+             "(`bench calibrate`). *null*: the claim is false (at its boundary); the rate of "
+             "`supported` must be <= 5% + Monte-Carlo error. *effect*: the claim is true with the "
+             "stated effect; the rate is the power.", ""]
+    if meta:
+        lines += [", ".join(f"{k}: {v}" for k, v in meta.items()), ""]
+    head = ["test", "truth", "scenario", "seeds", "sims", "rate supported", "MC s.e.", "ok"]
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in cal.iterrows():
+        ok = "" if r["truth"] != "null" else ("yes" if r["null_ok"] else "**NO**")
+        lines.append("| " + " | ".join(_esc(x) for x in (
+            r["test"], r["truth"], r["scenario"], r["seeds"], r["sims"], f"{r['rate']:.3f}",
+            f"{r['mc_se']:.3f}", ok)) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None) -> str:
+    """The claims page: a verdict table, then per claim the statement, the test and one
+    row per configuration and execution mode."""
+    run_scope = any(k.scope == "run" for c in claims for k in c.checks)
+    lines = ["# Claims of the paper's Sec. IV against this run", "",
+             "Verdicts: " + ", ".join(f"**{v}**" for v in VERDICTS) + ". Tests take the seed as "
+             "the unit (per-seed means, Welch / one-sample t, level 0.05); fewer than 3 seeds on a "
+             "side is **not enough seeds**, whatever the data.", ""]
+    if calibration_link:
+        lines += [f"How often each test says *supported* when the claim is false, and its power: "
+                  f"[calibration]({calibration_link}).", ""]
+    head = "| claim | name | verdict (paper configurations) | per execution mode |"
+    lines += [head + (" verdict (run configurations) |" if run_scope else ""),
+              "|---|---|---|---|" + ("---|" if run_scope else "")]
+    for c in claims:
+        row = f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
+        lines.append(row + (f" {c.verdict_at('run') or '-'} |" if run_scope else ""))
+    for c in claims:
+        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*Paper:* {c.statement}", "",
+                  f"*Test:* {c.criterion}", "", f"**Verdict: {c.verdict}**", "",
+                  "| scope | configuration | execution | verdict | numbers | test |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {k.scope} | {_esc(k.config)} | {_esc(k.execution)} | {k.verdict} | "
+                  f"{_esc(k.numbers)} | {_esc(k.test)} |" for k in c.checks]
+    return "\n".join(lines) + "\n"

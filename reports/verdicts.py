@@ -1,0 +1,191 @@
+"""Claim tests: per-seed arrays in, a verdict, its numbers and the test's name out.
+
+Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05 in the
+paper's direction), **contradicted** (significant in the opposite direction),
+**inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
+side). Two checks are not statistical: **verified by construction** (the payload ratio)
+and Lemma 1's arithmetic. Each kernel takes one number (or one array of episodes) per
+seed and decides with a Welch / one-sample t test from ``reports.stats``; ``bench
+calibrate`` measures how often each says *supported* when the claim is false.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from math import comb
+
+import numpy as np
+
+from reports.stats import (
+    ALPHA,
+    TTest,
+    convergence_test,
+    curve_shape,
+    probability_of_improvement,
+    quantile_curve,
+    simultaneous_band,
+    t_test,
+    zero_events_bound,
+)
+
+SUPPORTED, INCONCLUSIVE, CONTRADICTED = "supported", "inconclusive", "contradicted"
+NOT_ENOUGH = "not enough seeds"
+BY_CONSTRUCTION = "verified by construction"
+VERDICTS = (SUPPORTED, INCONCLUSIVE, CONTRADICTED, NOT_ENOUGH, BY_CONSTRUCTION)
+MIN_SEEDS = 3
+FINAL_FRAC = 0.2
+CONV_REL_TOL = 0.2
+MAX_CORRECTION = 0.08
+BAND_PCT = np.arange(10.0, 91.0, 20.0)  # trimmed percentile range of the curve test
+BAND_TOL = 0.05  # success-rate tolerance of "nowhere below"
+N_CONTROLS = 5  # |U| = {Up, Down, Left, Right, Wait}
+
+
+def combine(verdicts: Sequence[str]) -> str:
+    """Contradicted dominates; all supported (or by construction) supports; then
+    inconclusive; else not enough seeds. All "by construction" stays so."""
+    vs = list(verdicts)
+    if not vs:
+        return NOT_ENOUGH
+    if CONTRADICTED in vs:
+        return CONTRADICTED
+    if all(v == BY_CONSTRUCTION for v in vs):
+        return BY_CONSTRUCTION
+    if all(v in (SUPPORTED, BY_CONSTRUCTION) for v in vs):
+        return SUPPORTED
+    return INCONCLUSIVE if INCONCLUSIVE in vs else NOT_ENOUGH
+
+
+def decide(t: TTest, alpha: float = ALPHA) -> str:
+    """Supported if the contrast is significantly > 0, contradicted if significantly < 0."""
+    if not t.valid:
+        return NOT_ENOUGH
+    if t.p_greater < alpha:
+        return SUPPORTED
+    if t.p_less < alpha:
+        return CONTRADICTED
+    return INCONCLUSIVE
+
+
+def _g(x: float) -> str:
+    return f"{x:.3g}" if np.isfinite(x) else "nan"
+
+
+def _too_few(*counts: int) -> bool:
+    return min(counts) < MIN_SEEDS
+
+
+def seeds_msg(*counts: int) -> str:
+    """Why a check lacks seeds: "2 vs 3 seeds (need >= 3 per side)"."""
+    return f"{' vs '.join(map(str, counts))} seeds (need >= {MIN_SEEDS} per side)"
+
+
+# ------------------------------------------------------------ check kernels
+def check_greater(a: np.ndarray, b: np.ndarray, what: str) -> tuple[str, str, str]:
+    """Is A above B? ``a`` (S_a,), ``b`` (S_b,) per-seed values. (verdict, numbers, test)."""
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    if _too_few(a.size, b.size):
+        return NOT_ENOUGH, seeds_msg(a.size, b.size), "-"
+    t = t_test([a, b], [1.0, -1.0])
+    nums = (f"{what}: {_g(a.mean())} vs {_g(b.mean())}; difference {_g(t.estimate)} [95% CI "
+            f"{_g(t.lo)}, {_g(t.hi)}], one-sided p = {_g(t.p_greater)}; P(improvement) = "
+            f"{probability_of_improvement(a, b):.2f}")
+    return decide(t), nums, f"Welch t over per-seed means ({a.size} vs {b.size} seeds)"
+
+
+def check_gap(groups: Sequence[np.ndarray], large: int, small: int) -> tuple[str, str, str]:
+    """Gap(large) - Gap(small) > 0 with groups (hier large, dec large, hier small, dec small)."""
+    gs = [g[np.isfinite(g)] for g in groups]
+    if _too_few(*(g.size for g in gs)):
+        return NOT_ENOUGH, seeds_msg(*(g.size for g in gs)), "-"
+    t = t_test(gs, [1.0, -1.0, -1.0, 1.0])
+    nums = (f"Gap({large}) = {_g(gs[0].mean() - gs[1].mean())}, Gap({small}) = "
+            f"{_g(gs[2].mean() - gs[3].mean())}; difference {_g(t.estimate)} [95% CI {_g(t.lo)}, "
+            f"{_g(t.hi)}], one-sided p = {_g(t.p_greater)}")
+    return decide(t), nums, "Welch t on a contrast of four per-seed means"
+
+
+def check_curves(h: list[np.ndarray], i: list[np.ndarray]) -> tuple[str, str, str]:
+    """Hierarchical above IC3Net across the percentile range. ``h``/``i``: per-seed
+    arrays of evaluation-episode success rates. Supported: mean success higher (Welch t)
+    and the simultaneous lower bound of the per-seed quantile-curve difference above
+    -``BAND_TOL`` at every percentile of ``BAND_PCT``; contradicted: mean lower, or the
+    upper bound below -``BAND_TOL`` somewhere."""
+    if _too_few(len(h), len(i)):
+        return NOT_ENOUGH, seeds_msg(len(h), len(i)), "-"
+    ma = np.array([np.nanmean(x) for x in h])
+    mb = np.array([np.nanmean(x) for x in i])
+    t = t_test([ma, mb], [1.0, -1.0])
+    diff, lo, hi = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
+                                     np.stack([quantile_curve(x, BAND_PCT) for x in i]))
+    if not t.valid or not np.isfinite(lo).all():
+        return NOT_ENOUGH, "no finite success rates", "-"
+    if t.p_less < ALPHA or bool((hi < -BAND_TOL).any()):
+        verdict = CONTRADICTED
+    elif t.p_greater < ALPHA and bool((lo > -BAND_TOL).all()):
+        verdict = SUPPORTED
+    else:
+        verdict = INCONCLUSIVE
+    k = int(np.argmin(lo))
+    nums = (f"mean success {_g(ma.mean())} vs {_g(mb.mean())}, difference {_g(t.estimate)} "
+            f"[95% CI {_g(t.lo)}, {_g(t.hi)}], one-sided p = {_g(t.p_greater)}; quantile difference "
+            f"min {_g(diff.min())}, lowest simultaneous bound {_g(lo[k])} at the "
+            f"{BAND_PCT[k]:.0f}th percentile (tolerance -{BAND_TOL:g})")
+    return verdict, nums, (f"Welch t + one-sided simultaneous band (Bonferroni over percentiles "
+                           f"{BAND_PCT[0]:.0f}..{BAND_PCT[-1]:.0f}) over per-seed curves "
+                           f"({len(h)} vs {len(i)} seeds)")
+
+
+def check_convergence(curves: list[np.ndarray], rel_tol: float = CONV_REL_TOL) -> tuple[str, str, str]:
+    """Improved and stable, over seeds: ``curves`` one (T,) training curve per seed."""
+    if _too_few(len(curves)):
+        return NOT_ENOUGH, seeds_msg(len(curves)), "-"
+    shapes = [curve_shape(c, FINAL_FRAC) for c in curves]
+    if any(s is None for s in shapes):
+        return NOT_ENOUGH, "too few training episodes for the windows (< 10 each)", "-"
+    r = convergence_test([s for s in shapes if s is not None], rel_tol)
+    verdict = CONTRADICTED if r.contradicted() else SUPPORTED if r.supported() else INCONCLUSIVE
+    g = np.array([s.gain for s in shapes if s is not None])
+    d = np.array([s.drift for s in shapes if s is not None])
+    nums = (f"gain {_g(g.mean())} [95% CI {_g(r.gain.lo)}, {_g(r.gain.hi)}]; drift over the last "
+            f"window {_g(d.mean())} vs tolerance +-{_g(rel_tol * g.mean())}; p(improved) = "
+            f"{_g(r.gain.p_greater)}, p(not rising) = {_g(r.above.p_less)}, p(not falling) = "
+            f"{_g(r.below.p_greater)}")
+    return verdict, nums, (f"one-sample t over {len(curves)} seeds: gain > 0 and equivalence "
+                           f"|drift| < {rel_tol:g} gain (windows of {r.window} episodes)")
+
+
+def check_corrections(m: np.ndarray, bound: float = MAX_CORRECTION) -> tuple[str, str, str]:
+    """Mean correction rate below ``bound``: one-sample t over per-seed means."""
+    m = m[np.isfinite(m)]
+    if _too_few(m.size):
+        return NOT_ENOUGH, seeds_msg(m.size), "-"
+    t = t_test([m], [1.0], null=bound)
+    verdict = {SUPPORTED: CONTRADICTED, CONTRADICTED: SUPPORTED}.get(decide(t), decide(t))
+    nums = (f"correction rate {m.mean():.2%} [95% CI {t.lo:.2%}, {t.hi:.2%}], "
+            f"one-sided p = {_g(t.p_less)}")
+    return verdict, nums, f"one-sample t over {m.size} seeds against {bound:.0%}"
+
+
+def check_collisions(rates: list[np.ndarray]) -> tuple[str, str, str]:
+    """"No collisions are observed": ``rates`` per-seed arrays of per-episode collision
+    rates. Supported iff no episode of >= 3 seeds collides (then the per-episode collision
+    probability is below the exact 95% bound 1 - 0.05^(1/n)); any collision contradicts."""
+    if _too_few(len(rates)):
+        return NOT_ENOUGH, seeds_msg(len(rates)), "-"
+    allr = np.concatenate(rates)
+    allr = allr[np.isfinite(allr)]
+    k, n = int((allr > 0).sum()), int(allr.size)
+    if n == 0:
+        return NOT_ENOUGH, "no collision data", "-"
+    per_seed = np.array([np.nanmean(r) for r in rates])
+    nums = (f"collision rate {per_seed.mean():.3%} of robot-steps (seed means {_g(per_seed.min())}.."
+            f"{_g(per_seed.max())}); episodes with a collision: {k}/{n}")
+    if k == 0:
+        nums += f"; per-episode collision probability < {zero_events_bound(n):.2%} (95%)"
+    return (SUPPORTED if k == 0 else CONTRADICTED), nums, (
+        f"count over {n} episodes of {len(rates)} seeds; exact 0-event bound")
+
+
+def lemma1_bound(n_z: int, radius: int, m: int = N_CONTROLS) -> int:
+    """Lemma 1: candidates within deviation L, sum_{d<=L} C(n_z, d) (m - 1)^d (lemma:safety_bound)."""
+    return sum(comb(n_z, d) * (m - 1) ** d for d in range(radius + 1))

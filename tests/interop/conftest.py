@@ -1,0 +1,8 @@
+"""Interop tests run the README's recipes; the libraries are in the dev extra."""
+from __future__ import annotations
+
+import torch
+
+
+def pytest_configure(config):
+    torch.set_num_threads(1)

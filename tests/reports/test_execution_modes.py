@@ -1,0 +1,75 @@
+"""Reports with every execution mode: the summary has a row per configuration and mode,
+Table I a block per mode, Fig. 2 a row of panels per mode and N, each from that mode's
+rows only (never pooled)."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from reports.fig2_success import fig2_success
+from reports.store import execution_order
+from reports.summary import summary_frame, summary_markdown
+from reports.table1_safety import table1_frame, table1_latex, table1_markdown
+from tests.reports.synthetic import frames, joined
+
+MODES = ["argmax", "sample", "sample@0.5"]
+SHIFT = {"argmax": 0.0, "sample": -0.3, "sample@0.5": -0.1}  # success offset per mode
+
+
+@pytest.fixture(scope="module")
+def store() -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(cells, eval rows in three modes with success shifted per mode) of a synthetic run."""
+    cells, _, evals = frames(seeds=2, episodes=4, eval_eps=10)
+    learned = evals[evals["execution"] == "argmax"]
+    parts = [evals[evals["execution"] != "argmax"]]
+    for mode in MODES:
+        part = learned.copy()
+        part["execution"] = mode
+        part["success_rate"] = (part["success_rate"] + SHIFT[mode]).clip(0, 1)
+        part["correction_rate"] = part["correction_rate"] * (1 + 2 * (mode != "argmax"))
+        parts.append(part)
+    return cells, joined(cells, pd.concat(parts, ignore_index=True))
+
+
+def test_execution_order__argmax_sample_then_tempered_by_decreasing_t_then_planner() -> None:
+    assert execution_order(["planner", "sample@0.25", "sample", "sample@0.5", "argmax", "sample"]) == [
+        "argmax", "sample", "sample@0.5", "sample@0.25", "planner"]
+
+
+def test_summary__one_row_per_configuration_and_mode_from_that_mode_only(store) -> None:
+    cells, ev = store
+    s = summary_frame(ev, cells)
+    hier = s[(s["method"] == "hierarchical") & (s["n_robots"] == 40) & (s["loss_p"] == 0.2)]
+    assert hier["execution"].tolist() == MODES
+    rows = ev[(ev["method"] == "hierarchical") & (ev["n_robots"] == 40) & np.isclose(ev["loss_p"], 0.2)]
+    for mode in MODES:
+        want = rows[rows["execution"] == mode].groupby("cell_id")["success_rate"].mean().mean()
+        got = hier.loc[hier["execution"] == mode, "success_rate"].item()
+        assert got == pytest.approx(want)
+        assert hier.loc[hier["execution"] == mode, "eval_episodes"].item() == 2 * 10
+    assert len(set(hier["success_rate"].round(6))) == 3
+    assert (s["execution"] != "-").all() and len(s) == (18 + 3 + 6) * 3
+    assert "| hierarchical | 40 | 0.2 | sample@0.5 |" in summary_markdown(s)
+
+
+def test_table1__a_block_per_mode_with_that_modes_numbers(store) -> None:
+    _, ev = store
+    t1, _ = table1_frame(ev)
+    assert t1["execution"].tolist() == [m for m in MODES for _ in range(6)]
+    corr = t1.set_index(["execution", "n_robots"])["correction_rate"]
+    assert corr[("sample", 40)] == pytest.approx(3 * corr[("argmax", 40)])
+    md, tex = table1_markdown(t1, []), table1_latex(t1)
+    assert [line for line in md.splitlines() if line.startswith("## ")] == [f"## Execution: {m}" for m in MODES]
+    assert tex.count(r"\begin{tabular}") == 3 and "tab:safety_reproduced_sample_0_5" in tex
+
+
+def test_fig2__panels_per_mode_and_team_size(store) -> None:
+    _, ev = store
+    built = fig2_success(ev)
+    titles = [ax.get_title() for ax in built.fig.axes if ax.get_title()]
+    assert len(titles) == 3 * 2 * 3
+    assert titles[0] == "N = 40, p = 0.2\nargmax" and titles[-1] == "N = 60, p = 0.6\nsample@0.5"
+    # the argmax and sample panels draw different curves (each from its own mode's rows)
+    ax0, ax_s = built.fig.axes[0], built.fig.axes[2 * 3]
+    assert not np.allclose(ax0.lines[0].get_ydata(), ax_s.lines[0].get_ydata())
