@@ -25,6 +25,10 @@ from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
 
+# Largest horizon T a cell may ask for: 20x the paper's 500 steps (Sec. IV). Rollout arrays
+# grow with T x N x batch, so T = 10**12 would fail at run time with MemoryError instead.
+MAX_HORIZON = 10_000
+
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
 
@@ -34,21 +38,24 @@ class Cell(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
+    # strict=True on numbers and flags: `n_robots = true` or `horizon = 2.5` is an error, not 1
+    # or 2 (a number is a number, a flag is a flag); an int is still accepted for a float.
     method: str = Field(description="registered method name (algorithms/registry.py)")
-    n_robots: int = Field(ge=1, le=10_000, description="team size N")
-    loss_p: float = Field(ge=0.0, le=1.0, description="inter-group message loss probability p")
-    seed: int = Field(0, ge=0, lt=2**31, description="root of every random stream of the cell")
-    groups: int = Field(4, ge=1, description="number of fixed groups Z")
-    ref_size: int = Field(8, ge=1, description="abstract references per group |R_z|")
-    search_radius: int = Field(2, ge=0, description="safety-filter search radius L")
-    c_max: int = Field(500, ge=1, description="safety-filter candidate budget C_max")
+    n_robots: int = Field(ge=1, le=10_000, strict=True, description="team size N")
+    loss_p: float = Field(ge=0.0, le=1.0, strict=True, description="inter-group message loss probability p")
+    seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
+    groups: int = Field(4, ge=1, strict=True, description="number of fixed groups Z")
+    ref_size: int = Field(8, ge=1, strict=True, description="abstract references per group |R_z|")
+    search_radius: int = Field(2, ge=0, strict=True, description="safety-filter search radius L")
+    c_max: int = Field(500, ge=1, strict=True, description="safety-filter candidate budget C_max")
     safety_filter: bool = Field(
-        False, description="safety filter on (default: True for hierarchical, else False)"
+        False, strict=True, description="safety filter on (default: True for hierarchical, else False)"
     )
     layout: str = Field("auto", description="'auto' (preset sized for N), a preset or a .map path")
-    episodes: int = Field(2000, ge=0, description="training episodes (0: evaluate the initialization)")
-    horizon: int = Field(500, ge=1, description="maximum episode length T")
-    eval_episodes: int = Field(100, ge=1, description="evaluation episodes (per execution mode)")
+    episodes: int = Field(2000, ge=0, strict=True,
+                          description="training episodes (0: evaluate the initialization)")
+    horizon: int = Field(500, ge=1, le=MAX_HORIZON, strict=True, description="maximum episode length T")
+    eval_episodes: int = Field(100, ge=1, strict=True, description="evaluation episodes (per execution mode)")
     eval_temperatures: tuple[float, ...] = Field(
         DEFAULT_TEMPERATURES,
         description="temperatures T != 1 of the tempered evaluation modes sample@T (learned methods; "
@@ -112,7 +119,11 @@ class Cell(BaseModel):
             layout = load_layout(self.layout)
         except BenchError as exc:
             raise BenchError(f"invalid cell: layout: {exc}") from None
-        region = len(main_region(layout))
+        try:
+            region = len(main_region(layout))
+        except BenchError as exc:  # no free cell at all
+            raise BenchError(f"invalid cell: layout: {exc}; {self.n_robots} robots need at least "
+                             f"{self.n_robots + (self.n_robots == 1)} connected free cells") from None
         if self.n_robots > region or (self.n_robots == region == 1):
             raise BenchError(
                 f"invalid cell: n_robots: {self.n_robots} robots do not fit layout "

@@ -69,32 +69,46 @@ def run(
     out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
     address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
     workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
-    fresh: bool = typer.Option(False, "--fresh", help="Delete this run directory's results and start over (asks first)."),
+    fresh: bool = typer.Option(False, "--fresh", help="Delete the files the bench wrote in this run directory and start over (asks first; other files stay; a folder without manifest.json is refused)."),
     yes: bool = typer.Option(False, "--yes", "-y", help="Do not ask before --fresh deletes results."),
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
-    interrupted ones from their last checkpoint."""
-    from bench.grid_files import load_grid_file
+    interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
+    from bench.grid_files import check_run_name, load_grid_file
     from bench.grids import get_grid
+    from bench.runner import sigterm_as_interrupt, sigterm_received
     from bench.store import RunStore
 
     if (grid is None) == (grid_file is None):
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
     g = get_grid(grid.value, seeds) if grid is not None else load_grid_file(grid_file, seeds)
-    out_dir = out if out is not None else Path("results") / g.name
+    out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
     store.check_writable()
-    if fresh and store.exists() and not yes:
-        if not sys.stdin.isatty():
-            raise BenchError(f"--fresh would delete the results in {str(out_dir)!r}; pass --yes to confirm")
-        if not typer.confirm(f"Delete every result in {out_dir} and start over?", default=False):
-            raise typer.Abort()
+    if fresh:
+        store.check_fresh()
+        n_files = len(store.bench_files())
+        if n_files and not yes:
+            if not sys.stdin.isatty():
+                raise BenchError(f"--fresh would delete the {n_files} files the bench wrote in "
+                                 f"{str(out_dir)!r}; pass --yes to confirm")
+            if not typer.confirm(f"Delete the {n_files} files the bench wrote in {out_dir} (other files "
+                                 "stay) and start over?", default=False):
+                raise typer.Abort()
     from bench.progress import make_progress
     from bench.runner import run_grid
 
-    summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
-                       checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv)
+    try:
+        with sigterm_as_interrupt():
+            summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
+                               checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv)
+    except KeyboardInterrupt:
+        if sigterm_received():
+            raise typer.Exit(143) from None
+        raise
+    for cid, why in summary.rerun.items():
+        typer.echo(f"bench: warning: cell {cid} was done but {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "
                f"{summary.wall_s:.1f} s -> {summary.out}")
     for cid, err in summary.failures.items():
@@ -204,16 +218,52 @@ class ClaimsAt(str, Enum):
 @app.command()
 def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
+    out: Path | None = typer.Option(None, "--out", help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
     claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at", help="Check claims at the paper's configurations only, or also at the run's own."),
 ) -> None:
-    """Rebuild every figure and table of a run from its Parquet store into RUN/report/."""
+    """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
+    Warns naming every done cell whose stored rows are incomplete."""
+    import os
+
     run_dir = _run_dir(run)
+    target = out if out is not None else run_dir / "report"
+    if out is None and not _writable(target):
+        raise BenchError(f"run directory {str(run_dir)!r} is read-only; write the report elsewhere "
+                         "with --out DIR")
     try:
         from reports.build import build_report
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
-    out = build_report(run_dir, claims_at=claims_at.value)
-    typer.echo(f"report: {out / 'index.html'}  (also index.md, figures, tables, claims.md)")
+    from bench.completeness import incomplete_cells
+    from bench.store import RunStore
+
+    store = RunStore(run_dir)
+    cells = store.read_cells()
+    if cells is not None:
+        for cid, gap in incomplete_cells(store, cells).items():
+            typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
+                       "rerun `bench run` to complete it", err=True)
+    try:
+        built = build_report(run_dir, out, claims_at=claims_at.value)
+    except PermissionError as exc:
+        hint = "; write the report elsewhere with --out DIR" if out is None else ""
+        raise BenchError(f"cannot write the report: {exc.filename or target}: permission denied{hint}") from None
+    except OSError as exc:
+        if exc.errno != getattr(os, "EROFS", 30):
+            raise
+        hint = "; write the report elsewhere with --out DIR" if out is None else ""
+        raise BenchError(f"cannot write the report: {exc.filename or target}: read-only file system{hint}") from None
+    typer.echo(f"report: {built / 'index.html'}  (also index.md, figures, tables, claims.md)")
+
+
+def _writable(path: Path) -> bool:
+    """Whether ``path`` (or its nearest existing parent) is a writable directory."""
+    import os
+
+    p = path
+    while not p.exists() and p.parent != p:
+        p = p.parent
+    return p.is_dir() and os.access(p, os.W_OK | os.X_OK)
 
 
 @app.command()
@@ -359,8 +409,17 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         _error("interrupted; rerun the same command to resume")
         sys.exit(130)
+    except OSError as exc:  # a full disk outside the store's own writes (which raise DiskFull)
+        from bench.store import DiskFull, is_disk_full
+
+        if not is_disk_full(exc):
+            raise
+        _error(str(DiskFull(exc.filename or "results")))
+        sys.exit(2)
     if code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
         _error("interrupted; rerun the same command to resume")
+    if code == 143:  # SIGTERM (bench run turns it into exit status 143)
+        _error("terminated; checkpoints are kept, rerun the same command to resume")
     sys.exit(code if isinstance(code, int) else 0)
 
 

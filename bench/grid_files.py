@@ -2,7 +2,8 @@
 
 Example (``my_grid.toml``)::
 
-    name = "radius-sweep"        # optional; default: the file name without extension
+    name = "radius-sweep"        # optional; default: the file name without extension; a plain
+                                 # name (letters, digits, . _ -): the run folder results/<name>
     description = "L x p at N=40"
     seeds = 2                    # optional; replicate over seeds 0..seeds-1 (--seeds wins)
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -69,6 +71,21 @@ def _parse(path: Path) -> dict[str, Any]:
     return data
 
 
+RUN_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,99}")
+
+
+def check_run_name(name: object, where: str) -> str:
+    """``name`` if it is a plain run name (it becomes the folder results/<name>): letters,
+    digits, '.', '_', '-', starting with a letter or digit, at most 100 characters; so no
+    path separator, no '..', never absolute. Else BenchError naming ``where``."""
+    if not isinstance(name, str) or not RUN_NAME_RE.fullmatch(name) or ".." in name:
+        raise BenchError(
+            f"{where}: {name!r} is not a plain run name (letters, digits, '.', '_', '-'; no path "
+            "separators or '..'); it names the run folder results/<name>"
+        )
+    return name
+
+
 def load_grid_file(path: str | Path, seeds: int | None = None) -> Grid:
     """Cells of a user grid file (see the module docstring); errors name file and key."""
     path = Path(path)
@@ -106,5 +123,6 @@ def load_grid_file(path: str | Path, seeds: int | None = None) -> Grid:
             cells.append(Cell.make(**spec))
         except BenchError as exc:
             raise BenchError(f"{where}: {exc}") from None
-    name = str(data.get("name", path.stem))
+    name = check_run_name(data["name"], f"{where}: name") if "name" in data else check_run_name(
+        path.stem, f"{where}: name (the file name, no 'name' key)")
     return Grid(name, str(data.get("description", f"user grid from {path.name}")), dedup(cells))

@@ -1,9 +1,11 @@
 """Where each cell of a run stands, read from the store (resume planning; writes nothing).
 
 A cell is *done* when its eval file exists (written once, after every chunk of every
-execution mode) and holds one row per evaluation episode and mode (checked on every run: a
-file missing a mode or an episode is re-evaluated and replaced). Otherwise its checkpoint
-(if any) says how far training got; train parts beyond it are stale and
+execution mode), holds one row per evaluation episode and mode, and its training rows are
+complete (bench/completeness.py; checked on every run). A done cell with missing rows is
+evaluated again from its final checkpoint (training rows complete) or trained again from
+the start (identical numbers: seeds come from the cell), and ``rerun`` says why. Otherwise
+its checkpoint (if any) says how far training got; train parts beyond it are stale and
 are discarded by the runner before the cell continues. Every file consulted is
 validated here, before anything is written, so a corrupt or foreign store is refused
 with a BenchError and left untouched.
@@ -16,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from bench.cells import Cell
+from bench.completeness import expected_for_cell, shortfall, stored_rows
 from bench.costs import cell_seconds
 from bench.grids import Grid
 from bench.schema import EVAL_SCHEMA, SCHEMA_VERSION
@@ -60,6 +63,7 @@ class CellState:
     attempts: int = 0
     retries: int = 0  # worker deaths in this run
     error: str = ""
+    rerun: str = ""  # why a cell stored as done runs again (its rows were incomplete)
     versions_json: str = "{}"
     weight: float = 1.0  # estimated cost, for the ETA
 
@@ -139,18 +143,27 @@ def _resume_state(store: RunStore, st: CellState) -> None:
     for _, path in store.train_parts(st.cell_id):
         read_meta(path)  # a corrupt committed part is refused before anything is written
     meta = store.eval_meta(st.cell_id)
-    if meta is not None and eval_complete(store, st):
-        st.phase, st.trained = "done", True
-        st.wall_s = float(meta.get("wall_s", st.wall_s))
-        st.peak_mem_mb = float(meta.get("peak_mem_mb", st.peak_mem_mb))
-        st.attempts = int(meta.get("attempts", st.attempts))
-        st.episodes_done = int(meta.get("train_episodes_done", st.episodes_done))
-        st.eval_rows = {u: [] for u in st.eval_units()}
-        return
     ckpt = store.read_checkpoint(st.cell_id)
+    if ckpt is not None and ckpt.get("cell") != st.cell.canonical_json():
+        raise BenchError(f"checkpoint {str(store.ckpt_path(st.cell_id))!r} belongs to another cell config")
+    if meta is not None:
+        expected, stored = expected_for_cell(st.cell), stored_rows(store, st.cell_id)
+        gap = shortfall(expected, stored)
+        if not gap and eval_complete(store, st):
+            st.phase, st.trained = "done", True
+            st.wall_s = float(meta.get("wall_s", st.wall_s))
+            st.peak_mem_mb = float(meta.get("peak_mem_mb", st.peak_mem_mb))
+            st.attempts = int(meta.get("attempts", st.attempts))
+            st.episodes_done = int(meta.get("train_episodes_done", st.episodes_done))
+            st.eval_rows = {u: [] for u in st.eval_units()}
+            return
+        gap = gap or "evaluation rows of the wrong modes or episodes"
+        if stored.train == expected.train and ckpt is not None and ckpt.get("finished"):
+            st.rerun = f"{gap} stored; evaluating it again from its final checkpoint"
+        else:
+            st.rerun = f"{gap} stored; training it again from the start"
+            return  # no checkpoint use: the missing rows come from episodes before it
     if ckpt is not None:
-        if ckpt.get("cell") != st.cell.canonical_json():
-            raise BenchError(f"checkpoint {str(store.ckpt_path(st.cell_id))!r} belongs to another cell config")
         st.has_checkpoint = True
         st.iterations = int(ckpt["iterations"])
         st.episodes_done = int(ckpt["episodes_done"])

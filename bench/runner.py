@@ -24,9 +24,11 @@ numbers do not depend on the number of workers or on the order of execution.
 from __future__ import annotations
 
 import os
+import signal
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -37,7 +39,7 @@ from bench.plan import CellState, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
 from bench.schema import SCHEMA_VERSION
-from bench.store import RunStore
+from bench.store import DiskFull, RunStore, is_disk_full
 from bench.worker import CellWorker
 from bench.worker_pool import Slot, release_workers, take_workers
 
@@ -56,9 +58,43 @@ class RunSummary:
     failed: int
     wall_s: float
     failures: dict[str, str] = field(default_factory=dict)
+    rerun: dict[str, str] = field(default_factory=dict)  # done cells run again: rows were incomplete
 
 
 EventHook = Callable[[str, CellState], None]
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM to the driver: handled like Ctrl-C (checkpoints kept, rerun resumes), exit 143.
+
+    Ray turns an exception raised by a signal handler inside ``ray.wait``/``ray.get`` into
+    a plain KeyboardInterrupt, so ``sigterm_received()`` is what tells the two apart."""
+
+
+_SIGTERM_RECEIVED: list[bool] = [False]
+
+
+def sigterm_received() -> bool:
+    return _SIGTERM_RECEIVED[0]
+
+
+@contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """While active, SIGTERM raises ``Terminated`` in the main thread (replacing the handler
+    ``ray.init`` installs, which exits mid-write with a crash dump)."""
+    def handler(signum: int, frame: Any) -> None:
+        _SIGTERM_RECEIVED[0] = True
+        raise Terminated()
+
+    try:
+        old = signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
@@ -70,6 +106,8 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     """
     store = RunStore(out)
     store.check_writable()
+    if fresh:
+        store.check_fresh()
     lock = store.lock()
     try:
         states, others = plan_run(store, grid, fresh)
@@ -78,12 +116,18 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
         else:
             ctx = connect(address, workers)
         try:
-            if lock is None:  # a new run directory: create and lock it now that all checks passed
-                store.root.mkdir(parents=True, exist_ok=True)
-                lock = store.lock()
-            run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                       progress or NullProgress(), on_event, command or sys.argv)
-            return run.execute()
+            with sigterm_as_interrupt():
+                if lock is None:  # a new run directory: create and lock it now that all checks passed
+                    try:
+                        store.root.mkdir(parents=True, exist_ok=True)
+                    except OSError as exc:
+                        if is_disk_full(exc):
+                            raise DiskFull(store.root) from None
+                        raise
+                    lock = store.lock()
+                run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
+                           progress or NullProgress(), on_event, command or sys.argv)
+                return run.execute()
         finally:
             ctx.shutdown()
     finally:
@@ -167,15 +211,17 @@ class _Run:
                             self._collect(ref, slots)
                 else:
                     time.sleep(0.05)
+                self.ctx.check_head()
                 self._emit("tick", None)
         finally:
-            if slots:
+            if slots and not self.ctx.lost:  # a lost cluster has no workers left to release
                 release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
             self.progress.close()
         failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
         return RunSummary(self.store.root, len(self.states), sum(s.phase == "done" for s in self.states),
-                          len(failed), time.monotonic() - self.t0, failed)
+                          len(failed), time.monotonic() - self.t0, failed,
+                          {s.cell_id: s.rerun for s in self.states if s.rerun})
 
     def _dispatch(self, slot: Slot) -> None:
         """Give a free worker an evaluation chunk, else the next cell to train."""

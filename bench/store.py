@@ -6,27 +6,28 @@
     <run>/eval/<cell_id>.parquet   written once, after every evaluation chunk
     <run>/checkpoints/<cell_id>.pt
 
-Every write is atomic: a temporary file in the same directory (its name starts with '.',
-which pyarrow's dataset reader ignores), flush + fsync, ``os.replace``, fsync of the
-directory. Crash consistency of training rows: a part covering episodes [a, b) is written
+Every write is atomic (bench/atomic.py: temp file, fsync, rename; permissions from the
+umask; a full disk is one ``DiskFull`` line naming the file, the old file kept). Tables
+and checkpoints are serialized in memory first, so the only disk write is one ``write``
+of the temp file. Crash consistency of training rows: a part covering episodes [a, b) is written
 *before* the checkpoint at episode b; on resume, parts starting at or beyond the
 checkpoint's episode counter are deleted, so rows are never duplicated or lost.
 """
 from __future__ import annotations
 
+import io
 import json
 import os
-import shutil
-import tempfile
-from collections.abc import Iterator, Mapping, Sequence
-from contextlib import contextmanager
+import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from bench.atomic import DiskFull, _suppress_oserror, atomic_file, file_mode, is_disk_full
 from bench.schema import (
     CELLS_SCHEMA,
     EVAL_SCHEMA,
@@ -37,51 +38,22 @@ from bench.schema import (
 )
 from envs.errors import BenchError
 
+__all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full", "load_checkpoint",
+           "read_meta", "read_table", "write_table"]
+
 CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
 # Results schema versions whose checkpoints this bench loads: version 2 changed the eval
 # rows (execution modes) only, not the checkpoint (cell JSON and the method's state_dict).
 CHECKPOINT_VERSIONS = (1, SCHEMA_VERSION)
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
-
-
-@contextmanager
-def atomic_file(path: Path) -> Iterator[IO[bytes]]:
-    """Write ``path`` atomically: temp file in the same dir, fsync, os.replace, dir fsync."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            yield fh
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with _suppress_oserror():
-            os.unlink(tmp)
-        raise
-    _fsync_dir(path.parent)
-
-
-@contextmanager
-def _suppress_oserror() -> Iterator[None]:
-    try:
-        yield
-    except OSError:
-        pass
-
-
-def _fsync_dir(path: Path) -> None:
-    with _suppress_oserror():
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/cells.py: 12 hex digits of SHA-256
 
 
 def write_table(path: Path, table: pa.Table) -> None:
+    sink = pa.BufferOutputStream()  # serialize first: the only disk write is fh.write
+    pq.write_table(table, sink)
     with atomic_file(path) as fh:
-        pq.write_table(table, fh)
+        fh.write(sink.getvalue().to_pybytes())
 
 
 def read_table(path: Path, expected: pa.Schema) -> pa.Table:
@@ -126,6 +98,8 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     Keys: format, schema_version, cell (canonical cell JSON), method, episodes_done,
     wall_s, peak_mem_mb, attempts, state (the method's state_dict).
     """
+    import pickle
+
     import torch
 
     path = Path(path)
@@ -133,6 +107,20 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
         data = torch.load(path, map_location="cpu", weights_only=True)
     except FileNotFoundError:
         raise BenchError(f"checkpoint {str(path)!r} does not exist") from None
+    except pickle.UnpicklingError as exc:
+        # Never pass on torch's text: it advises weights_only=False, which would execute code
+        # from a results folder. A refused global is named; anything else is corruption.
+        found = re.search(r"Unsupported global: GLOBAL (\S+)", str(exc))
+        if found is None:
+            tail = str(exc).partition("WeightsUnpickler error:")[2]
+            why = next((ln.strip() for ln in tail.splitlines() if ln.strip()), "not a torch file")
+            raise BenchError(f"corrupt checkpoint {str(path)!r}: {why[:200]}") from None
+        raise BenchError(
+            f"refusing checkpoint {str(path)!r}: it holds a pickled Python object "
+            f"({found.group(1)}), and the bench loads only tensors and plain data "
+            "(weights_only=True) so that no code from a results folder is executed; it was not "
+            "written by this bench"
+        ) from None
     except Exception as exc:  # torch raises many types for truncated or foreign files
         raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None
     if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
@@ -305,8 +293,10 @@ class RunStore:
         """Atomically save ``payload`` (tensors and plain data) to checkpoints/<cell_id>.pt."""
         import torch
 
+        buf = io.BytesIO()  # serialize first: a full disk fails in fh.write, not in torch's zip writer
+        torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, buf)
         with atomic_file(self.ckpt_path(cell_id)) as fh:
-            torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, fh)
+            fh.write(buf.getbuffer())
 
     def read_checkpoint(self, cell_id: str) -> dict[str, Any] | None:
         path = self.ckpt_path(cell_id)
@@ -314,22 +304,76 @@ class RunStore:
 
     # ------------------------------------------------------------- cleanup
     def remove_temp_files(self) -> int:
-        """Delete leftovers of interrupted atomic writes ('.<name>.*.tmp')."""
+        """Delete leftovers of interrupted atomic writes of bench files ('.<name>.*.tmp')."""
         n = 0
-        for d in (self.root, self.train_dir, self.eval_dir, self.ckpt_dir):
-            if not d.is_dir():
-                continue
-            for p in d.rglob(".*.tmp"):
+        for p in self.bench_files():
+            if _temp_target(p.name):
                 with _suppress_oserror():
                     p.unlink()
                     n += 1
         return n
 
-    def wipe(self) -> None:
-        """Delete everything the bench wrote in this run directory (for --fresh)."""
-        for sub in (self.train_dir, self.eval_dir, self.ckpt_dir):
-            if sub.is_dir():
-                shutil.rmtree(sub)
-        for f in (self.cells_path, self.manifest_path):
-            if f.exists():
-                f.unlink()
+    def bench_files(self) -> list[Path]:
+        """Files of this run directory that the bench itself writes (and only those).
+
+        manifest.json, cells.parquet, train/<cell_id>/part-<k>.parquet,
+        eval/<cell_id>.parquet, checkpoints/<cell_id>.pt (cell_id: 12 hex digits) and the
+        temp files ('.<name>.<random>.tmp') of interrupted writes of these. Anything else,
+        and anything behind a symlink, is the user's.
+        """
+        def plain(d: Path) -> list[tuple[Path, str]]:
+            """(file, the name it stands for: its own, or a temp file's target) in ``d``."""
+            if not d.is_dir() or d.is_symlink():
+                return []
+            return [(p, _temp_target(p.name) or p.name) for p in d.iterdir() if p.is_file() and not p.is_symlink()]
+
+        out = [p for p, name in plain(self.root) if name in ("manifest.json", "cells.parquet")]
+        if self.train_dir.is_dir() and not self.train_dir.is_symlink():
+            for d in self.train_dir.iterdir():
+                if CELL_ID_RE.fullmatch(d.name):
+                    out += [p for p, name in plain(d) if _is_part(name)]
+        for d, suffix in ((self.eval_dir, ".parquet"), (self.ckpt_dir, ".pt")):
+            out += [p for p, name in plain(d)
+                    if name.endswith(suffix) and CELL_ID_RE.fullmatch(name.removesuffix(suffix))]
+        return sorted(out)
+
+    def check_fresh(self) -> None:
+        """BenchError unless --fresh may run here: the directory does not exist, is empty,
+        or is a bench run directory (has manifest.json). Nothing else is ever wiped."""
+        if not self.root.is_dir() or self.manifest_path.is_file():
+            return
+        if any(self.root.iterdir()):
+            raise BenchError(
+                f"--fresh: {str(self.root)!r} has files but no manifest.json, so it is not a bench "
+                "run directory; refusing to delete anything in it (choose another --out)"
+            )
+
+    def wipe(self) -> list[Path]:
+        """Delete the files the bench wrote here (``bench_files``) for --fresh; other files and
+        the folders holding them stay. Returns the deleted files."""
+        files = self.bench_files()
+        for p in files:
+            p.unlink()
+        for p in files:  # train/<cell_id>/ first, then train/, eval/, checkpoints/ (never the root)
+            if p.parent != self.root:
+                _rmdir_if_empty(p.parent)
+        for d in (self.train_dir, self.eval_dir, self.ckpt_dir):
+            _rmdir_if_empty(d)
+        return files
+
+
+def _is_part(name: str) -> bool:
+    mid = name[len(PART_PREFIX):-len(PART_SUFFIX)]
+    return name.startswith(PART_PREFIX) and name.endswith(PART_SUFFIX) and mid.isdigit()
+
+
+def _temp_target(name: str) -> str:
+    """The target of an atomic_file temp name '.<target>.<random>.tmp', else ''."""
+    if not (name.startswith(".") and name.endswith(".tmp") and name.count(".") >= 3):
+        return ""
+    return name[1:].rsplit(".", 2)[0]
+
+
+def _rmdir_if_empty(d: Path) -> None:
+    if d.is_dir() and not d.is_symlink() and not any(d.iterdir()):
+        d.rmdir()

@@ -12,8 +12,11 @@ from envs.layouts import Layout
 
 
 def main_region(layout: Layout) -> np.ndarray:
-    """Free-cell indices of the largest 4-connected region."""
+    """Free-cell indices of the largest 4-connected region; BenchError if there is no free cell."""
     comp = layout.components
+    if comp.size == 0:
+        h, w = layout.obstacles.shape
+        raise BenchError(f"layout {layout.name!r} has no free cells (all {h}x{w} cells are obstacles)")
     labels, counts = np.unique(comp, return_counts=True)
     return np.flatnonzero(comp == labels[np.argmax(counts)])
 

@@ -2,8 +2,11 @@
 
 The only function of ``reports`` that writes files. It reads the run's Parquet store
 (``reports.store``), calls the pure builders (figures, Table I, summary, claims, index)
-and writes their outputs into ``<run>/report/``, each atomically (temp file + rename), so
-an interrupted rebuild never leaves a half-written file. Deterministic: bootstrap
+and writes their outputs into ``<run>/report/`` (or ``bench report --out DIR``, e.g. for
+a read-only run folder), each atomically (temp file + rename, permissions from the
+umask), so an interrupted rebuild never leaves a half-written file; a full disk is one
+``DiskFull`` line. Done cells whose rows are incomplete (bench/completeness.py) are
+listed among the store's problems. Deterministic: bootstrap
 generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
@@ -21,6 +24,8 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from bench.completeness import incomplete_cells
+from bench.store import DiskFull, RunStore, file_mode, is_disk_full
 from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
 from reports.claims import all_claims
 from reports.claims_page import calibration_markdown, claims_frame, claims_markdown
@@ -39,15 +44,19 @@ FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
 
 def _atomic(path: Path, write: Callable[[str], None]) -> Path:
     """Call ``write(tmp)`` on a temp file next to ``path``, then rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    tmp = ""
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.close(fd)
         write(tmp)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; a report is meant to be shared/served
+        os.chmod(tmp, file_mode())  # mkstemp creates 0600; a report follows the umask like any file
         os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+    except BaseException as exc:
+        if tmp:
+            Path(tmp).unlink(missing_ok=True)
+        if is_disk_full(exc):
+            raise DiskFull(path) from None
         raise
     return path
 
@@ -98,13 +107,15 @@ def _calibration(out: Path) -> str | None:
     return "calibration.md"
 
 
-def build_report(run_dir: Path | str, claims_at: str = "paper") -> Path:
-    """Rebuild ``<run_dir>/report/`` from the store; returns that directory (holding
-    ``index.html``). Missing or failed cells are listed, never fatal; a run directory
-    without ``cells.parquet`` is a ``BenchError``. ``claims_at="run"`` also checks the
-    claims at the run's own configurations."""
+def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper") -> Path:
+    """Rebuild the report (default ``<run_dir>/report/``, else ``out_dir``) from the store;
+    returns that directory (holding ``index.html``). Missing, failed or incomplete cells are
+    listed, never fatal; a run directory without ``cells.parquet`` is a ``BenchError``.
+    ``claims_at="run"`` also checks the claims at the run's own configurations."""
     store = load_store(run_dir)
-    out = Path(run_dir) / REPORT_DIR
+    out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
+    for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
+        store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
     train, evals = store.train, store.eval
     entries: list[Entry] = []
 
@@ -151,7 +162,7 @@ def build_report(run_dir: Path | str, claims_at: str = "paper") -> Path:
     entries += _study_entries(Path(run_dir), out)
 
     # GIFs written by `bench replay` (default RUN/replays/) or into the report folder.
-    replays = sorted(f"../replays/{p.name}" for p in (Path(run_dir) / "replays").glob("*.gif"))
+    replays = sorted(os.path.relpath(p, out) for p in (Path(run_dir) / "replays").glob("*.gif"))
     replays += sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
     data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
                      store.problems, replays)

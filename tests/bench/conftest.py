@@ -67,10 +67,11 @@ def ray_local() -> Iterator[None]:
     """An embedded 2-CPU Ray for the module; the runner uses it and leaves it running."""
     import ray
 
-    from bench.ray_cluster import OBJECT_STORE_BYTES
+    from bench.ray_cluster import OBJECT_STORE_BYTES, _loopback_only
 
-    ray.init(address="local", num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
-             log_to_driver=False, logging_level="ERROR", _node_ip_address="127.0.0.1")
+    with _loopback_only():
+        ray.init(address="local", num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
+                 log_to_driver=False, logging_level="ERROR", _node_ip_address="127.0.0.1")
     yield
     ray.shutdown()
 

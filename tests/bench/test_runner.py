@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 
 from bench.cells import Cell
@@ -126,6 +127,26 @@ def test_run__fresh_starts_over_and_drops_cells_of_other_grids(toy: str, tmp_pat
     assert summary.done == 1 and cells["cell_id"].tolist() == [other.cells[0].cell_id]
     assert sorted(p.stem for p in (out / "checkpoints").iterdir()) == [other.cells[0].cell_id]
     assert cells["attempts"].tolist() == [1]
+
+
+def test_run__done_cell_with_missing_rows_is_run_again_to_identical_rows(toy: str, tmp_path: Path) -> None:
+    grid = _grid(toy_spec(seed=3), toy_spec(seed=4))
+    out = tmp_path / "run"
+    run_grid(grid, out, workers=2, checkpoint_every=1)
+    _, train0, eval0 = _frames(out)
+    store = RunStore(out)
+    lost_part = store.train_parts(grid.cells[0].cell_id)[1][1]
+    lost_part.unlink()  # a training part of a finished cell disappears
+    short = pq.read_table(store.eval_path(grid.cells[1].cell_id))
+    pq.write_table(short.slice(0, 3), store.eval_path(grid.cells[1].cell_id))  # ... and eval rows go missing
+    summary = run_grid(grid, out, workers=2, checkpoint_every=1)
+    assert summary.done == 2 and set(summary.rerun) == {c.cell_id for c in grid.cells}
+    assert "training it again from the start" in summary.rerun[grid.cells[0].cell_id]
+    assert "evaluating it again from its final checkpoint" in summary.rerun[grid.cells[1].cell_id]
+    _, train1, eval1 = _frames(out)
+    pd.testing.assert_frame_equal(train0, train1)
+    pd.testing.assert_frame_equal(eval0, eval1)
+    assert run_grid(grid, out, workers=2, checkpoint_every=1).rerun == {}
 
 
 def test_run__interrupted_between_execution_modes_then_resumed_has_every_mode_once(

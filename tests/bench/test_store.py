@@ -14,6 +14,8 @@ from bench.schema import CELLS_SCHEMA, EVAL_SCHEMA, SCHEMA_VERSION, TRAIN_SCHEMA
 from bench.store import RunStore, atomic_file, load_checkpoint, read_table
 from envs.errors import BenchError
 
+CID = "0123456789ab"  # a cell id: 12 hex digits
+
 
 def _metric_row(episode: int, **extra: float) -> dict:
     return {"episode": episode, "team_return": 1.5 * episode, "success_rate": 0.25, "collision_rate": 0.0,
@@ -39,11 +41,11 @@ def test_atomic_file__failure_mid_write_keeps_the_old_file_and_no_temp(tmp_path:
 def test_train_rows__round_trip_with_nan_for_missing_losses_and_extra_keys_dropped(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
     rows = [_metric_row(e, actor_loss=0.5, wall_s=0.01, entropy=3.0) for e in range(4)]
-    store.write_train_part("abc", 0, rows[:2])
-    store.write_train_part("abc", 2, rows[2:])
+    store.write_train_part(CID, 0, rows[:2])
+    store.write_train_part(CID, 2, rows[2:])
     df = store.read_train()
     assert list(df.columns) == TRAIN_SCHEMA.names
-    assert df["episode"].tolist() == [0, 1, 2, 3] and (df["cell_id"] == "abc").all()
+    assert df["episode"].tolist() == [0, 1, 2, 3] and (df["cell_id"] == CID).all()
     assert df["actor_loss"].tolist() == [0.5] * 4
     assert df["critic_loss"].isna().all() and df["predictor_loss"].isna().all()
     assert df["steps"].dtype == "int64"
@@ -53,10 +55,10 @@ def test_train_rows__round_trip_with_nan_for_missing_losses_and_extra_keys_dropp
 
 def test_eval_rows__round_trip_and_metadata(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
-    store.write_eval("abc", [_metric_row(e) for e in range(3)], {"wall_s": 2.5, "attempts": 2})
+    store.write_eval(CID, [_metric_row(e) for e in range(3)], {"wall_s": 2.5, "attempts": 2})
     df = store.read_eval()
     assert list(df.columns) == EVAL_SCHEMA.names and df["team_return"].tolist() == [0.0, 1.5, 3.0]
-    assert store.eval_meta("abc") == {"wall_s": 2.5, "attempts": 2}
+    assert store.eval_meta(CID) == {"wall_s": 2.5, "attempts": 2}
     assert store.eval_meta("zzz") is None
 
 
@@ -94,13 +96,13 @@ def test_read__other_schema_version_is_refused(tmp_path: Path) -> None:
 
 def test_read__corrupt_parquet_is_a_bench_error_naming_the_file(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
-    store.write_eval("abc", [_metric_row(0)], {})
-    data = store.eval_path("abc").read_bytes()
-    store.eval_path("abc").write_bytes(data[: len(data) // 2])
-    with pytest.raises(BenchError, match=r"corrupt Parquet file .*abc\.parquet"):
+    store.write_eval(CID, [_metric_row(0)], {})
+    data = store.eval_path(CID).read_bytes()
+    store.eval_path(CID).write_bytes(data[: len(data) // 2])
+    with pytest.raises(BenchError, match=rf"corrupt Parquet file .*{CID}\.parquet"):
         store.read_eval()
     with pytest.raises(BenchError, match="corrupt"):
-        store.eval_meta("abc")
+        store.eval_meta(CID)
 
 
 def test_manifest__other_version_is_refused(tmp_path: Path) -> None:
@@ -113,16 +115,16 @@ def test_manifest__other_version_is_refused(tmp_path: Path) -> None:
 def test_discard_parts_from__removes_parts_not_covered_by_the_checkpoint(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
     for first in (0, 4, 8):
-        store.write_train_part("abc", first, [_metric_row(first + k) for k in range(4)])
-    assert store.discard_parts_from("abc", 8) == 1
-    assert [f for f, _ in store.train_parts("abc")] == [0, 4]
+        store.write_train_part(CID, first, [_metric_row(first + k) for k in range(4)])
+    assert store.discard_parts_from(CID, 8) == 1
+    assert [f for f, _ in store.train_parts(CID)] == [0, 4]
     assert store.read_train()["episode"].tolist() == list(range(8))
 
 
 def test_temp_files__are_ignored_by_readers_and_cleaned(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
-    store.write_train_part("abc", 0, [_metric_row(0)])
-    stray = tmp_path / "train" / "abc" / ".part-000000004.parquet.xyz.tmp"
+    store.write_train_part(CID, 0, [_metric_row(0)])
+    stray = tmp_path / "train" / CID / ".part-000000004.parquet.xyz.tmp"
     stray.write_bytes(b"torn write")
     assert len(pd.read_parquet(tmp_path / "train")) == 1
     assert len(store.read_train()) == 1
@@ -132,19 +134,19 @@ def test_temp_files__are_ignored_by_readers_and_cleaned(tmp_path: Path) -> None:
 def test_checkpoint__round_trip_with_weights_only_and_format_check(tmp_path: Path) -> None:
     store = RunStore(tmp_path)
     state = {"w": torch.arange(3.0), "iterations": 2, "gen": torch.Generator().get_state()}
-    store.write_checkpoint("abc", {"cell": "{}", "episodes_done": 8, "state": state})
-    ckpt = store.read_checkpoint("abc")
+    store.write_checkpoint(CID, {"cell": "{}", "episodes_done": 8, "state": state})
+    ckpt = store.read_checkpoint(CID)
     assert ckpt["episodes_done"] == 8 and torch.equal(ckpt["state"]["w"], state["w"])
     torch.save({"something": "else"}, tmp_path / "foreign.pt")
     with pytest.raises(BenchError, match="not a bench checkpoint"):
         load_checkpoint(tmp_path / "foreign.pt")
-    old = {**torch.load(store.ckpt_path("abc"), weights_only=True), "schema_version": 1}
+    old = {**torch.load(store.ckpt_path(CID), weights_only=True), "schema_version": 1}
     torch.save(old, tmp_path / "v1.pt")  # schema 2 changed eval rows only: v1 checkpoints load
     assert torch.equal(load_checkpoint(tmp_path / "v1.pt")["state"]["w"], state["w"])
     torch.save({**old, "schema_version": SCHEMA_VERSION + 1}, tmp_path / "vnext.pt")
     with pytest.raises(BenchError, match=f"schema version {SCHEMA_VERSION + 1}"):
         load_checkpoint(tmp_path / "vnext.pt")
-    (tmp_path / "torn.pt").write_bytes(store.ckpt_path("abc").read_bytes()[:100])
+    (tmp_path / "torn.pt").write_bytes(store.ckpt_path(CID).read_bytes()[:100])
     with pytest.raises(BenchError, match="corrupt checkpoint"):
         load_checkpoint(tmp_path / "torn.pt")
 
