@@ -123,8 +123,9 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     x = torch.cat(xs, dim=1)
     h = torch.zeros(z, b, k, model.hidden)
     hs = []
+    x_t = x.unbind(1)  # one backward for all steps (x[:, t] would zero-fill x's grad per step)
     for t in range(t_used):
-        h = model.step(x[:, t], h)
+        h = model.step(x_t[t], h)
         hs.append(h)
     hid = torch.stack(hs, dim=1)  # (Z, T, B, K, H)
     # Decode only the lost links (the loss ignores the others), padded per group.
