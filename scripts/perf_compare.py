@@ -4,7 +4,9 @@ Each measurement is a fresh Python process whose code comes from one checkout (t
 timing loop below is the same text for both, so both are measured by the same script):
 it builds the method, runs ``--warmup`` training iterations, then times ``--iterations``
 full ``Method.train_iteration()`` calls (scenario sampling and environment reset,
-rollout, update: what a bench cell pays per update). Rates are env-steps (episode-steps)
+rollout, update: what a bench cell pays per update). Before timing, every goal's distance
+field is computed in both checkouts (the steady state of a cell: the old per-goal cache
+fills within its first few dozen updates), unless ``--cold-fields``. Rates are env-steps (episode-steps)
 per second of wall time and of process CPU time (less sensitive to other load on a
 shared box). Rounds alternate the order of the two checkouts; the table gives medians.
 
@@ -29,9 +31,13 @@ torch.set_num_threads(1)
 from algorithms.registry import method_class
 from envs.config import EnvConfig
 method, n, layout = sys.argv[2], int(sys.argv[3]), sys.argv[4]
-warmup, iterations, horizon, batch = (int(v) for v in sys.argv[5:9])
+warmup, iterations, horizon, batch, warm_fields = (int(v) for v in sys.argv[5:10])
 env = EnvConfig.make(n_robots=n, layout=layout, horizon=horizon, loss_p=0.2, groups=min(4, n))
 m = method_class(method)(env, {"batch_episodes": batch}, seed=0)
+if warm_fields:  # steady state: every goal's distance field already known (both checkouts)
+    import numpy as np
+    from envs.distances import distance_cache
+    distance_cache(m.layout).fields(np.arange(m.layout.n_free))
 for _ in range(warmup):
     m.train_iteration()
 steps = 0
@@ -46,7 +52,7 @@ print(json.dumps({"steps": steps, "wall_s": wall, "cpu_s": cpu}))
 def measure(tree: Path, method: str, n: int, layout: str, args: argparse.Namespace) -> dict:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONPATH": str(tree)}
     cmd = [sys.executable, "-c", SNIPPET, str(tree), method, str(n), layout, str(args.warmup),
-           str(args.iterations), str(args.horizon), str(args.batch)]
+           str(args.iterations), str(args.horizon), str(args.batch), str(int(not args.cold_fields))]
     out = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -63,6 +69,9 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=3)
     ap.add_argument("--horizon", type=int, default=200)
     ap.add_argument("--batch", type=int, default=8)
+    ap.add_argument("--cold-fields", action="store_true",
+                    help="do not precompute every goal's distance field first (default: steady state, "
+                         "as after the first few dozen updates of a cell)")
     ap.add_argument("--json", type=Path, default=None, help="also write every measurement here")
     args = ap.parse_args()
     trees = {"base": args.base.resolve(), "new": args.new.resolve()}
