@@ -69,7 +69,12 @@ class GroupGRUCell(nn.Module):
         self.hh = GroupLinear(n_param_groups, n_groups, hidden, 3 * hidden)
 
     def forward(self, x: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-        gi, gh = self.ih(x), self.hh(h)
+        return self.from_input_gates(self.ih(x), h)
+
+    def from_input_gates(self, gi: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        """The step with the input's gate pre-activations ``gi = ih(x)`` (Z, ..., 3H) already
+        computed, e.g. for a whole sequence in one matmul before a time loop."""
+        gh = self.hh(h)
         i_r, i_z, i_n = gi.chunk(3, dim=-1)
         h_r, h_z, h_n = gh.chunk(3, dim=-1)
         r = torch.sigmoid(i_r + h_r)

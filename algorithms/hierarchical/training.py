@@ -123,9 +123,11 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     x = torch.cat(xs, dim=1)
     h = torch.zeros(z, b, k, model.hidden)
     hs = []
-    x_t = x.unbind(1)  # one backward for all steps (x[:, t] would zero-fill x's grad per step)
+    # eq:recurrent_predictor over the episode: the input half of the GRU for every step in
+    # one matmul, the recurrent half step by step (unbind: one backward for all steps).
+    gi_t = model.input_gates(x).unbind(1)
     for t in range(t_used):
-        h = model.step(x_t[t], h)
+        h = model.step_from_gates(gi_t[t], h)
         hs.append(h)
     hid = torch.stack(hs, dim=1)  # (Z, T, B, K, H)
     # Decode only the lost links (the loss ignores the others), padded per group.
