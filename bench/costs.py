@@ -32,13 +32,15 @@ LABEL = "measured" if MEASURED else "estimate"
 
 
 def rate(method: str, phase: str, n_robots: int) -> float:
-    """Agent-steps per second of ``method`` in ``phase`` ("train"/"eval") at ``n_robots``."""
-    points = AGENT_STEPS_PER_S.get(method, DEFAULT_RATE)[phase]
-    (n0, r0), (n1, r1) = sorted(points.items())
-    if r0 == r1:
-        return r0
-    w = min(max((n_robots - n0) / (n1 - n0), 0.0), 1.0)
-    return r0 + w * (r1 - r0)
+    """Agent-steps per second of ``method`` in ``phase`` ("train"/"eval") at ``n_robots``:
+    piecewise linear between the measured N, clamped outside them."""
+    points = sorted(AGENT_STEPS_PER_S.get(method, DEFAULT_RATE)[phase].items())
+    if n_robots <= points[0][0]:
+        return points[0][1]
+    for (n0, r0), (n1, r1) in zip(points[:-1], points[1:], strict=True):
+        if n_robots <= n1:
+            return r0 if r0 == r1 else r0 + (n_robots - n0) / (n1 - n0) * (r1 - r0)
+    return points[-1][1]
 
 
 def cell_agent_steps(cell: Cell) -> tuple[float, float]:
