@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from algorithms.common.allocator import tune_allocator
 from algorithms.common.episodes import (
     EVAL_STREAM,
     TRAIN_STREAM,
@@ -87,6 +88,7 @@ class Method(ABC):
         self.episodes_done = 0
         torch.manual_seed(self.seed)  # initial weights: a pure function of the seed
         self.torch_gen = torch.Generator().manual_seed(self.seed + 1)  # training action samples
+        tune_allocator()  # large update tensors reuse heap memory (allocation only)
 
     @classmethod
     def parse_params(cls, params: Mapping[str, Any]) -> MethodParams:

@@ -132,6 +132,30 @@ class IC3NetPolicy(nn.Module):
         logits = masked_logits(logits, mask)
         return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
 
+    def replay(
+        self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
+        hc: tuple[torch.Tensor, torch.Tensor],
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+        """``forward`` over a chunk of T steps (inputs with a leading (T,) axis), outputs
+        stacked (T, B, N, ...). The encoder and the heads run once over the chunk; only the
+        communication and the LSTM cell go step by step. Equal to T ``forward`` calls up to
+        the float rounding of the larger matmuls (tests/algorithms/test_ic3net.py)."""
+        tc, b, n, _ = obs.shape
+        xs = self.encoder(obs).unbind(0)  # T x (B, N, H); unbind: one backward, not T
+        h, c = hc
+        hs = []
+        for t in range(tc):
+            for comm in self.comm:
+                heard = average_comm(h.view(b, n, self.hidden), links[t], alive[t])
+                h, c = self.lstm((xs[t] + comm(heard)).view(b * n, self.hidden), (h, c))
+            hs.append(h)
+        hh = torch.stack(hs).view(tc, b, n, self.hidden)
+        logits = self.action_head(hh)
+        if self.path is not None:
+            logits = self.path(obs, logits)
+        logits = masked_logits(logits, mask)
+        return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
+
 
 @dataclass
 class IC3NetState:
@@ -256,18 +280,18 @@ class IC3NetMethod(Method):
         self.optimizer.zero_grad()
         totals = dict(action_loss=0.0, value_loss=0.0, entropy=0.0)
         for lo in range(0, t_used, p.detach_gap):
-            action_loss = value_loss = entropy = torch.zeros(())
-            for t in range(lo, min(lo + p.detach_gap, t_used)):
-                logits, gate_logits, values, hc = self.replay_step(data, t, hc)
-                logp_all = torch.log_softmax(logits, dim=-1)
-                logp = logp_all.gather(-1, data["actions"][t][..., None]).squeeze(-1)
-                if learn_gate:
-                    logp_g = torch.log_softmax(gate_logits, dim=-1)
-                    logp = logp + logp_g.gather(-1, data["gates"][t][..., None]).squeeze(-1)
-                m = active[t]
-                action_loss = action_loss - (adv[t] * logp * m).sum()
-                value_loss = value_loss + (((values - targets[t]) ** 2) * m).sum()
-                entropy = entropy - ((logp_all.exp() * logp_all).sum(-1) * m).sum()
+            sl = slice(lo, min(lo + p.detach_gap, t_used))
+            logits, gate_logits, values, hc = self.policy.replay(
+                data["obs"][sl], data["mask"][sl], data["links"][sl], data["alive"][sl], hc)
+            logp_all = torch.log_softmax(logits, dim=-1)
+            logp = logp_all.gather(-1, data["actions"][sl][..., None]).squeeze(-1)
+            if learn_gate:
+                logp_g = torch.log_softmax(gate_logits, dim=-1)
+                logp = logp + logp_g.gather(-1, data["gates"][sl][..., None]).squeeze(-1)
+            m = active[sl]
+            action_loss = -(adv[sl] * logp * m).sum()
+            value_loss = (((values - targets[sl]) ** 2) * m).sum()
+            entropy = -((logp_all.exp() * logp_all).sum(-1) * m).sum()
             loss = (action_loss + p.value_coef * value_loss - p.entropy_coef * entropy) / n_steps
             loss.backward()
             hc = (hc[0].detach(), hc[1].detach())

@@ -41,6 +41,7 @@ class Suite(str, Enum):
     hierarchical = "hierarchical"
     baselines = "baselines"
     pibt = "pibt"
+    train = "train"
     all = "all"
 
 
@@ -331,6 +332,7 @@ PERF_SUITES = {
     "hierarchical": ("bench.perf_methods", "run_hierarchical_suite"),
     "baselines": ("bench.perf_baselines", "run_baselines_suite"),
     "pibt": ("bench.perf_pibt", "run_pibt_suite"),
+    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100
 }
 
 

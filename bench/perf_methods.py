@@ -12,6 +12,10 @@
   microseconds per group-step, mean candidates examined, fallback and correction rates.
 * ``run_hierarchical_suite``: both at N = 20 (wh20) and N = 100 (the wh100 preset and
   the MovingAI warehouse map, whose density matches the paper's Table I).
+* ``measure_cell_training`` / ``run_train_suite`` (``bench perf --suite train``): what a
+  bench cell pays per update, every learned method at N = 40 and N = 100 on the MovingAI
+  map: whole ``train_iteration()`` calls (scenario sampling and reset, rollout, update)
+  after a warm-up, in env-steps/s of wall time and of process CPU time.
 
     .venv/bin/python -m bench.perf_methods          # prints the table
 """
@@ -59,6 +63,52 @@ def measure_training(method: str, n_robots: int, layout: str, iterations: int = 
         # Process CPU time: what one dedicated core would take on a shared, busy machine.
         "paper_cell_train_min_cpu": cpu / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
     }
+
+
+LEARNED = ("hierarchical", "decentralized", "ic3net")
+TRAIN_SIZES = (40, 100)
+
+
+def measure_cell_training(method: str, n_robots: int, layout: str, iterations: int = 2,
+                          warmup: int = 1, batch_episodes: int = 8, horizon: int = 200,
+                          loss_p: float = 0.2, seed: int = 0, **params: Any) -> dict[str, Any]:
+    """Throughput of whole training updates as a cell runs them (one torch thread).
+
+    ``warmup`` updates run first (one-time costs: torch kernels, the layout's distance
+    table); then ``iterations`` timed ``train_iteration()`` calls. Rates per second of
+    wall time and of process CPU time (one dedicated core on a shared, busy machine).
+    """
+    torch.set_num_threads(1)
+    env = EnvConfig.make(n_robots=n_robots, layout=layout, horizon=horizon, loss_p=loss_p,
+                         groups=min(4, n_robots))
+    m = method_class(method)(env, {"batch_episodes": batch_episodes, **params}, seed=seed)
+    for _ in range(warmup):
+        m.train_iteration()
+    steps = 0
+    wall0, cpu0 = time.perf_counter(), time.process_time()
+    for _ in range(iterations):
+        steps += int(sum(r["steps"] for r in m.train_iteration()))
+    wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+    steps = max(steps, 1)
+    return {
+        "method": method, "n_robots": n_robots, "layout": Path(layout).stem,
+        "batch_episodes": batch_episodes, "horizon": horizon, "episode_steps": steps,
+        "env_steps_per_s": steps / wall, "env_steps_per_s_cpu": steps / cpu,
+        "agent_steps_per_s": n_robots * steps / wall, "agent_steps_per_s_cpu": n_robots * steps / cpu,
+        "paper_cell_train_min": wall / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
+        "paper_cell_train_min_cpu": cpu / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
+    }
+
+
+def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int = 8,
+                    sizes: tuple[int, ...] = TRAIN_SIZES, methods: tuple[str, ...] = LEARNED,
+                    layout: str | None = None) -> pd.DataFrame:
+    """Training env-steps/s per cell of every learned method at N = 40 and 100 (MovingAI map)."""
+    where = layout or str(REAL_MAP)
+    rows = [measure_cell_training(name, n, where, iterations=iterations, horizon=horizon,
+                                  batch_episodes=batch_episodes)
+            for name in methods for n in sizes]
+    return pd.DataFrame([{"suite": "train", **r} for r in rows])
 
 
 class _TimedFilter:

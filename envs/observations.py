@@ -39,6 +39,17 @@ class PatchExtractor:
         self.center = (cells[:, 0] + k) * self.padded_shape[1] + (cells[:, 1] + k)  # (F,)
         dr, dc = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
         self.offsets = (dr * self.padded_shape[1] + dc).reshape(-1)  # (P,)
+        self._scratch: dict[tuple[str, int], np.ndarray] = {}
+
+    def scratch(self, name: str, size: int, dtype: type) -> np.ndarray:
+        """A zeroed flat work grid kept across steps. Callers write a few entries, read
+        them, and zero exactly those entries again, so no full grid is allocated or
+        zero-filled per step."""
+        key = (name, size)
+        grid = self._scratch.get(key)
+        if grid is None:
+            grid = self._scratch[key] = np.zeros(size, dtype=dtype)
+        return grid
 
     def __call__(self, groups: np.ndarray | None = None) -> np.ndarray:
         """Shelves and robots around each robot; with ``groups`` ((N,) group index) the
@@ -51,10 +62,13 @@ class PatchExtractor:
         z = 1 if groups is None else int(groups.max()) + 1
         row = np.arange(b)[:, None] * z + (0 if groups is None else groups[None, :])  # (B, N)
         row = np.broadcast_to(row, (b, n))
-        grid = np.zeros((b * z, self.pad_obs.size), dtype=np.float32)
+        size = self.pad_obs.size
+        grid = self.scratch("robots", b * z * size, np.float32)  # (B Z, padded cells), zeros
         occ = core.occupying
-        grid[row[occ], self.center[core.pos[occ]]] = 1.0
-        robots = grid[row[..., None], idx].reshape(b, n, -1)
+        marks = row[occ] * size + self.center[core.pos[occ]]
+        grid[marks] = 1.0
+        robots = grid[(row * size)[..., None] + idx].reshape(b, n, -1)
+        grid[marks] = 0.0
         robots[..., (side * side) // 2] = 0.0  # the robot itself
         return np.stack([shelves, robots], axis=2).reshape(b, n, 2, side, side)
 

@@ -45,8 +45,17 @@ class AllToAllBoard:
         self.eye = np.eye(n, dtype=bool)
         self.others = ~self.eye[None]  # (1, N, N) no self-messages in the maps
         self.side = 2 * radius + 1
-        self._rows = core.layout.cells[:, 0].astype(np.int32)  # (F,) row of each free cell
-        self._cols = core.layout.cells[:, 1].astype(np.int32)
+        # Window lookup: cells as indices of the grid padded by k on every side, so the
+        # difference of two padded indices identifies the window cell (or none) uniquely
+        # (a column offset beyond k cannot alias into the window: |dc| <= W - 1 < W' - k).
+        h, w = core.layout.shape
+        wp = w + 2 * radius
+        cells = core.layout.cells
+        self._center = ((cells[:, 0] + radius) * wp + cells[:, 1] + radius).astype(np.int64)  # (F,)
+        self._span = (h + 2 * radius) * wp  # padded indices lie in [0, span)
+        dr, dc = np.divmod(np.arange(-self._span + 1, self._span) + radius * wp + radius, wp)
+        inside = (dr >= 0) & (dr < self.side) & (dc < self.side)
+        self._window = np.where(inside, dr * self.side + dc, -1).astype(np.int64)  # by offset + span - 1
 
     def messages(self) -> tuple[np.ndarray, np.ndarray]:
         """This step's true messages: (B, N) cells and (B, N) controls U_{t-1} (or OFF_FLOOR)."""
@@ -60,10 +69,11 @@ class AllToAllBoard:
         """Transmit this step's messages; returns the (B, N_send, N_recv) delivery mask A_t."""
         pos, ctl = self.messages()
         delivered = self.loss.step() | self.eye[None]  # a robot always knows its own state
-        got = delivered.transpose(0, 2, 1)  # (B, N_recv, N_send)
-        self.pos = np.where(got, pos[:, None, :], self.pos)
-        self.ctl = np.where(got, ctl[:, None, :], self.ctl)
-        self.age = np.where(got, 0, self.age + 1)
+        got = np.ascontiguousarray(delivered.transpose(0, 2, 1))  # (B, N_recv, N_send)
+        np.copyto(self.pos, pos[:, None, :], where=got)  # in place: no (B, N, N) rebuilt per step
+        np.copyto(self.ctl, ctl[:, None, :], where=got)
+        self.age += 1
+        np.copyto(self.age, 0, where=got)
         return delivered
 
     @property
@@ -73,25 +83,24 @@ class AllToAllBoard:
 
     def features(self) -> np.ndarray:
         """(B, N, 3 (2k+1)^2) float32 egocentric maps of the received messages (see module)."""
-        core, k, side = self.core, self.radius, self.side
+        core, side = self.core, self.side
         b, n = core.pos.shape
-        rows, cols = self._rows, self._cols
-        valid = (self.ctl != OFF_FLOOR) & self.others  # (B, N, N)
+        valid = self.ctl != OFF_FLOOR
+        valid &= self.others  # (B, N, N)
         projected = core.layout.next_cell[self.pos, np.minimum(self.ctl, WAIT)]  # (B, N, N)
-        stale = np.minimum(self.age, AGE_CAP).astype(np.float32) * (1.0 / AGE_CAP)
-        my_r = (rows[core.pos] - k)[:, :, None]  # (B, N, 1) top row of each window
-        my_c = (cols[core.pos] - k)[:, :, None]
+        me = (self._center[core.pos] - (self._span - 1))[:, :, None]  # (B, N, 1)
         base = np.arange(b * n, dtype=np.int64).reshape(b, n, 1) * (side * side)
         size = b * n * side * side
         out = np.empty((b, n, MAP_CHANNELS, side * side), dtype=np.float32)
         for ch, where in ((0, self.pos), (1, projected)):
-            dr = rows[where] - my_r  # (B, N, N) window row, in range iff 0 <= dr < side
-            dc = cols[where] - my_c
-            inside = valid & (dr.view(np.uint32) < side) & (dc.view(np.uint32) < side)
-            flat = (base + dr * side + dc)[inside]
+            cell = self._window[self._center[where] - me]  # (B, N, N) window cell or -1
+            inside = cell >= 0
+            inside &= valid
+            flat = (base + cell)[inside]
             out[:, :, ch] = np.bincount(flat, minlength=size).reshape(b, n, -1)
             if ch == 0:
-                out[:, :, 2] = np.bincount(flat, weights=stale[inside], minlength=size).reshape(b, n, -1)
+                stale = np.minimum(self.age[inside], AGE_CAP).astype(np.float32) * (1.0 / AGE_CAP)
+                out[:, :, 2] = np.bincount(flat, weights=stale, minlength=size).reshape(b, n, -1)
         return out.reshape(b, n, -1)
 
 

@@ -52,7 +52,7 @@ class GroupMLP(nn.Module):
         for k, layer in enumerate(self.layers):
             x = layer(x)
             if k < len(self.layers) - 1 or self.final_activation:
-                x = torch.relu(x)
+                x = torch.relu_(x)  # in place: baddbmm's backward does not need its output
         return x
 
 
@@ -69,7 +69,12 @@ class GroupGRUCell(nn.Module):
         self.hh = GroupLinear(n_param_groups, n_groups, hidden, 3 * hidden)
 
     def forward(self, x: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
-        gi, gh = self.ih(x), self.hh(h)
+        return self.from_input_gates(self.ih(x), h)
+
+    def from_input_gates(self, gi: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        """The step with the input's gate pre-activations ``gi = ih(x)`` (Z, ..., 3H) already
+        computed, e.g. for a whole sequence in one matmul before a time loop."""
+        gh = self.hh(h)
         i_r, i_z, i_n = gi.chunk(3, dim=-1)
         h_r, h_z, h_n = gh.chunk(3, dim=-1)
         r = torch.sigmoid(i_r + h_r)
@@ -80,6 +85,15 @@ class GroupGRUCell(nn.Module):
 
 def masked_mean(x: torch.Tensor, mask: torch.Tensor, dim: int) -> torch.Tensor:
     """Mean of ``x`` over set axis ``dim`` where ``mask`` (x.shape without the feature axis)
-    is True; an empty set gives zeros."""
-    m = mask.to(x.dtype).unsqueeze(-1)
+    is True; an empty set gives zeros.
+
+    Over the set axis next to the features (dim -2, every caller) the masked sum is one
+    batched matrix product (mask row vector @ x) instead of a masked copy of ``x`` and a
+    reduction; equal up to float summation order (tests/algorithms/hierarchical)."""
+    m = mask.to(x.dtype)
+    if dim in (-2, x.dim() - 2):
+        n, d = x.shape[-2], x.shape[-1]
+        total = torch.bmm(m.reshape(-1, 1, n), x.reshape(-1, n, d)).reshape(*x.shape[:-2], d)
+        return total / m.sum(dim=-1, keepdim=True).clamp_min(1.0)
+    m = m.unsqueeze(-1)
     return (x * m).sum(dim=dim) / m.sum(dim=dim).clamp_min(1.0)

@@ -50,12 +50,14 @@ def neighbor_patches(patch: PatchExtractor, gs: GroupStructure, cells: np.ndarra
     rows = ((np.arange(b)[:, None] * z + np.arange(z)[None, :]) * size)[:, :, None, None]  # (B, Z, 1, 1)
     flat = np.concatenate([(rows + patch.center[cells])[present],
                            (rows + patch.center[heading])[present] + plane])
-    grid = np.zeros(2 * plane, dtype=np.int32)
-    np.add.at(grid, flat, 1)
+    grid = patch.scratch("neighbors", 2 * plane, np.int32)  # zeros, kept across steps
+    cells_hit, counts = np.unique(flat, return_counts=True)
+    grid[cells_hit] = counts
     core = patch.core
     row = (np.arange(b)[:, None] * z + gs.groups[None, :]) * size  # (B, N)
     idx = (row + patch.center[core.pos])[..., None] + patch.offsets  # (B, N, P)
     out = grid[np.concatenate([idx, idx + plane], axis=-1)]
+    grid[cells_hit] = 0
     return np.minimum(out, 255).astype(np.uint8)
 
 
@@ -114,8 +116,25 @@ class LocalPolicy(nn.Module):
         pooled = masked_mean(h, mask, dim=-2)  # shared group encoding
         table = self.ref_embed.expand(z, -1, -1) if self.ref_embed.shape[0] != z else self.ref_embed
         e = torch.gather(table, 1, ref.reshape(z, m, 1).expand(z, m, table.shape[-1]))  # (Z, M, H)
-        ctx = torch.cat([pooled, e], dim=-1).unsqueeze(2).expand(z, m, n, -1)
-        logits = self.head(torch.cat([h, ctx], dim=-1))
+        logits = self._head(h, torch.cat([pooled, e], dim=-1))
         phi = robots[..., self.action_idx].transpose(-1, -2)  # (Z, M, n, 5, 2)
         logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
         return torch.log_softmax(logits.masked_fill(~action_mask, -1e9), dim=-1)
+
+    def _head(self, h: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
+        """``head(cat([h_i, ctx]))`` for h (Z, M, n, H) and the per-row context ctx
+        (Z, M, 2H) shared by the row's robots, without building the (Z, M, n, 3H) input:
+        the first layer's context half is applied once per row and broadcast over the
+        robots (equal up to float summation order; tests/algorithms/hierarchical)."""
+        z, m, n, d = h.shape
+        first = self.head.layers[0]
+        w, b = first.weight, first.bias
+        if w.shape[0] != z:  # shared parameters
+            w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
+        per_row = torch.baddbmm(b, ctx, w[:, d:])  # (Z, M, H') context part + bias
+        x = torch.bmm(h.reshape(z, m * n, d), w[:, :d]).reshape(z, m, n, -1) + per_row.unsqueeze(2)
+        for k, layer in enumerate(self.head.layers[1:]):
+            x = layer(torch.relu_(x) if k == 0 else x)
+            if k < len(self.head.layers) - 2:
+                x = torch.relu_(x)
+        return x

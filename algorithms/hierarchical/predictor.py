@@ -72,6 +72,15 @@ class GroupPredictor(nn.Module):
         """eq:recurrent_predictor: h_t = GRU(h_{t-1}, x_t); (Z, M, K, .) tensors."""
         return self.gru(x, h)
 
+    def input_gates(self, x: torch.Tensor) -> torch.Tensor:
+        """The GRU's input half for many steps at once: x (Z, ..., 2E+2) -> (Z, ..., 3H);
+        ``step_from_gates(input_gates(x_t), h)`` equals ``step(x_t, h)`` up to float
+        rounding of the larger matmul."""
+        return self.gru.ih(x)
+
+    def step_from_gates(self, gi: torch.Tensor, h: torch.Tensor) -> torch.Tensor:
+        return self.gru.from_input_gates(gi, h)
+
     def decode(self, h: torch.Tensor, mem: torch.Tensor, age: torch.Tensor) -> torch.Tensor:
         """Predicted messages M~ (..., n, D) in message units from h (..., H), the last
         received rows mem (..., n, D) and their age (...); the leading axis is the group."""

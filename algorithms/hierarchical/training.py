@@ -145,8 +145,11 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     x = torch.cat(xs, dim=1)
     h = torch.zeros(z, b, k, model.hidden)
     hs = []
+    # eq:recurrent_predictor over the episode: the input half of the GRU for every step in
+    # one matmul, the recurrent half step by step (unbind: one backward for all steps).
+    gi_t = model.input_gates(x).unbind(1)
     for t in range(t_used):
-        h = model.step(x[:, t], h)
+        h = model.step_from_gates(gi_t[t], h)
         hs.append(h)
     hid = torch.stack(hs, dim=1)  # (Z, T, B, K, H)
     # Decode only the lost links (the loss ignores the others), padded per group.

@@ -127,3 +127,35 @@ def test_ic3net__learns_on_a_small_layout() -> None:
     after = eval_success(m)
     # Seed 0 on one torch thread: argmax success goes from about 0.13 to about 0.68.
     assert after >= before + 0.3, (before, after)
+
+
+def test_chunk_replay__equals_step_by_step_forward_outputs_and_gradients() -> None:
+    """``IC3NetPolicy.replay`` over a chunk (encoder and heads batched over time) against T
+    calls of ``forward``: outputs and parameter gradients within float32 rounding."""
+    m = IC3NetMethod(ENV, {"batch_episodes": 2, "action_path": True}, seed=3)
+    batch = EpisodeBatch(ENV, 2, batch_rng(0, 0, 0), m.layout)
+    with torch.no_grad():
+        state, _ = m.run(batch, ActionChoice.train(m.torch_gen))
+    data = {k: state.buffer.tensor(k) for k in state.buffer.data}
+    t_used = state.buffer.t
+    params = list(m.policy.parameters())
+
+    def grads(outputs: tuple) -> list[torch.Tensor]:
+        logits, gates, values = outputs
+        loss = (torch.log_softmax(logits, -1)[..., 0] + gates[..., 1] + values.square()).sum()
+        return list(torch.autograd.grad(loss, params, allow_unused=True))
+
+    outs, hc = [], m.policy.initial_state(2, ENV.n_robots)
+    for t in range(t_used):
+        logits, gates, values, hc = m.replay_step(data, t, hc)
+        outs.append((logits, gates, values))
+    plain = tuple(torch.stack([o[i] for o in outs]) for i in range(3))
+    sl = slice(0, t_used)
+    logits, gates, values, hc2 = m.policy.replay(data["obs"][sl], data["mask"][sl], data["links"][sl],
+                                                data["alive"][sl], m.policy.initial_state(2, ENV.n_robots))
+    for a, b in zip((logits, gates, values), plain, strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(hc2[0], hc[0], rtol=1e-5, atol=1e-5)
+    for a, b in zip(grads((logits, gates, values)), grads(plain), strict=True):
+        if a is not None or b is not None:
+            torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-4)

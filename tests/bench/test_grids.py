@@ -123,3 +123,14 @@ def test_cost_rate__interpolates_linearly_between_measured_team_sizes_and_clamps
     assert costs.rate("hierarchical", "train", 60) == pytest.approx((pts[20] + pts[100]) / 2)
     assert costs.rate("hierarchical", "train", 8) == pts[20]
     assert costs.rate("hierarchical", "train", 400) == pts[100]
+
+
+def test_cost_rate__piecewise_linear_between_measured_sizes_and_clamped_outside(monkeypatch) -> None:
+    monkeypatch.setitem(costs.AGENT_STEPS_PER_S, "toy", {"train": {20: 100.0, 40: 300.0, 100: 600.0},
+                                                        "eval": {20: 1.0, 100: 1.0}})
+    assert costs.rate("toy", "train", 10) == 100.0
+    assert costs.rate("toy", "train", 30) == pytest.approx(200.0)
+    assert costs.rate("toy", "train", 40) == 300.0
+    assert costs.rate("toy", "train", 70) == pytest.approx(450.0)
+    assert costs.rate("toy", "train", 200) == 600.0
+    assert costs.rate("toy", "eval", 50) == 1.0
