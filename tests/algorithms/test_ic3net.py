@@ -112,7 +112,7 @@ def test_update_replays_exactly_what_the_rollout_computed() -> None:
         for t, (logits, gates, values) in enumerate(seen):
             again, gates_again, values_again, hc = m.replay_step(data, t, hc)
             assert torch.equal(again, logits) and torch.equal(gates_again, gates)
-            assert torch.equal(values_again, values)
+            assert values is None and values_again is None  # the shared critic is the baseline
 
 
 @pytest.mark.slow
