@@ -60,7 +60,7 @@ def critic_inputs(core: WarehouseCore, horizon: int) -> dict[str, np.ndarray]:
 class CentralCritic(nn.Module):
     """V_omega(X_t): DeepSets over the robots' global features plus time t / T."""
 
-    def __init__(self, hidden: int = 64) -> None:
+    def __init__(self, hidden: int) -> None:
         super().__init__()
         self.phi = nn.Sequential(nn.Linear(CRITIC_FEATURES, hidden), nn.ReLU(),
                                  nn.Linear(hidden, hidden), nn.ReLU())

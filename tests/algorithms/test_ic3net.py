@@ -155,7 +155,7 @@ def test_update__gradient_is_reinforce_with_the_baseline_over_alive_robots(basel
     running = torch.from_numpy(buf.running[: buf.t])
     done = data["obs"][..., 5] > 0.5  # the robot's own "done" feature
     active = (~done & running[..., None]).float()  # (T, B, N)
-    assert 0 < float(((done & running[..., None]).sum())), "some robots finish while episodes run"
+    assert 0 < float((done & running[..., None]).sum()), "some robots finish while episodes run"
     g = torch.flip(torch.cumsum(torch.flip(torch.from_numpy(buf.rewards[: buf.t]), [0]), 0), [0])
     n_steps, n_active = running.sum().float(), active.sum()
     # Replay with gradients on the twin (same parameters), full BPTT (detach_gap > T).

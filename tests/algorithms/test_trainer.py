@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import torch
 
-from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -35,6 +34,7 @@ def test_mc_returns__is_undiscounted_reverse_cumsum():
     r = np.array([[1.0, 0.0], [2.0, -1.0], [3.0, 5.0]], dtype=np.float32)
     g = mc_returns(r)
     assert torch.equal(g, torch.tensor([[6.0, 4.0], [5.0, 4.0], [3.0, 5.0]]))
+    assert mc_returns(r.astype(np.float64)).dtype == torch.float32
 
 
 def test_policy_gradient_losses__hand_example_without_normalization():
@@ -62,6 +62,8 @@ def test_policy_gradient_losses__ignores_steps_after_episode_end():
     b = policy_gradient_losses(logp * torch.tensor([[1.0], [0.0]]), values, rewards,
                                np.array([[True], [False]]), normalize=False)
     assert a.actor.item() == b.actor.item() == 1.0
+    # The reported means count running steps only: A = G = [1, 0], one running step.
+    assert a.advantage_mean == 1.0 and a.return_mean == 1.0
 
 
 def test_team_advantage__normalized_by_the_rms_of_running_steps():
@@ -76,6 +78,13 @@ def test_team_advantage__normalized_by_the_rms_of_running_steps():
     assert float(adv[0, 1]) == pytest.approx(3.0 / rms)
     assert torch.equal(g, torch.tensor([[3.0, 4.0], [1.0, 100.0]]))
     assert torch.equal(mask, torch.tensor([[1.0, 1.0], [1.0, 0.0]])) and n.item() == 3.0
+    assert mask.dtype == torch.float32
+    default, *_ = team_advantage(torch.ones(2, 2), rewards, running)  # normalize by default
+    assert torch.equal(default, adv)
+    # Small advantages (RMS < 1) are scaled up to unit RMS too.
+    small, *_ = team_advantage(torch.zeros(2, 1), np.array([[0.1], [0.2]], np.float32),
+                               np.ones((2, 1), bool))
+    assert np.allclose(small[:, 0].numpy(), np.array([0.3, 0.2]) / np.sqrt(0.065))
     raw, *_ = team_advantage(torch.ones(2, 2), rewards, running, normalize=False)
     assert torch.equal(raw, torch.tensor([[2.0, 3.0], [0.0, 99.0]]))
     # All advantages zero: no division by zero.
@@ -149,6 +158,22 @@ def test_central_critic__reads_time_and_the_done_fraction():
     assert torch.allclose(v, torch.tensor([0.25 + 7.5, 0.5]))
 
 
+def test_central_critic__phi_is_a_two_layer_relu_net_mean_pooled_over_robots():
+    # Hand weights: phi(x) = [|x_0|, 0, 0, 0] (ReLU, mix, ReLU), V = mean over robots of |x_0|.
+    critic = CentralCritic(hidden=4)
+    with torch.no_grad():
+        for p in critic.parameters():
+            p.zero_()
+        critic.phi[0].weight[0, 0], critic.phi[0].weight[1, 0] = -1.0, 1.0  # relu(-x0), relu(x0)
+        critic.phi[2].weight[0, :2] = 1.0  # |x0|
+        critic.phi[2].weight[1, :2] = -1.0  # relu(-|x0|) = 0
+        critic.rho[0].weight[0, 0], critic.rho[0].weight[0, 1] = 1.0, -1.0
+        critic.rho[2].weight[0, 0] = 1.0
+    robots = torch.zeros(1, 2, 6)
+    robots[0, :, 0] = torch.tensor([0.5, -0.25])
+    assert torch.allclose(critic(robots, torch.zeros(1)), torch.tensor([0.375]))
+
+
 def test_central_critic__accepts_any_team_size_and_ignores_robot_order():
     critic = CentralCritic(hidden=16)
     for n in (3, 40, 100):
@@ -171,11 +196,17 @@ def test_critic_update__advantage_before_one_clipped_adam_step():
         buf.add(critic=gen.random((2, 4, 6), dtype=np.float32), t_frac=np.full(2, t / 3, np.float32))
         buf.reward(gen.normal(size=2).astype(np.float32), np.array([True, t < 2]))
     opt = torch.optim.Adam(critic.parameters(), lr=0.1)
+    frozen = CentralCritic(hidden=8)
+    frozen.load_state_dict(critic.state_dict())
+    raw = critic_update(frozen, torch.optim.SGD(frozen.parameters(), lr=0.0), buf,
+                        normalize=False, max_grad_norm=1.0)
     step = critic_update(critic, opt, buf, normalize=True, max_grad_norm=1e-3)
     # Reference: values before the step, the masked squared error, clip, one Adam step.
     values = twin(buf.tensor("critic"), buf.tensor("t_frac"))
     adv, g, mask, n = team_advantage(values, buf.rewards[:3], buf.running[:3], True)
     assert torch.equal(step.adv, adv) and torch.equal(step.returns, g) and torch.equal(step.mask, mask)
+    unnormalized, *_ = team_advantage(values, buf.rewards[:3], buf.running[:3], False)
+    assert torch.equal(raw.adv, unnormalized) and not torch.allclose(raw.adv, adv)
     assert step.n.item() == 5.0
     loss = (((values - g) ** 2) * mask).sum() / n
     assert step.loss == pytest.approx(float(loss.detach()))
@@ -185,7 +216,7 @@ def test_critic_update__advantage_before_one_clipped_adam_step():
     ref_opt.step()
     for a, b in zip(critic.parameters(), twin.parameters(), strict=True):
         assert torch.allclose(a, b, atol=1e-7)
-    assert not all(torch.equal(a, b) for a, b in zip(critic.parameters(), CentralCritic(8).parameters()))
+    assert not all(torch.equal(a, b) for a, b in zip(critic.parameters(), CentralCritic(8).parameters(), strict=True))
 
 
 @pytest.mark.parametrize("name", ["decentralized", "ic3net", "hierarchical"])
@@ -205,7 +236,7 @@ def test_rollout_buffer__preallocates_and_returns_used_steps():
     for t in range(4):
         buf.add(obs=np.full((3, 4), t, np.float32))
         buf.reward(np.full(3, t, np.float32), np.array([True, t < 2, False]))
-    assert buf.t == 4
+    assert buf.t == 4 and buf.rewards.dtype == np.float32
     assert buf.tensor("obs").shape == (4, 3, 4)
     assert buf.tensor("obs")[3, 0, 0].item() == 3.0
     assert buf.rewards[:4, 0].tolist() == [0, 1, 2, 3] and buf.rewards[4:].sum() == 0
