@@ -55,7 +55,7 @@ class LearnedParams(MethodParams):
 
     hidden: int = Field(64, ge=4, description="hidden width of the method's policy networks")
     critic_hidden: int = Field(64, ge=4, description="width of the centralized critic V_omega")
-    lr: float = Field(1e-3, gt=0, description="learning rate of the policy (Adam unless the method says otherwise)")
+    lr: float = Field(3e-3, gt=0, description="learning rate of the policy (Adam unless the method says otherwise)")
     critic_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the critic V_omega")
     entropy_coef: float = Field(0.01, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of every optimizer step")
