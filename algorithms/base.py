@@ -72,6 +72,20 @@ class MethodParams(BaseModel):
         return data
 
 
+class LearnedParams(MethodParams):
+    """Hyperparameters every learned method shares, with one set of defaults (SPEC 3
+    "Equal footing": identical defaults; chosen by the measurement in docs/decisions.md,
+    "Baselines"). Method-specific fields stay in each method's subclass."""
+
+    hidden: int = Field(64, ge=4, description="hidden width of the method's policy networks")
+    critic_hidden: int = Field(64, ge=4, description="width of the centralized critic V_omega")
+    lr: float = Field(3e-3, gt=0, description="learning rate of the policy (Adam unless the method says otherwise)")
+    critic_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the critic V_omega")
+    entropy_coef: float = Field(0.01, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
+    max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of every optimizer step")
+    normalize_advantage: bool = Field(True, description="divide the team advantage by its batch RMS")
+
+
 class Method(ABC):
     """Base class of all methods; see the module docstring for the contract."""
 

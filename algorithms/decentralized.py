@@ -3,8 +3,9 @@
 Every robot selects its own control from its robot-level observation plus the messages
 received from all other robots over lossy all-to-all links, without the group hierarchy:
 
-* observation o_t^i = [own state over the static map (``own_features``),
-  egocentric maps of the last received messages of every other robot (``AllToAllBoard``)];
+* observation o_t^i = [own state and local view of shelves and nearby robots
+  (``local_view``, the same per-robot view as every learned method), egocentric maps of
+  the last received messages of every other robot (``AllToAllBoard``)];
   the message maps sum-pool one-hot relative positions, so any N uses the same network;
 * actor pi_theta(u^i | o^i): one MLP with parameters shared by all robots and **no robot
   index one-hot** (robots are interchangeable; a one-hot would tie the network to N);
@@ -12,7 +13,8 @@ received from all other robots over lossy all-to-all links, without the group hi
 * trained with the paper's trainer (algorithms/common/trainer.py): Monte-Carlo team
   return (eq:training_return), centralized critic V_omega(X_t) and team advantage
   A_t = G_t - V(X_t) (eq:advantage), actor loss -A_t sum_i log pi(u_t^i | o_t^i) and
-  critic loss (V - G)^2 (eq:losses), Adam. Rollouts run under no_grad into a
+  critic loss (V - G)^2 (eq:losses), Adam (``critic_update``, ``clip_and_step``).
+  Rollouts run under no_grad into a
   ``RolloutBuffer``; the update is one batched forward (chunked over robot-steps only to
   bound memory: the gradient is the same);
 * payload N (N - 1) d_m scalars per step (Sec. III-A, C_dec);
@@ -30,7 +32,7 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import Method, MethodParams, masked_logits
+from algorithms.base import LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
 from algorithms.common.episodes import Decision, EpisodeBatch
@@ -38,16 +40,18 @@ from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask,
-    own_feature_size,
-    own_features,
+    local_view,
+    local_view_size,
     own_history,
+    robots_on_target_index,
 )
 from algorithms.common.trainer import (
-    CRITIC_FEATURES,
     CentralCritic,
     RolloutBuffer,
-    critic_features,
-    team_advantage,
+    clip_and_step,
+    critic_inputs,
+    critic_shapes,
+    critic_update,
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import DELTAS, N_ACTIONS
@@ -55,17 +59,11 @@ from envs.channel import LossProcess
 from envs.observations import PatchExtractor
 
 
-class DecentralizedParams(MethodParams):
-    """Hyperparameters of the decentralized baseline (defaults tuned on small layouts)."""
+class DecentralizedParams(LearnedParams):
+    """Hyperparameters of the decentralized baseline; the shared ones (hidden = width of the
+    actor's two hidden layers, lr = actor Adam rate, ...) come from ``LearnedParams``."""
 
-    hidden: int = Field(128, ge=4, description="width of the actor's two hidden layers")
-    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 shelf patch and message maps")
-    lr: float = Field(1e-3, gt=0, description="actor Adam learning rate")
-    critic_lr: float = Field(1e-3, gt=0, description="critic Adam learning rate")
-    critic_hidden: int = Field(64, ge=4, description="width of the centralized critic")
-    normalize_advantage: bool = Field(True, description="scale A_t by its batch RMS (docs/decisions.md)")
-    entropy_coef: float = Field(0.0, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
-    max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of actor and critic")
+    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 local view and message maps")
     action_path: bool = Field(True, description="linear action-aligned logit path, as the hierarchical policy's")
     safety_filter: bool = Field(False, description="apply Algorithm 1 with each robot its own group")
     search_radius: int = Field(2, ge=0, description="safety filter search radius L (with the filter)")
@@ -74,14 +72,15 @@ class DecentralizedParams(MethodParams):
 
 
 def action_feature_index(radius: int) -> np.ndarray:
-    """(3, 5) columns of the observation holding, for each action, its shortest-path
-    progress and the message maps' robots (received positions; cells their received
-    controls lead to) on the cell the action leads to: the action-aligned features phi."""
+    """(4, 5) columns of the observation holding, for each action, its shortest-path
+    progress, the sensed robots (local view) and the message maps' robots (received
+    positions; cells their received controls lead to) on the cell the action leads to:
+    the action-aligned features phi."""
     side = 2 * radius + 1
-    maps = own_feature_size(radius) + HISTORY_SIZE  # start of the message maps
+    maps = local_view_size(radius) + HISTORY_SIZE  # start of the message maps
     cells = [(radius + dr) * side + (radius + dc) for dr, dc in DELTAS.tolist()]
-    return np.concatenate([progress_index(), [[maps + c for c in cells]],
-                           [[maps + side * side + c for c in cells]]])
+    return np.concatenate([progress_index(), robots_on_target_index(radius),
+                           [[maps + c for c in cells]], [[maps + side * side + c for c in cells]]])
 
 
 class DecentralizedActor(nn.Module):
@@ -124,7 +123,7 @@ class DecentralizedMethod(Method):
     def __init__(self, env, params=None, seed: int = 0) -> None:
         super().__init__(env, params, seed)
         p = self.params
-        self.n_obs = (own_feature_size(p.patch_radius) + HISTORY_SIZE
+        self.n_obs = (local_view_size(p.patch_radius) + HISTORY_SIZE
                       + map_feature_size(p.patch_radius))
         self.actor = DecentralizedActor(self.n_obs, p.hidden, p.patch_radius, p.action_path)
         self.critic = CentralCritic(p.critic_hidden)
@@ -145,8 +144,7 @@ class DecentralizedMethod(Method):
         if choice.training:
             buffer = RolloutBuffer(env.horizon, b, {
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
-                "actions": ((n,), np.int64), "active": ((n,), bool),
-                "critic": ((n, CRITIC_FEATURES), np.float32), "t_frac": ((), np.float32),
+                "actions": ((n,), np.int64), "active": ((n,), bool), **critic_shapes(n),
             })
         state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
                                    PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
@@ -156,7 +154,7 @@ class DecentralizedMethod(Method):
     def observe_robots(self, state: DecentralizedState) -> np.ndarray:
         """(B, N, F) observations from the core and the received messages."""
         core = state.board.core
-        return np.concatenate([own_features(core, state.patch), own_history(core, state.collided),
+        return np.concatenate([local_view(core, state.patch), own_history(core, state.collided),
                                state.board.features()], axis=-1)
 
     def decide(self, batch: EpisodeBatch, state: DecentralizedState, choice: ActionChoice) -> Decision:
@@ -170,8 +168,7 @@ class DecentralizedMethod(Method):
         if state.buffer is not None:
             state.buffer.add(obs=obs, mask=mask, actions=actions,
                              active=~core.done & state.running[:, None],
-                             critic=critic_features(core),
-                             t_frac=np.full(core.batch, core.t / self.env.horizon, np.float32))
+                             **critic_inputs(core, self.env.horizon))
         dec = Decision(actions=actions, payload=float(state.board.payload))
         if self.filter is not None:
             self.apply_filter(state.board, logits, dec)
@@ -207,15 +204,8 @@ class DecentralizedMethod(Method):
         """One actor and one critic Adam step from the finished batch (eq:losses)."""
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
-        running = buf.running[: buf.t]
-        rewards = buf.rewards[: buf.t]
-        values = self.critic(buf.tensor("critic"), buf.tensor("t_frac"))  # (T, B)
-        adv, g, mask, n = team_advantage(values, rewards, running, p.normalize_advantage)
-        critic_loss = (((values - g) ** 2) * mask).sum() / n
-        self.critic_opt.zero_grad()
-        critic_loss.backward()
-        nn.utils.clip_grad_norm_(self.critic.parameters(), p.max_grad_norm)
-        self.critic_opt.step()
+        crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
+        adv, n = crit.adv, crit.n
 
         # Actor: -sum_{t,b} A_t sum_i log pi(u_t^i | o_t^i) / n over the active robot-steps.
         active = buf.data["active"][: buf.t]  # (T, B, N)
@@ -237,8 +227,7 @@ class DecentralizedMethod(Method):
             loss.backward()
             actor_total += float(-(weight_t[sl] * logp.detach()).sum())
             entropy_total += float(entropy.detach().sum())
-        grad_norm = float(nn.utils.clip_grad_norm_(self.actor.parameters(), p.max_grad_norm))
-        self.actor_opt.step()
-        return {"actor_loss": actor_total, "critic_loss": float(critic_loss.detach()),
+        grad_norm = clip_and_step(self.actor_opt, p.max_grad_norm)
+        return {"actor_loss": actor_total, "critic_loss": crit.loss,
                 "entropy": entropy_total / max(rows, 1), "grad_norm": grad_norm,
-                "return_mean": float((g * mask).sum() / n)}
+                "return_mean": float((crit.returns * crit.mask).sum() / n)}

@@ -1,8 +1,11 @@
 """IC3Net (Singh, Jain and Sukhbaatar, ICLR 2019) in the warehouse, with lossy links.
 
-Faithful to the reference code (IC3Net/IC3Net comm.py, trainer.py; facts in
+IC3Net's architecture is the reference code's (IC3Net/IC3Net comm.py; facts in
 shared/REFERENCES.md), per robot i and step t, with parameters shared by all robots:
 
+* o_t^i = [``local_view`` (own state, shelves and nearby robots in the (2k+1)^2 window,
+  the same per-robot view as every learned method; the reference environments give agents
+  vision of nearby agents), own previous control and collision flag];
 * e_t^i = W_e o_t^i (one linear encoder, no nonlinearity in recurrent mode);
 * communication (``average_comm``): c_t^i = sum_j L_t[j, i] h_{t-1}^j / (alive_t - 1), the
   previous hidden states of the robots i hears, divided by the number of alive robots
@@ -14,15 +17,24 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
 * (h_t^i, c_t^i) = LSTMCell(e_t^i + C c_t^i, (h_{t-1}^i, c_{t-1}^i)), repeated
   ``comm_passes`` times (each pass communicates the newest hidden states);
 * heads on h_t^i: action log-softmax (5, masked like every method's), gate log-softmax
-  (2: silent / talk; nobody talks at t = 0), value V^i (1);
-* REINFORCE with the per-robot value as baseline: loss = -sum A (log pi(u) + log pi(g))
-  + 0.01 sum (V - G)^2 - entropy term, over alive robot-steps, divided by the number of
-  environment steps; A = G_t - V^i, G_t the Monte-Carlo team return (eq:training_return,
-  gamma = 1, shared with every method), standardized per batch (the reference's
-  ``normalize_rewards`` option, on by default here), and the value head predicting
-  running-normalized returns (``ValueNorm``; without both, 500-step team returns of
-  hundreds make the first updates collapse the policy, docs/decisions.md);
-  RMSprop(lr 1e-3, alpha 0.97, eps 1e-6); hidden 64.
+  (2: silent / talk; nobody talks at t = 0), and with ``baseline="per_robot"`` a value V^i.
+
+Training, REINFORCE with a baseline on the Monte-Carlo team return G_t (eq:training_return,
+gamma = 1), loss = -sum A (log pi(u) + log pi(g)) over alive robot-steps / environment
+steps - entropy_coef * mean entropy per alive robot-step:
+
+* ``baseline="central"`` (default): the shared trainer of every learned method (SPEC 3,
+  algorithms/common/trainer.py): the centralized critic V_omega(X_t) with t/T, the team
+  advantage A_t = G_t - V(X_t) (eq:advantage) shared by every robot and normalized like
+  the other methods' (``team_advantage``), the critic stepped by ``critic_update``;
+* ``baseline="per_robot"``: the reference's value head V^i on h_t^i (A = G_t - V^i,
+  standardized per batch, the reference's ``normalize_rewards``; the head predicts
+  running-normalized returns, ``ValueNorm``; + value_coef sum (V^i - G)^2);
+* ``optimizer="adam"`` (default, the paper's) or ``"rmsprop"`` (the reference's, with
+  ``rms_alpha``, ``rms_eps``); either is clipped at ``max_grad_norm`` (``clip_and_step``).
+
+The reference setting is ``baseline="per_robot", optimizer="rmsprop", entropy_coef=0``
+with a very large ``max_grad_norm`` (the reference does not clip) and ``hidden=64``.
 
 Rollouts run under no_grad and store inputs, link masks and samples in a
 ``RolloutBuffer``; the update replays the episode with gradients, batched over episodes
@@ -41,45 +53,54 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import Method, MethodParams, masked_logits
+from algorithms.base import LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask,
-    own_feature_size,
-    own_features,
+    local_view,
+    local_view_size,
     own_history,
+    robots_on_target_index,
 )
-from algorithms.common.trainer import RolloutBuffer, mc_returns
+from algorithms.common.trainer import (
+    CentralCritic,
+    RolloutBuffer,
+    clip_and_step,
+    critic_inputs,
+    critic_shapes,
+    critic_update,
+    mc_returns,
+)
 from algorithms.common.value_norm import ValueNorm
 from envs.actions import N_ACTIONS
 from envs.channel import LossProcess
 from envs.observations import PatchExtractor
 
 
-class IC3NetParams(MethodParams):
-    """Hyperparameters; defaults are the reference code's unless stated."""
+class IC3NetParams(LearnedParams):
+    """Hyperparameters; the shared ones (``hidden`` = H of encoder, LSTM and messages, lr,
+    entropy_coef, max_grad_norm, normalize_advantage, critic) come from ``LearnedParams``;
+    the architecture's own are the reference code's unless stated."""
 
-    hidden: int = Field(64, ge=4, description="hidden size H of encoder, LSTM and messages")
+    baseline: Literal["central", "per_robot"] = Field(
+        "central", description="centralized critic V(X_t) of the shared trainer, or the reference's per-robot value head")
+    optimizer: Literal["adam", "rmsprop"] = Field(
+        "adam", description="Adam (shared trainer) or RMSprop (reference) for the policy")
     comm_passes: int = Field(1, ge=1, description="communication passes per step")
-    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 shelf patch")
-    lr: float = Field(1e-3, gt=0, description="RMSprop learning rate")
-    rms_alpha: float = Field(0.97, gt=0, lt=1, description="RMSprop smoothing constant")
-    rms_eps: float = Field(1e-6, gt=0, description="RMSprop epsilon")
-    value_coef: float = Field(0.01, ge=0, description="weight of the value loss")
-    entropy_coef: float = Field(0.0, ge=0, description="entropy bonus (reference: 0)")
+    patch_radius: int = Field(2, ge=1, le=6, description="k of the (2k+1)^2 local view")
+    rms_alpha: float = Field(0.97, gt=0, lt=1, description="RMSprop smoothing constant (optimizer=rmsprop)")
+    rms_eps: float = Field(1e-6, gt=0, description="RMSprop epsilon (optimizer=rmsprop)")
+    value_coef: float = Field(0.01, ge=0, description="weight of the value loss (baseline=per_robot)")
     value_norm: bool = Field(
-        True, description="value head predicts running-normalized returns (MAPPO ValueNorm; docs/decisions.md)")
-    normalize_advantage: bool = Field(
-        True, description="standardize advantages per batch (reference option normalize_rewards; docs/decisions.md)")
-    max_grad_norm: float | None = Field(None, gt=0, description="gradient-norm clip (reference: none)")
+        True, description="per-robot value head predicts running-normalized returns (MAPPO ValueNorm)")
     detach_gap: int = Field(50, ge=1, description="steps per truncated-BPTT chunk")
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
     action_path: bool = Field(
-        False, description="add the linear action-aligned progress path of the other methods (not IC3Net's)")
+        False, description="add the linear action-aligned path (progress, robots in view) of the other methods (not IC3Net's)")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
 
 
@@ -98,7 +119,8 @@ def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> t
 class IC3NetPolicy(nn.Module):
     """Encoder, C per pass, LSTM cell and the action / gate / value heads."""
 
-    def __init__(self, n_in: int, hidden: int, comm_passes: int, action_path: bool = False) -> None:
+    def __init__(self, n_in: int, hidden: int, comm_passes: int, action_path: bool = False,
+                 radius: int = 2, value_head: bool = False) -> None:
         super().__init__()
         self.hidden = hidden
         self.encoder = nn.Linear(n_in, hidden)
@@ -106,9 +128,10 @@ class IC3NetPolicy(nn.Module):
         self.lstm = nn.LSTMCell(hidden, hidden)
         self.action_head = nn.Linear(hidden, N_ACTIONS)
         self.gate_head = nn.Linear(hidden, 2)
-        self.value_head = nn.Linear(hidden, 1)
+        self.value_head = nn.Linear(hidden, 1) if value_head else None  # baseline="per_robot"
         self.value_norm = ValueNorm()  # used when the method's ``value_norm`` is on
-        self.path = ActionPath(progress_index()) if action_path else None
+        index = np.concatenate([progress_index(), robots_on_target_index(radius)])
+        self.path = ActionPath(index) if action_path else None
 
     def initial_state(self, b: int, n: int) -> tuple[torch.Tensor, torch.Tensor]:
         return torch.zeros(b * n, self.hidden), torch.zeros(b * n, self.hidden)
@@ -116,9 +139,10 @@ class IC3NetPolicy(nn.Module):
     def forward(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
         hc: tuple[torch.Tensor, torch.Tensor],
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, tuple[torch.Tensor, torch.Tensor]]:
         """One step. obs (B, N, F), mask (B, N, 5), links (B, N, N), alive (B,), hc ((B N, H) x2)
-        -> action logits (B, N, 5), gate logits (B, N, 2), values (B, N), new hc."""
+        -> action logits (B, N, 5), gate logits (B, N, 2), values (B, N) (None without the
+        per-robot value head), new hc."""
         b, n, _ = obs.shape
         x = self.encoder(obs)  # (B, N, H)
         h, c = hc
@@ -130,7 +154,8 @@ class IC3NetPolicy(nn.Module):
         if self.path is not None:
             logits = self.path(obs, logits)
         logits = masked_logits(logits, mask)
-        return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
+        values = None if self.value_head is None else self.value_head(hh).squeeze(-1)
+        return logits, self.gate_head(hh), values, (h, c)
 
     def replay(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
@@ -154,7 +179,8 @@ class IC3NetPolicy(nn.Module):
         if self.path is not None:
             logits = self.path(obs, logits)
         logits = masked_logits(logits, mask)
-        return logits, self.gate_head(hh), self.value_head(hh).squeeze(-1), (h, c)
+        values = None if self.value_head is None else self.value_head(hh).squeeze(-1)
+        return logits, self.gate_head(hh), values, (h, c)
 
 
 @dataclass
@@ -176,13 +202,24 @@ class IC3NetMethod(Method):
     def __init__(self, env, params=None, seed: int = 0) -> None:
         super().__init__(env, params, seed)
         p = self.params
-        self.n_obs = own_feature_size(p.patch_radius) + HISTORY_SIZE
-        self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes, p.action_path)
-        self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
-                                             alpha=p.rms_alpha, eps=p.rms_eps)
+        self.n_obs = local_view_size(p.patch_radius) + HISTORY_SIZE
+        self.central = p.baseline == "central"
+        self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes, p.action_path,
+                                   p.patch_radius, value_head=not self.central)
+        if p.optimizer == "adam":
+            self.optimizer: torch.optim.Optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.lr)
+        else:
+            self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
+                                                 alpha=p.rms_alpha, eps=p.rms_eps)
+        self.critic = CentralCritic(p.critic_hidden) if self.central else None
+        self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
+                           if self.critic is not None else None)
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
-        return {"policy": self.policy, "optimizer": self.optimizer}
+        mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
+        if self.critic is not None:
+            mods.update(critic=self.critic, critic_opt=self.critic_opt)
+        return mods
 
     # ------------------------------------------------------------- controller
     def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> IC3NetState:
@@ -195,7 +232,7 @@ class IC3NetMethod(Method):
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
                 "actions": ((n,), np.int64), "gates": ((n,), np.int64),
-                "values": ((n,), np.float32),
+                **(critic_shapes(n) if self.central else {"values": ((n,), np.float32)}),
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
@@ -223,14 +260,12 @@ class IC3NetMethod(Method):
         links = self.links(state, alive)
         payload = self.payload(state, alive)
         alive_n = alive.sum(axis=1)
-        obs = np.concatenate([own_features(core, state.patch), own_history(core, state.collided)],
+        obs = np.concatenate([local_view(core, state.patch), own_history(core, state.collided)],
                              axis=-1)
         mask = action_mask(core)
         logits, gate_logits, values, state.hc = self.policy(
             torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links),
             torch.from_numpy(alive_n), state.hc)
-        if p.value_norm:
-            values = self.policy.value_norm.denormalize(values)
         actions = choice(logits).numpy()
         gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
         if p.gate != "learned":
@@ -238,8 +273,13 @@ class IC3NetMethod(Method):
         state.gate = gates.astype(bool)
         state.running = ~core.ended
         if state.buffer is not None:
+            if self.central:
+                baseline = critic_inputs(core, self.env.horizon)
+            else:  # the reference's V^i, in return units
+                baseline = {"values": (self.policy.value_norm.denormalize(values)
+                                       if p.value_norm else values).numpy()}
             state.buffer.add(obs=obs, mask=mask, links=links, alive=alive_n, actions=actions,
-                             gates=gates, values=values.numpy(), active=alive & state.running[:, None])
+                             gates=gates, active=alive & state.running[:, None], **baseline)
         return Decision(actions=actions, payload=payload)
 
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
@@ -254,26 +294,45 @@ class IC3NetMethod(Method):
         """The policy's step t again from the stored inputs (same outputs as the rollout)."""
         return self.policy(data["obs"][t], data["mask"][t], data["links"][t], data["alive"][t], hc)
 
-    def update(self, state: IC3NetState) -> dict[str, float]:
-        """One RMSprop step: replay the batch with gradients, chunked over time (see module)."""
-        buf, p = state.buffer, self.params
-        assert buf is not None, "update() needs a training rollout"
-        t_used = buf.t
-        returns = mc_returns(buf.rewards[:t_used])  # (T, B) team return G_t
-        data = {k: buf.tensor(k) for k in buf.data}
-        active = data["active"].float()  # (T, B, N) alive robots of running episodes
-        n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
-        # A = G_t - V^i with the rollout's values (the parameters have not changed since).
-        adv = returns[..., None] - data["values"]
+    def per_robot_advantage(
+        self, buf: RolloutBuffer, active: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The reference's baseline: A^i = G_t - V^i with the rollout's values (the
+        parameters have not changed since), standardized over alive robot-steps with
+        ``normalize_advantage``; and the value targets (T, B, N) (normalized with
+        ``value_norm``, whose statistics this updates)."""
+        p = self.params
+        returns = mc_returns(buf.rewards[: buf.t])[..., None]  # (T, B, 1) team return G_t
+        adv = returns - buf.tensor("values")
         if p.normalize_advantage:
             n_act = active.sum().clamp_min(1.0)
             mean = (adv * active).sum() / n_act
             std = torch.sqrt((((adv - mean) * active) ** 2).sum() / n_act).clamp_min(1e-6)
             adv = (adv - mean) / std
-        targets = returns[..., None].expand_as(active)  # (T, B, N) value targets G_t
+        targets = returns.expand_as(active)
         if p.value_norm:
             self.policy.value_norm.update(targets, active)
             targets = self.policy.value_norm.normalize(targets)
+        return adv, targets
+
+    def update(self, state: IC3NetState) -> dict[str, float]:
+        """One critic step (``baseline="central"``) and one policy step: replay the batch
+        with gradients, chunked over time (see module)."""
+        buf, p = state.buffer, self.params
+        assert buf is not None, "update() needs a training rollout"
+        t_used = buf.t
+        data = {k: buf.tensor(k) for k in buf.data}
+        active = data["active"].float()  # (T, B, N) alive robots of running episodes
+        n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
+        n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
+        out: dict[str, float] = {}
+        if self.critic is not None:  # the shared trainer: team advantage of V(X_t)
+            crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
+            adv = crit.adv[..., None].expand_as(active)  # (T, B, N): every robot, the team's A_t
+            targets = None
+            out["critic_loss"] = crit.loss
+        else:
+            adv, targets = self.per_robot_advantage(buf, active)
         b, n = data["actions"].shape[1:]
         hc = self.policy.initial_state(b, n)
         learn_gate = p.gate == "learned" and p.communicate
@@ -290,20 +349,23 @@ class IC3NetMethod(Method):
                 logp = logp + logp_g.gather(-1, data["gates"][sl][..., None]).squeeze(-1)
             m = active[sl]
             action_loss = -(adv[sl] * logp * m).sum()
-            value_loss = (((values - targets[sl]) ** 2) * m).sum()
+            value_loss = torch.zeros(())
+            if targets is not None:
+                value_loss = (((values - targets[sl]) ** 2) * m).sum()
             entropy = -((logp_all.exp() * logp_all).sum(-1) * m).sum()
-            loss = (action_loss + p.value_coef * value_loss - p.entropy_coef * entropy) / n_steps
+            loss = ((action_loss + p.value_coef * value_loss) / n_steps
+                    - p.entropy_coef * entropy / n_active)
             loss.backward()
             hc = (hc[0].detach(), hc[1].detach())
             totals["action_loss"] += float(action_loss.detach()) / n_steps
             totals["value_loss"] += float(value_loss.detach()) / n_steps
             totals["entropy"] += float(entropy.detach())
-        grad_norm = float(nn.utils.clip_grad_norm_(self.policy.parameters(), p.max_grad_norm or float("inf")))
-        self.optimizer.step()
-        n_active = float(max(buf.data["active"][:t_used].sum(), 1))
+        grad_norm = clip_and_step(self.optimizer, p.max_grad_norm)
         gate_open = float(buf.data["gates"][:t_used][buf.data["active"][:t_used]].mean()) \
-            if n_active else 0.0
-        return {"actor_loss": totals["action_loss"], "critic_loss": totals["value_loss"],
+            if buf.data["active"][:t_used].any() else 0.0
+        running = torch.from_numpy(buf.running[:t_used].astype(np.float32))
+        out.setdefault("critic_loss", totals["value_loss"])
+        return {"actor_loss": totals["action_loss"], **out,
                 "entropy": totals["entropy"] / n_active, "gate_open_rate": gate_open,
                 "grad_norm": grad_norm,
-                "return_mean": float(returns[0].mean())}
+                "return_mean": float((mc_returns(buf.rewards[:t_used]) * running).sum() / n_steps)}

@@ -1,35 +1,45 @@
-"""Robot-level observations of the baselines: a robot's own state over the static map.
+"""Robot-level observations of the baselines: a robot's own state and its local view.
 
-Both learned baselines (decentralized, IC3Net) give each robot the parts of
-``envs.observations.robot_features`` that a single robot knows by itself:
+Every learned method observes, per robot, ``envs.observations.robot_features``:
 
     [position/shape (2), goal offset/shape (2), distance/(H+W) (1), done (1),
-     action_progress (5), shelf patch (2k+1)^2]
+     action_progress (5), shelf patch (2k+1)^2, robot patch (2k+1)^2]
 
-and nothing about other robots: what a robot knows of the others arrives over the lossy
-channel (the decentralized baseline's messages, IC3Net's communication vectors), as for
-the hierarchical method, whose patch shows only same-group robots (SPEC 3). With each
-robot its own group, that same-group robot channel is empty, so it is left out here
-(the decentralized baseline puts its message map in its place). ``action_mask`` is the
-environment's action mask (moves into shelves or off the grid are disallowed).
+The robot patch is the robot's own sensing of the cells around it: the current cells of
+the robots on the floor in its (2k+1)^2 window (ground truth, no channel; IC3Net's
+reference environments likewise give agents vision of nearby agents). It is built in one
+place, ``PatchExtractor`` (vectorized over B and N). The baselines (``local_view``) see
+every nearby robot; the hierarchical local policy sees only its own group's robots
+(``robot_features(core, patch, groups)``), because pi_theta_z may depend on X^z, G^z and
+r only (Sec. III-B, Proposition 1); other groups reach it through the reference.
+``action_mask`` is the environment's action mask (moves into shelves or off the grid are
+disallowed).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from envs.actions import N_ACTIONS
+from envs.actions import DELTAS, N_ACTIONS
 from envs.core import WarehouseCore
-from envs.observations import PatchExtractor, state_features
+from envs.observations import PatchExtractor, feature_size, robot_features
 
 
-def own_features(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
-    """(B, N, own_feature_size(k)) float32: a robot's own state and the shelves around it."""
-    shelves = patch.pad_obs[patch.center[core.pos][..., None] + patch.offsets]  # (B, N, P)
-    return np.concatenate([state_features(core), shelves], axis=-1)
+def local_view(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
+    """(B, N, local_view_size(k)) float32: a robot's own state, the shelves and the
+    robots (any group) in its (2k+1)^2 window."""
+    return robot_features(core, patch)
 
 
-def own_feature_size(radius: int) -> int:
-    return 2 + 2 + 1 + 1 + N_ACTIONS + (2 * radius + 1) ** 2
+def local_view_size(radius: int) -> int:
+    return feature_size(radius)
+
+
+def robots_on_target_index(radius: int) -> np.ndarray:
+    """(1, 5) columns of ``local_view`` (and ``robot_features``) holding, for each action,
+    the robot patch at the cell that action leads to (0 for Wait: the robot itself)."""
+    side = 2 * radius + 1
+    robots = 11 + side * side  # start of the robot channel of the patch
+    return np.array([[robots + (radius + dr) * side + (radius + dc) for dr, dc in DELTAS.tolist()]])
 
 
 def own_history(core: WarehouseCore, collided: np.ndarray) -> np.ndarray:

@@ -5,9 +5,15 @@
   one architecture serves any N (mean-pooled per-robot embeddings + episode progress).
 * ``RolloutBuffer``: preallocated (T, B, ...) arrays; memory is bounded by one batch,
   never by the number of episodes trained.
-* ``policy_gradient_losses``: the team advantage A_t = G_t - V(X_t) (eq:advantage)
-  shared by every actor, the actor loss -A log pi and the critic loss (V - G)^2
-  (eq:losses). Optimizers are Adam (the paper's choice) unless a method says otherwise.
+* ``team_advantage``: the team advantage A_t = G_t - V(X_t) (eq:advantage) shared by
+  every actor, optionally divided by its batch RMS (the same normalization for every
+  method); ``policy_gradient_losses``: the actor loss -A log pi and the critic loss
+  (V - G)^2 (eq:losses) built on it.
+* ``critic_loss``, ``clip_and_step``, ``critic_update``: the one critic update of every
+  learned method (masked squared return error, global gradient-norm clip, Adam step;
+  Algorithm 2 line "Update centralized critic V_omega"). The actors use ``clip_and_step``
+  too, so every learned method clips its gradients alike (``max_grad_norm``).
+* ``critic_inputs`` / ``critic_shapes``: what a rollout stores for the critic, X_t and t/T.
 """
 from __future__ import annotations
 
@@ -29,7 +35,8 @@ def mc_returns(rewards: np.ndarray | torch.Tensor) -> torch.Tensor:
 
 
 def critic_features(core: WarehouseCore) -> np.ndarray:
-    """(B, N, 6) float32 global state X_t per robot: position, goal, distance, done."""
+    """(B, N, 6) float32 global state X_t per robot (eq:advantage, V_omega(X_t)):
+    [row/H, col/W, goal row/H, goal col/W, min(D(p, g), H W)/(H+W), done]."""
     h, w = core.layout.shape
     scale = np.array([h, w], dtype=np.float32)
     rc = core.layout.cells[core.pos].astype(np.float32) / scale
@@ -39,10 +46,21 @@ def critic_features(core: WarehouseCore) -> np.ndarray:
     return np.concatenate([rc, grc, dist, done], axis=-1)
 
 
+def critic_shapes(n: int) -> dict[str, tuple[tuple[int, ...], type]]:
+    """``RolloutBuffer`` fields of the critic's inputs for N robots (see ``critic_inputs``)."""
+    return {"critic": ((n, CRITIC_FEATURES), np.float32), "t_frac": ((), np.float32)}
+
+
+def critic_inputs(core: WarehouseCore, horizon: int) -> dict[str, np.ndarray]:
+    """The critic's inputs at the current step: X_t (B, N, 6) and t / T (B,), float32."""
+    return {"critic": critic_features(core),
+            "t_frac": np.full(core.batch, core.t / horizon, dtype=np.float32)}
+
+
 class CentralCritic(nn.Module):
     """V_omega(X_t): DeepSets over the robots' global features plus time t / T."""
 
-    def __init__(self, hidden: int = 64) -> None:
+    def __init__(self, hidden: int) -> None:
         super().__init__()
         self.phi = nn.Sequential(nn.Linear(CRITIC_FEATURES, hidden), nn.ReLU(),
                                  nn.Linear(hidden, hidden), nn.ReLU())
@@ -100,7 +118,7 @@ def policy_gradient_losses(
     """
     adv, g, mask, n = team_advantage(values, rewards, running, normalize)
     actor = -(adv * logp * mask).sum() / n
-    critic = (((values - g) ** 2) * mask).sum() / n
+    critic = critic_loss(values, g, mask, n)
     return PGLosses(actor, critic, float((adv * mask).sum() / n), float((g * mask).sum() / n))
 
 
@@ -123,3 +141,57 @@ def team_advantage(
         std = torch.sqrt(((adv * mask) ** 2).sum() / n).clamp_min(1e-6)
         adv = adv / std
     return adv, g, mask, n
+
+
+def critic_loss(
+    values: torch.Tensor, returns: torch.Tensor, mask: torch.Tensor | float, n: torch.Tensor | float,
+) -> torch.Tensor:
+    """L_V (eq:losses): sum over running steps of (V(X_t) - G_t)^2, divided by n.
+
+    values, returns (...) alike; mask (...) 1 for running steps, 0 after an episode ended
+    (or 1.0 when every row is a running step); n the number of running steps of the batch.
+    """
+    return (((values - returns) ** 2) * mask).sum() / n
+
+
+def clip_and_step(optimizer: torch.optim.Optimizer, max_grad_norm: float) -> float:
+    """Clip the global gradient norm of ``optimizer``'s parameters at ``max_grad_norm``,
+    step, and return the norm before clipping. Every learned method's actor and critic
+    steps go through here, so they clip alike."""
+    params = [q for group in optimizer.param_groups for q in group["params"]]
+    norm = nn.utils.clip_grad_norm_(params, max_grad_norm)
+    optimizer.step()
+    return float(norm)
+
+
+@dataclass
+class CriticStep:
+    """What ``critic_update`` gives the actor update: the detached team advantage adv and
+    returns G (T, B), the running mask (T, B), n running steps, the critic loss."""
+
+    adv: torch.Tensor
+    returns: torch.Tensor
+    mask: torch.Tensor
+    n: torch.Tensor
+    loss: float
+
+
+def critic_update(
+    critic: CentralCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
+    normalize: bool, max_grad_norm: float,
+) -> CriticStep:
+    """One step of V_omega on a finished batch, and the team advantage for the actors.
+
+    Reads ``critic`` (T, B, N, 6) and ``t_frac`` (T, B) from ``buf`` (stored with
+    ``critic_inputs``). A_t = G_t - V(X_t) is computed with the values before the step
+    (eq:advantage; detached, so the actor loss never trains the critic), then
+    L_V = sum (V - G)^2 / n over running steps (eq:losses) is minimized by one clipped
+    optimizer step (Algorithm 2: "Update centralized critic V_omega").
+    """
+    values = critic(buf.tensor("critic"), buf.tensor("t_frac"))  # (T, B)
+    adv, g, mask, n = team_advantage(values, buf.rewards[: buf.t], buf.running[: buf.t], normalize)
+    loss = critic_loss(values, g, mask, n)
+    optimizer.zero_grad()
+    loss.backward()
+    clip_and_step(optimizer, max_grad_norm)
+    return CriticStep(adv, g, mask, n, float(loss.detach()))

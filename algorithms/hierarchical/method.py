@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from pydantic import Field
 
-from algorithms.base import Method, MethodParams
+from algorithms.base import LearnedParams, Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice, sample_categorical
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
@@ -60,7 +60,7 @@ from envs.config import EnvConfig
 from envs.observations import PatchExtractor, feature_size, robot_features
 
 
-class HierarchicalParams(MethodParams):
+class HierarchicalParams(LearnedParams):
     """Hyperparameters of the hierarchical method (defaults: docs/decisions.md)."""
 
     batch_episodes: int = Field(8, ge=1, description="episodes per update, batched in one process")
@@ -68,17 +68,11 @@ class HierarchicalParams(MethodParams):
     search_radius: int = Field(2, ge=0, description="safety filter search radius L")
     c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max")
     safety_filter: bool = Field(True, description="run Algorithm 1 before execution")
-    hidden: int = Field(32, ge=4, description="hidden width of the encoders, policy heads and critic")
     predictor_hidden: int = Field(64, ge=4, description="GRU hidden size per link")
     predictor_embed: int = Field(32, ge=4, description="message embedding width of the predictor")
     obs_radius: int = Field(2, ge=1, description="half-width k of the (2k+1)^2 local patches")
-    lr: float = Field(3e-3, gt=0, description="Adam learning rate of mu and pi")
-    critic_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the critic V_omega")
     predictor_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the GRU predictors")
-    entropy_coef: float = Field(0.01, ge=0, description="entropy bonus on both policy levels")
-    max_grad_norm: float = Field(10.0, gt=0, description="gradient clipping of each optimizer")
     share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
-    normalize_advantage: bool = Field(True, description="scale the team advantage by its batch RMS")
     update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
     # Variants beyond the paper (docs/decisions.md "Variants"; defaults are the paper's).
     messages: Literal["predicted", "oracle", "last"] = Field(
@@ -136,7 +130,7 @@ class HierarchicalMethod(Method):
             with torch.no_grad():
                 self.local.ref_embed.mul_(p.ref_embed_scale / 0.5)
         self.predictor = GroupPredictor(pz, z, self.layout.shape, p.predictor_hidden, p.predictor_embed)
-        self.critic = CentralCritic(p.hidden)
+        self.critic = CentralCritic(p.critic_hidden)
         if p.ref_lr is None:  # one group: checkpoints keep the optimizer layout of the default
             self.opt_policy = torch.optim.Adam(
                 list(self.reference.parameters()) + list(self.local.parameters()), lr=p.lr)

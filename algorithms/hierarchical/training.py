@@ -20,7 +20,13 @@ import numpy as np
 import torch
 from torch.utils.checkpoint import checkpoint
 
-from algorithms.common.trainer import RolloutBuffer, mc_returns, team_advantage
+from algorithms.common.trainer import (
+    RolloutBuffer,
+    clip_and_step,
+    critic_loss,
+    mc_returns,
+    team_advantage,
+)
 from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
@@ -74,15 +80,12 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
         ent_r = (_entropy(ref_logp) * decided).sum() / n_group
         ent_u = (_entropy(logp) * mask).sum() / n_robot
         v = method.critic(crit[r_t, r_b], t_frac[r_t, r_b])
-        critic = ((v - ret[r_t, r_b]) ** 2).sum() / n  # eq:losses (L_V)
+        critic = critic_loss(v, ret[r_t, r_b], 1.0, n)  # eq:losses (L_V), running rows only
         (actor - ref_coef * ent_r - p.entropy_coef * ent_u + critic).backward()
         for key, val in zip(sums, (actor, critic, ent_r, ent_u), strict=True):
             sums[key] += float(val.detach())
-    params = [q for g in method.opt_policy.param_groups for q in g["params"]]
-    torch.nn.utils.clip_grad_norm_(params, p.max_grad_norm)
-    torch.nn.utils.clip_grad_norm_(method.critic.parameters(), p.max_grad_norm)
-    method.opt_policy.step()
-    method.opt_critic.step()
+    clip_and_step(method.opt_policy, p.max_grad_norm)
+    clip_and_step(method.opt_critic, p.max_grad_norm)
     sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
     return sums
 

@@ -6,7 +6,7 @@ import torch
 
 from algorithms.common.action_path import ACTION_GAIN, ActionPath, progress_index
 from algorithms.common.episodes import EpisodeBatch, batch_rng
-from algorithms.common.robot_obs import own_features
+from algorithms.common.robot_obs import local_view
 from envs.config import EnvConfig
 from envs.observations import PatchExtractor, action_progress
 
@@ -22,8 +22,8 @@ def test_action_path__adds_nothing_at_init_and_gain_times_v_phi_after() -> None:
     assert torch.allclose(path(obs, logits), expected)
 
 
-def test_progress_index__points_at_action_progress_in_own_features() -> None:
+def test_progress_index__points_at_action_progress_in_the_local_view() -> None:
     env = EnvConfig(n_robots=5, layout="tiny")
     core = EpisodeBatch(env, 2, batch_rng(0, 0, 0)).core
-    feats = own_features(core, PatchExtractor(core, 2))
+    feats = local_view(core, PatchExtractor(core, 2))
     assert np.array_equal(feats[..., progress_index()[0]], action_progress(core))

@@ -6,7 +6,12 @@ from __future__ import annotations
 
 import math
 
-from bench.perf_methods import measure_cell_training, measure_filter, measure_training, run_train_suite
+from bench.perf_methods import (
+    measure_cell_training,
+    measure_filter,
+    measure_training,
+    run_train_suite,
+)
 
 
 def test_measure_training__reports_throughput_and_projection() -> None:
