@@ -51,6 +51,29 @@ class PatchExtractor:
             grid = self._scratch[key] = np.zeros(size, dtype=dtype)
         return grid
 
+    def shelf_table(self) -> np.ndarray:
+        """(F, P) float32 shelf/wall window of every free cell (static; built once)."""
+        table = self._scratch.get(("shelf_table", 0))
+        if table is None:
+            table = self._scratch[("shelf_table", 0)] = self.pad_obs[self.center[:, None] + self.offsets]
+        return table
+
+    def robots_into(self, out: np.ndarray, groups: np.ndarray | None = None) -> None:
+        """Write the robot channel of ``__call__``, flattened, into ``out`` (B, N, P)."""
+        core = self.core
+        b, n = core.pos.shape
+        z = 1 if groups is None else int(groups.max()) + 1
+        row = np.arange(b)[:, None] * z + (0 if groups is None else groups[None, :])  # (B, N)
+        size = self.pad_obs.size
+        grid = self.scratch("robots", b * z * size, np.float32)  # (B Z, padded cells), zeros
+        occ = core.occupying
+        centers = self.center[core.pos]  # (B, N)
+        marks = np.broadcast_to(row, (b, n))[occ] * size + centers[occ]
+        grid[marks] = 1.0
+        np.take(grid, (row * size + centers)[..., None] + self.offsets, out=out, mode="clip")  # valid indices; clip: unbuffered
+        grid[marks] = 0.0
+        out[..., self.offsets.size // 2] = 0.0  # the robot itself
+
     def __call__(self, groups: np.ndarray | None = None) -> np.ndarray:
         """Shelves and robots around each robot; with ``groups`` ((N,) group index) the
         robot channel shows only robots of the observer's own group."""
@@ -94,11 +117,22 @@ def robot_features(
 ) -> np.ndarray:
     """(B, N, F_obs) float32 per-robot features; see ``feature_size``.
 
-    [state_features (11), local patch (2 (2k+1)^2)]
+    [state_features (11), local patch (2 (2k+1)^2)], written into one buffer: the shelf
+    channel comes from a per-free-cell table and the robot channel from one gather, the
+    same numbers as ``np.concatenate([state_features, patch(groups)])``
+    (tests/envs/test_observations.py).
     """
-    return np.concatenate(
-        [state_features(core), patch(groups).reshape(core.pos.shape + (-1,))], axis=-1)
+    b, n = core.pos.shape
+    p = patch.offsets.size
+    out = np.empty((b, n, STATE_SIZE + 2 * p), dtype=np.float32)
+    out[..., :STATE_SIZE] = state_features(core)
+    out[..., STATE_SIZE:STATE_SIZE + p] = patch.shelf_table()[core.pos]
+    patch.robots_into(out[..., STATE_SIZE + p:], groups)
+    return out
+
+
+STATE_SIZE = 2 + 2 + 1 + 1 + N_ACTIONS  # columns of ``state_features``
 
 
 def feature_size(radius: int) -> int:
-    return 2 + 2 + 1 + 1 + N_ACTIONS + 2 * (2 * radius + 1) ** 2
+    return STATE_SIZE + 2 * (2 * radius + 1) ** 2

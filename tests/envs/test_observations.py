@@ -80,3 +80,27 @@ def test_robot_features_have_the_advertised_size() -> None:
     assert feats.dtype == np.float32
     # position / shape, then goal offset / shape, for robot 1 at (1, 1) with goal (0, 3).
     np.testing.assert_allclose(feats[0, 1, :4], [1 / 3, 1 / 4, -1 / 3, 2 / 4])
+
+
+def test_robot_features__one_buffer_equals_the_plain_concatenation_over_a_batch() -> None:
+    """The fused writer (shelf table + one gather into the output) against
+    concatenate([state_features, patch(groups)]) on a batch of random episodes run for a
+    while (robots finish and leave the floor), with and without the group mask."""
+    from envs.layouts import load_layout
+    from envs.observations import state_features
+    from envs.scenarios import sample_scenarios
+
+    layout = load_layout("tiny")
+    rng = np.random.default_rng(3)
+    b, n = 4, 8
+    core = WarehouseCore(EnvConfig.make(n_robots=n, groups=3, layout="tiny"), layout=layout)
+    core.reset(*sample_scenarios(layout, n, b, rng))
+    groups = group_assignment(n, 3)
+    for radius in (1, 2):
+        fused, patch = PatchExtractor(core, radius), PatchExtractor(core, radius)  # own scratch grids
+        for _ in range(25):
+            for g in (None, groups):
+                plain = np.concatenate([state_features(core), patch(g).reshape(b, n, -1)], axis=-1)
+                np.testing.assert_array_equal(robot_features(core, fused, g), plain)
+            core.step(rng.integers(0, 5, size=(b, n)))
+    assert core.done.any() and (~core.occupying).any()  # finished robots were covered
