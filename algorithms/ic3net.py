@@ -149,13 +149,17 @@ class IC3NetPolicy(nn.Module):
         for comm in self.comm:
             heard = average_comm(h.view(b, n, self.hidden), links, alive)
             h, c = self.lstm((x + comm(heard)).view(b * n, self.hidden), (h, c))
-        hh = h.view(b, n, self.hidden)
+        return (*self.heads(h.view(b, n, self.hidden), obs, mask), (h, c))
+
+    def heads(self, hh: torch.Tensor, obs: torch.Tensor, mask: torch.Tensor,
+              ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
+        """Hidden states (..., N, H) -> masked action logits (..., N, 5), gate logits
+        (..., N, 2) and per-robot values (..., N) (None without the value head)."""
         logits = self.action_head(hh)
         if self.path is not None:
             logits = self.path(obs, logits)
-        logits = masked_logits(logits, mask)
         values = None if self.value_head is None else self.value_head(hh).squeeze(-1)
-        return logits, self.gate_head(hh), values, (h, c)
+        return masked_logits(logits, mask), self.gate_head(hh), values
 
     def replay(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
@@ -174,13 +178,7 @@ class IC3NetPolicy(nn.Module):
                 heard = average_comm(h.view(b, n, self.hidden), links[t], alive[t])
                 h, c = self.lstm((xs[t] + comm(heard)).view(b * n, self.hidden), (h, c))
             hs.append(h)
-        hh = torch.stack(hs).view(tc, b, n, self.hidden)
-        logits = self.action_head(hh)
-        if self.path is not None:
-            logits = self.path(obs, logits)
-        logits = masked_logits(logits, mask)
-        values = None if self.value_head is None else self.value_head(hh).squeeze(-1)
-        return logits, self.gate_head(hh), values, (h, c)
+        return (*self.heads(torch.stack(hs).view(tc, b, n, self.hidden), obs, mask), (h, c))
 
 
 @dataclass

@@ -278,16 +278,8 @@ def claim_no_collisions(evals: pd.DataFrame, configs: Configs = PAPER["table1"],
         "filter uses predicted ones (issue 18), so the number is the measured collision rate.",
         "Supported iff no evaluation episode of >= 3 seeds has a collision; any collision "
         "contradicts; per execution mode.")
-    ev = with_execution(evals)
-
-    def one(c: tuple) -> list:
-        n, p = c
-        modes = _hier_modes(ev, n, p)
-        if not modes:
-            return [(_cfg(n, p), "-", NOT_ENOUGH, "configuration missing (or filter off)", "-")]
-        return [(_cfg(n, p), mode, *check_collisions(per_cell(rows, "collision_rate")))
-                for mode, rows in modes]
-    return _each(claim, configs, run, one)
+    return _each(claim, configs, run, _per_filter_mode(
+        with_execution(evals), lambda rows: check_collisions(per_cell(rows, "collision_rate"))))
 
 
 def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"], run: Configs = ()) -> Claim:
@@ -297,16 +289,20 @@ def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"
         "of the proposed robot controls.",
         f"One-sample t over per-seed mean correction rates against {MAX_CORRECTION:.0%}, one-sided, "
         "level 0.05, per execution mode.")
-    ev = with_execution(evals)
+    return _each(claim, configs, run, _per_filter_mode(
+        with_execution(evals), lambda rows: check_corrections(seed_means(rows, "correction_rate"))))
 
+
+def _per_filter_mode(ev: pd.DataFrame, check: Callable[[pd.DataFrame], tuple]) -> Callable[[tuple], list]:
+    """A per-configuration check for ``_each``: ``check`` on the hierarchical rows (filter
+    on) of each execution mode at (N, p), or 'not enough seeds' when there are none."""
     def one(c: tuple) -> list:
         n, p = c
         modes = _hier_modes(ev, n, p)
         if not modes:
             return [(_cfg(n, p), "-", NOT_ENOUGH, "configuration missing (or filter off)", "-")]
-        return [(_cfg(n, p), mode, *check_corrections(seed_means(rows, "correction_rate")))
-                for mode, rows in modes]
-    return _each(claim, configs, run, one)
+        return [(_cfg(n, p), mode, *check(rows)) for mode, rows in modes]
+    return one
 
 
 def claim_payload_ratio(evals: pd.DataFrame) -> Claim:
