@@ -257,6 +257,31 @@ def report(
     typer.echo(f"report: {built / 'index.html'}  (also index.md, figures, tables, claims.md)")
 
 
+@app.command()
+def matrix(
+    run: Path = typer.Option(..., "--run", help="Run directory with trained checkpoints."),
+    n: list[int] = typer.Option([], "--n", help="Evaluation team size N' (repeat; default: the run's N values)."),
+    p: list[float] = typer.Option([], "--p", help="Evaluation loss probability p' (repeat; default 0 0.2 0.4 0.6 0.8)."),
+    loss_model: list[str] = typer.Option([], "--loss-model", help="bernoulli and/or gilbert_elliott (repeat; default both)."),
+    burst: list[float] = typer.Option([], "--burst", help="Mean burst length of gilbert_elliott loss, steps (repeat; default 4 16)."),
+    episodes: int | None = typer.Option(None, "--episodes", help="Evaluation episodes per condition and mode (default: the run's eval_episodes)."),
+    workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
+    address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
+) -> None:
+    """Robustness matrix: evaluate every trained checkpoint at other team sizes N', loss
+    rates p' and bursty (Gilbert-Elliott) loss, on scenarios shared by every method, into
+    RUN/matrix/. Rerunning skips the (cell, condition) units already written."""
+    from bench.matrix import run_matrix
+
+    s = run_matrix(run, n, p, loss_model, burst, episodes, workers, address)
+    typer.echo(f"matrix: {s.units} units ({s.skipped} already done, {s.written} evaluated, "
+               f"{s.unsupported} unsupported) in {s.wall_s:.1f} s -> {s.out / 'matrix'}")
+    for unit, error in s.failed.items():
+        typer.echo(f"bench: warning: matrix unit {unit} failed: {error}; rerun to retry", err=True)
+    if s.failed:
+        raise typer.Exit(1)
+
+
 def _writable(path: Path) -> bool:
     """Whether ``path`` (or its nearest existing parent) is a writable directory."""
     import os

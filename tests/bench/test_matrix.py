@@ -1,0 +1,163 @@
+"""`bench matrix`: every checkpoint of a tiny run (2 trained N x 2 trained p, toy method and
+PIBT) on a grid of evaluation conditions. Shape, pairing of scenarios across methods and
+training conditions, resume, unsupported N', bad arguments; one test on Ray, one with the
+real learned methods. The run is trained in-process (conftest ``write_finished_store``)."""
+from __future__ import annotations
+
+import math
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from bench import matrix
+from bench.cells import Cell
+from bench.grids import Grid
+from bench.matrix import Condition, read_matrix, run_matrix
+from envs.errors import BenchError
+from tests.bench.conftest import cli_argv, snapshot, toy_spec, write_finished_store
+
+REPO = Path(__file__).resolve().parents[2]
+K = 3  # evaluation episodes per condition (one chunk)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """Toy cells at N in {4, 6} x p in {0.2, 0.6}, plus PIBT at the same four conditions."""
+    from algorithms import registry
+    from tests.bench.toy_method import TOY_PATH
+
+    registry.METHODS["toy"] = TOY_PATH
+    cells = [Cell.make(**toy_spec(n_robots=n, loss_p=p, episodes=4, eval_episodes=2)) for n in (4, 6) for p in (0.2, 0.6)]
+    cells += [Cell.make(method="pibt", n_robots=n, loss_p=p, layout="tiny", episodes=0, horizon=12, eval_episodes=2)
+              for n in (4, 6) for p in (0.2, 0.6)]
+    out = tmp_path_factory.mktemp("matrix") / "run"
+    write_finished_store(out, Grid("toygrid", "test", tuple(cells)))
+    yield out
+    registry.METHODS.pop("toy", None)
+
+
+def _frame(run: Path) -> pd.DataFrame:
+    table = read_matrix(run)
+    assert table is not None
+    return table.to_pandas()
+
+
+def test_matrix__shape_columns_and_pairing(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    s = run_matrix(run, ps=[0.0, 0.5], bursts=[4.0], episodes=K, use_ray=False)
+    # conditions: N' in {4, 6} x (p'=0: Bernoulli; p'=0.5: Bernoulli, GE b=4) = 6; 8 cells
+    assert (s.units, s.written, s.skipped, s.unsupported, s.failed) == (48, 48, 0, 0, {})
+    df = _frame(run)
+    toy_rows = df[df.method == "toy"]
+    pibt_rows = df[df.method == "pibt"]
+    assert len(toy_rows) == 4 * 6 * K * 3 and len(pibt_rows) == 4 * 6 * K
+    assert sorted(toy_rows.execution.unique()) == ["argmax", "sample", "sample@0.5"]
+    assert set(pibt_rows.execution) == {"planner"}
+    assert (df.status == "ok").all() and set(df.episode) == set(range(K))
+    assert set(df.condition) == {"n4-p0-bernoulli", "n4-p0.5-bernoulli", "n4-p0.5-ge-b4",
+                                 "n6-p0-bernoulli", "n6-p0.5-bernoulli", "n6-p0.5-ge-b4"}
+    ge = df[df.loss_model == "gilbert_elliott"]
+    assert (ge.burst_length == 4.0).all() and df[df.loss_model == "bernoulli"].burst_length.isna().all()
+    assert {(r.train_n, r.train_p) for r in df.itertuples()} == {(4, 0.2), (4, 0.6), (6, 0.2), (6, 0.6)}
+    # paired: one scenario per (condition, episode) across methods, training conditions and modes
+    per = df.groupby(["condition", "episode"])["scenario"].nunique()
+    assert (per == 1).all()
+    # ... and different conditions (N') or episodes see different scenarios
+    assert df.groupby("eval_n")["scenario"].nunique().min() == 3 * K  # 3 conditions per N'
+    # the condition's seed is the matrix's, not the cell's evaluation
+    assert set(df.eval_seed) == {Condition(n, p, m, b, "tiny").seed for n, p, m, b in
+                                  [(4, 0.0, "bernoulli", math.nan), (4, 0.5, "bernoulli", math.nan),
+                                   (4, 0.5, "gilbert_elliott", 4.0), (6, 0.0, "bernoulli", math.nan),
+                                   (6, 0.5, "bernoulli", math.nan), (6, 0.5, "gilbert_elliott", 4.0)]}
+    # at the training condition with the cell's own chunking the rows would match eval/ only by
+    # chance; at p'=0 every toy argmax policy runs without loss: metrics are finite
+    assert toy_rows.success_rate.between(0, 1).all()
+
+
+def test_matrix__pairing_does_not_depend_on_the_cell_seed(toy: str, tiny_run: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """The planted bug 'seed from the cell' would give every cell its own scenarios: two
+    cells differing only in seed must see the same ones."""
+    spec0 = matrix.Unit(Cell.make(**toy_spec(seed=0)), Condition(4, 0.2, "bernoulli", math.nan, "tiny"), ("argmax",), K)
+    spec1 = matrix.Unit(Cell.make(**toy_spec(seed=5)), spec0.cond, ("argmax",), K)
+    matrix._prepare(spec0)
+    matrix._prepare(spec1)
+    assert spec0.spec["seed"] == spec1.spec["seed"] == spec0.cond.seed
+    assert spec0.spec["params"]["eval_chunk"] == matrix.MATRIX_CHUNK
+
+
+def test_matrix__rerun_skips_done_units_and_redoes_a_missing_one(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    first = run_matrix(run, ns=[4], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    assert (first.written, first.skipped) == (8, 0)
+    before = snapshot(run / "matrix")
+    seen: list[str] = []
+    again = run_matrix(run, ns=[4], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False,
+                       on_unit=lambda u: seen.append(u.cell.cell_id))
+    assert (again.written, again.skipped, seen) == (0, 8, [])
+    assert snapshot(run / "matrix") == before
+    victim = sorted((run / "matrix").glob("*/*.parquet"))[0]
+    victim.unlink()
+    third = run_matrix(run, ns=[4], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    assert (third.written, third.skipped) == (1, 7)
+    assert snapshot(run / "matrix") == before  # recomputed bit for bit
+    # another K is another matrix: every unit is redone
+    assert run_matrix(run, ns=[4], ps=[0.2], models=["bernoulli"], episodes=K + 1, use_ray=False).written == 8
+
+
+def test_matrix__n_below_the_groups_is_an_unsupported_row(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    s = run_matrix(run, ns=[3], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    assert (s.written, s.unsupported) == (0, 8)
+    df = _frame(run)
+    assert len(df) == 8 and (df.status == "unsupported").all() and (df.episode == -1).all()
+    assert df.reason.str.contains("N'=3 < Z=4").all()
+    again = run_matrix(run, ns=[3], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    assert (again.skipped, again.unsupported) == (8, 0)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(ps=[1.2]), "--p 1.2: a loss probability must be in [0, 1]"),
+    (dict(ps=[-0.1]), "--p -0.1"),
+    (dict(ns=[0]), "--n 0: a team needs at least 1 robot"),
+    (dict(ns=[500]), "--n 500: 500 robots do not fit layout 'tiny'"),
+    (dict(models=["burst"]), "--loss-model 'burst': unknown loss model"),
+    (dict(bursts=[0.5]), "--burst 0.5"),
+    (dict(episodes=0), "--episodes 0"),
+])
+def test_matrix__bad_arguments_are_one_bench_error(toy: str, tiny_run: Path, kwargs: dict, message: str) -> None:
+    before = snapshot(tiny_run)
+    with pytest.raises(BenchError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
+        run_matrix(tiny_run, use_ray=False, **kwargs)
+    assert snapshot(tiny_run) == before
+
+
+def test_matrix__a_run_without_checkpoints_is_refused(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    shutil.rmtree(run / "checkpoints")
+    with pytest.raises(BenchError, match="has no trained checkpoints"):
+        run_matrix(run, use_ray=False)
+    with pytest.raises(BenchError, match="not a bench run directory"):
+        run_matrix(tmp_path / "nowhere", use_ray=False)
+
+
+def test_cli__bad_p_is_one_line_and_exit_2(tiny_run: Path) -> None:
+    proc = subprocess.run(cli_argv("matrix", "--run", str(tiny_run), "--p", "1.5"), cwd=REPO,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == ["bench: error: --p 1.5: a loss probability must be in [0, 1]"]
