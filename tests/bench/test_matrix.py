@@ -161,3 +161,40 @@ def test_cli__bad_p_is_one_line_and_exit_2(tiny_run: Path) -> None:
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == ["bench: error: --p 1.5: a loss probability must be in [0, 1]"]
+
+
+def test_matrix__ray_gives_the_rows_of_the_in_process_evaluation(toy: str, tiny_run: Path, tmp_path: Path,
+                                                                  ray_local: None) -> None:
+    import shutil
+
+    local, remote = tmp_path / "local", tmp_path / "remote"
+    shutil.copytree(tiny_run, local)
+    shutil.copytree(tiny_run, remote)
+    args = dict(ns=[4], ps=[0.4], bursts=[16.0], episodes=12)  # two chunks per mode
+    run_matrix(local, use_ray=False, **args)
+    s = run_matrix(remote, workers=2, **args)
+    assert (s.written, s.failed) == (16, {})
+    key = ["cell_id", "condition", "execution", "episode"]
+    a = _frame(local).sort_values(key).reset_index(drop=True)
+    b = _frame(remote).sort_values(key).reset_index(drop=True)
+    pd.testing.assert_frame_equal(a, b)
+    assert sorted(a.episode.unique()) == list(range(12))
+    assert run_matrix(remote, workers=2, **args).skipped == 16
+
+
+def test_matrix__real_methods_at_another_team_size(tmp_path: Path) -> None:
+    """Hierarchical (Z = 2 groups) and decentralized checkpoints trained at N = 4 run at
+    N' = 6 (Z kept, uneven groups padded) and are 'unsupported' for the hierarchical at N' < Z."""
+    base = dict(loss_p=0.2, layout="tiny", episodes=2, horizon=8, eval_episodes=2, groups=2,
+                params={"batch_episodes": 2, "eval_chunk": 2, "hidden": 8, "critic_hidden": 8})
+    cells = [Cell.make(method=m, n_robots=4, **base) for m in ("hierarchical", "decentralized")]
+    run = tmp_path / "run"
+    write_finished_store(run, Grid("real", "test", tuple(cells)))
+    s = run_matrix(run, ns=[1, 6], ps=[0.5], models=["bernoulli"], episodes=2, use_ray=False)
+    assert (s.written, s.unsupported, s.failed) == (2, 2, {})
+    df = _frame(run)
+    ok = df[df.status == "ok"]
+    assert set(ok.eval_n) == {6} and set(ok.method) == {"hierarchical", "decentralized"}
+    assert (ok.groupby(["condition", "episode"])["scenario"].nunique() == 1).all()
+    bad = df[df.status == "unsupported"]
+    assert set(bad.eval_n) == {1} and bad.reason.str.contains("N'=1 < Z=2").all()
