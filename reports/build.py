@@ -11,7 +11,8 @@ generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
 .pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.{md,csv}, calibration.{json,md} (the
-calibration of the claim tests), index.md, index.html.
+calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/matrix/ exists
+(reports/matrix.py), index.md, index.html.
 """
 from __future__ import annotations
 
@@ -33,6 +34,7 @@ from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown
+from reports.matrix import matrix_entries
 from reports.plotting import DPI
 from reports.store import load_store
 from reports.summary import summary_frame, summary_markdown
@@ -160,6 +162,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ())))
 
     entries += _study_entries(Path(run_dir), out)
+    entries += matrix_entries(run_dir, out, save_figure, write_text)  # RUN/matrix/ (bench matrix)
 
     # GIFs written by `bench replay` (default RUN/replays/) or into the report folder.
     replays = sorted(os.path.relpath(p, out) for p in (Path(run_dir) / "replays").glob("*.gif"))

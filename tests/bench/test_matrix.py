@@ -198,3 +198,54 @@ def test_matrix__real_methods_at_another_team_size(tmp_path: Path) -> None:
     assert (ok.groupby(["condition", "episode"])["scenario"].nunique() == 1).all()
     bad = df[df.status == "unsupported"]
     assert set(bad.eval_n) == {1} and bad.reason.str.contains("N'=1 < Z=2").all()
+
+
+def _synthetic(success: dict[tuple[str, int, float], list[float]]) -> pd.DataFrame:
+    """Matrix rows: (method, seed, eval_p) -> success of each episode (N = N' = 4, trained p = 0.2)."""
+    rows = []
+    for (method, seed, p), values in success.items():
+        for k, v in enumerate(values):
+            rows.append(dict(cell_id=f"{method}{seed}", method=method, seed=seed, train_n=4, train_p=0.2,
+                             eval_n=4, eval_p=p, loss_model="bernoulli", burst_length=math.nan,
+                             status="ok", reason="", episode=k, execution="argmax", success_rate=v))
+    return pd.DataFrame(rows)
+
+
+def test_report__interval_is_over_seed_means_and_the_sentence_quotes_the_kept_share() -> None:
+    from reports.matrix import matrix_table, summary_sentences
+    from reports.stats import mean_ci
+
+    # seed means at p'=0.2: 0.8, 0.6, 1.0; at p'=0.8: 0.4, 0.3, 0.5 -> kept 50% in every seed
+    data = {("hierarchical", 0, 0.2): [0.8, 0.8], ("hierarchical", 1, 0.2): [0.4, 0.8],
+            ("hierarchical", 2, 0.2): [1.0, 1.0], ("hierarchical", 0, 0.8): [0.4, 0.4],
+            ("hierarchical", 1, 0.8): [0.2, 0.4], ("hierarchical", 2, 0.8): [0.5, 0.5],
+            ("decentralized", 0, 0.2): [1.0, 1.0], ("decentralized", 0, 0.8): [0.25, 0.25]}
+    df = _synthetic(data)
+    t = matrix_table(df).set_index(["method", "eval_p"])
+    m, lo, hi = mean_ci([0.8, 0.6, 1.0])
+    row = t.loc[("hierarchical", 0.2)]
+    assert (row.success, row.lo, row.hi, row.seeds) == pytest.approx((m, lo, hi, 3))
+    assert math.isnan(t.loc[("decentralized", 0.2)].lo)  # one seed: no interval
+    (sentence,) = summary_sentences(df)
+    assert sentence.startswith("Trained at N=4, p=0.2 and evaluated at p'=0.8 (Bernoulli, N'=4): ")
+    assert "Hierarchical (ours) keeps 50% (95% CI 50-50%) of its success (0.80 -> 0.40, 3 seeds)" in sentence
+    assert "Decentralized keeps 25% of its success (1.00 -> 0.25, 1 seed)" in sentence
+
+
+def test_report__matrix_section_from_a_tiny_run(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import shutil
+
+    from reports.build import build_report
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    run_matrix(run, ns=[3, 4, 6], ps=[0.2, 0.6], bursts=[4.0], episodes=2, use_ray=False)
+    out = build_report(run)
+    for name in ("matrix_heatmaps.png", "matrix_degradation.pdf", "matrix_bursty.png", "matrix.md", "matrix.csv"):
+        assert (out / name).stat().st_size > 0
+    md = (out / "matrix.md").read_text()
+    assert "Trained at N=4, p=0.2 and evaluated at p'=0.6" in md and "## Units that cannot run" in md
+    assert "N'=3 < Z=4" in md
+    assert "Robustness matrix" in (out / "index.md").read_text()
+    csv = pd.read_csv(out / "matrix.csv")
+    assert set(csv.execution) == {"argmax", "sample", "sample@0.5", "planner"}
