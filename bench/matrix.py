@@ -7,12 +7,11 @@ at other conditions: team sizes N', mean loss probabilities p' and loss models
 ``LossProcess``), in every execution mode of the cell (argmax, sample, sample@T; planner).
 
 Pairing (docs/decisions.md, "Robustness matrices"): the evaluation seed of a condition is
-a hash of the condition alone (N', p', loss model, burst length, layout), never of the
-cell, and every unit is evaluated in chunks of ``MATRIX_CHUNK`` episodes whatever the
-method's ``eval_chunk``. So episode k of a condition has the same starts and goals for
-every method, training condition and training seed (the ``scenario`` column is equal), and
-its loss draws come from the same stream (their link sets differ by architecture: Z x Z
-groups vs N x N robots).
+a hash of its layout and N' alone, never of the cell, and every unit is evaluated in
+chunks of ``MATRIX_CHUNK`` episodes whatever the method's ``eval_chunk``. So episode k at
+N' has the same starts and goals for every method, training condition, training seed,
+p' and loss model (the ``scenario`` column is equal), and its loss draws come from the
+same uniforms (their link sets differ by architecture: Z x Z groups vs N x N robots).
 
 Layout of N': a run whose cells share one layout keeps it; otherwise the layout the run's
 cells trained at N' used (one per N, e.g. 'auto' presets); a run with several layouts and
@@ -94,10 +93,11 @@ class Condition:
 
     @property
     def seed(self) -> int:
-        """Evaluation seed: a hash of the condition only (never of the cell), so every
-        method, training condition and seed sees the same scenarios at this condition."""
-        text = json.dumps(["matrix", self.layout, self.n, float(self.p), self.loss_model,
-                           None if math.isnan(self.burst_length) else float(self.burst_length)])
+        """Evaluation seed: a hash of the layout and N' only (never of the cell), so every
+        method, training condition and seed sees the same scenarios here, and so do all
+        p' and loss models at this N': the channel then draws the same uniforms, so
+        Bernoulli losses are nested across p' (common random numbers, envs/channel.py)."""
+        text = json.dumps(["matrix", self.layout, self.n])
         return int(hashlib.sha256(text.encode()).hexdigest()[:8], 16) % (2**31)
 
     def env(self, cell: Cell) -> EnvConfig:
