@@ -71,6 +71,10 @@ def test_matrix__shape_columns_and_pairing(toy: str, tiny_run: Path, tmp_path: P
     per = df.groupby(["eval_n", "episode"])["scenario"].nunique()
     assert (per == 1).all()
     assert df["scenario"].nunique() == 2 * K
+    # PIBT ignores the channel: on paired scenarios its rows are equal at every p', loss model
+    # and training condition of an N' (common random numbers make this exact)
+    cols = ["success_rate", "collision_rate", "steps"]
+    assert (pibt_rows.groupby(["eval_n", "episode"])[cols].nunique() == 1).all().all()
     assert set(df.eval_seed) == {Condition(4, 0.0, "bernoulli", math.nan, "tiny").seed,
                                  Condition(6, 0.0, "bernoulli", math.nan, "tiny").seed}
     # at the training condition with the cell's own chunking the rows would match eval/ only by
