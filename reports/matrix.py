@@ -17,14 +17,16 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import seaborn as sns
+from matplotlib.axes import Axes
 
 from algorithms.common.execution import HEADLINE, PLANNER
 from reports.index import Entry
-from reports.plotting import Built, method_color, method_label, new_figure, paper_style, placeholder
+from reports.plotting import Built, method_label, new_figure, paper_style, placeholder
 from reports.stats import mean_ci
 
 KEYS = ["method", "train_n", "train_p", "eval_n", "eval_p", "loss_model", "burst_length", "execution"]
@@ -83,7 +85,8 @@ def heatmaps(table: pd.DataFrame) -> Built:
     return Built(fig, ["mean over seeds; headline mode (argmax, planner for PIBT); Bernoulli loss"])
 
 
-def _band(ax, g: pd.DataFrame, label: str, color, style: str = "-") -> None:  # type: ignore[no-untyped-def]
+def _band(ax: Axes, g: pd.DataFrame, label: str, color: Any, style: str = "-") -> None:
+    """success(p') with its interval band (when there are >= 2 seeds)."""
     g = g.sort_values("eval_p")
     ax.plot(g["eval_p"], g["success"], style, marker="o", color=color, label=label)
     if g["lo"].notna().any():
