@@ -251,3 +251,31 @@ def test_report__matrix_section_from_a_tiny_run(toy: str, tiny_run: Path, tmp_pa
     assert "Robustness matrix" in (out / "index.md").read_text()
     csv = pd.read_csv(out / "matrix.csv")
     assert set(csv.execution) == {"argmax", "sample", "sample@0.5", "planner"}
+
+
+def test_matrix__a_failing_unit_is_not_written_and_a_rerun_retries_it(toy: str, tiny_run: Path, tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    from tests.bench.toy_method import ToyMethod
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    original = ToyMethod.evaluate
+
+    def broken(self: ToyMethod, chunk: int, seed: int | None = None, execution: str | None = None) -> list:
+        if self.env.n_robots == 6:
+            raise RuntimeError("toy cannot evaluate at N'=6")
+        return original(self, chunk, seed, execution)
+
+    monkeypatch.setattr(ToyMethod, "evaluate", broken)
+    s = run_matrix(run, ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    # 8 cells x N' in {4, 6}: the 4 toy cells fail at N'=6, the other 12 units are written
+    assert (s.units, s.written, len(s.failed)) == (16, 12, 4)
+    assert all("RuntimeError: toy cannot evaluate at N'=6" in e for e in s.failed.values())
+    failed_files = {run / "matrix" / f"{key}.parquet" for key in s.failed}
+    assert len(failed_files) == 4 and not any(p.exists() for p in failed_files)
+    monkeypatch.setattr(ToyMethod, "evaluate", original)
+    again = run_matrix(run, ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    assert (again.written, again.skipped, again.failed) == (4, 12, {})
+    assert all(p.exists() for p in failed_files)
