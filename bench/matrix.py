@@ -58,6 +58,7 @@ MATRIX_CHUNK = 10  # episodes per evaluation chunk of every unit (pairing across
 MATRIX_DIR = "matrix"
 OK, UNSUPPORTED = "ok", "unsupported"
 MAX_RETRIES = 3  # worker deaths tolerated per unit
+RETRY_AFTER_S = 2.0  # a worker whose call failed gets no work for this long
 
 MATRIX_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("method", pa.string()),
@@ -411,13 +412,17 @@ def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[U
 
         try:
             while queue or inflight:
+                now = time.monotonic()
                 for slot in slots:
-                    if not slot.busy and queue:
+                    if not slot.busy and queue and now >= slot.next_ping:  # a failed worker rests
                         unit, (mode, chunk) = queue.pop(0)
                         box = [refs[unit.cell.cell_id]] if unit.cell.cell_id in refs else []
                         slot.busy = True
                         ref = slot.actor.eval_chunk.remote(unit.spec, box, chunk, mode)
                         inflight[ref] = (slot, unit, (mode, chunk))
+                if not inflight:  # every free worker is resting after a failure
+                    time.sleep(0.05)
+                    continue
                 ready, _ = ray.wait(list(inflight), num_returns=1, timeout=WAIT_S)
                 for ref in ready:
                     slot, unit, work = inflight.pop(ref)
@@ -429,6 +434,10 @@ def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[U
                         unit.error = unit.error or f"{type(cause).__name__}: {' '.join(str(cause).split())[:300]}"
                     except ray.exceptions.RayError as exc:  # the worker died: retry the chunk
                         slot.suspect = True
+                        slot.next_ping = time.monotonic() + RETRY_AFTER_S  # Ray restarts it meanwhile
+                        if isinstance(exc, ray.exceptions.ActorDiedError):  # restarts exhausted: replace
+                            ray.kill(slot.actor, no_restart=True)
+                            slot.actor = remote.remote()
                         unit.retries += 1
                         if unit.retries <= MAX_RETRIES:
                             queue.insert(0, (unit, work))
