@@ -16,6 +16,7 @@ from bench import matrix
 from bench.cells import Cell
 from bench.grids import Grid
 from bench.matrix import Condition, read_matrix, run_matrix
+from bench.worker import CellWorker
 from envs.errors import BenchError
 from tests.bench.conftest import cli_argv, snapshot, toy_spec, write_finished_store
 
@@ -182,6 +183,48 @@ def test_matrix__ray_gives_the_rows_of_the_in_process_evaluation(toy: str, tiny_
     pd.testing.assert_frame_equal(a, b)
     assert sorted(a.episode.unique()) == list(range(12))
     assert run_matrix(remote, workers=2, **args).skipped == 16
+
+
+def test_matrix__a_worker_that_dies_is_retried_on_ray(toy: str, tiny_run: Path, tmp_path: Path, ray_local: None,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import shutil
+
+    from bench import worker_pool
+
+    for actors in worker_pool._IDLE.values():  # plain workers of an earlier test: not reused here
+        worker_pool._kill(actors)
+    worker_pool._IDLE.clear()
+    local, remote = tmp_path / "local", tmp_path / "remote"
+    shutil.copytree(tiny_run, local)
+    shutil.copytree(tiny_run, remote)
+    marker = str(tmp_path / "died")
+
+    class DyingWorker(CellWorker):
+        """SIGKILLs its own process on its first evaluation chunk (once: marker file); a local
+        class, so Ray ships it by value with the marker path."""
+
+        def eval_chunk(self, spec, state_box, chunk, execution=None):  # type: ignore[no-untyped-def]
+            import os
+            import signal
+
+            if not os.path.exists(marker):
+                with open(marker, "w") as fh:
+                    fh.write(str(os.getpid()))
+                os.kill(os.getpid(), signal.SIGKILL)
+            return super().eval_chunk(spec, state_box, chunk, execution)
+
+    monkeypatch.setattr(matrix, "CellWorker", DyingWorker)
+    args = dict(ns=[4], ps=[0.4], models=["bernoulli"], episodes=K)
+    s = run_matrix(remote, workers=2, **args)
+    assert Path(marker).exists() and (s.written, s.failed) == (8, {})
+    for actors in worker_pool._IDLE.values():
+        worker_pool._kill(actors)
+    worker_pool._IDLE.clear()
+    monkeypatch.setattr(matrix, "CellWorker", CellWorker)
+    run_matrix(local, use_ray=False, **args)
+    key = ["cell_id", "condition", "execution", "episode"]
+    pd.testing.assert_frame_equal(_frame(local).sort_values(key).reset_index(drop=True),
+                                  _frame(remote).sort_values(key).reset_index(drop=True))
 
 
 def test_matrix__real_methods_at_another_team_size(tmp_path: Path) -> None:
