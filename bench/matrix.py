@@ -455,11 +455,17 @@ def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[U
         ctx.shutdown()
 
 
-def read_matrix(run: Path | str) -> pa.Table | None:
-    """Every stored unit of ``DIR/matrix/`` as one table (None when there is none)."""
+def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table | None:
+    """Every stored unit of ``DIR/matrix/`` as one table (None when there is none). With a
+    ``problems`` list, an unreadable file is skipped and named there instead of raising."""
     root = Path(run) / MATRIX_DIR
     files = sorted(p for p in root.glob("*/*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
-    if not files:
-        return None
-    return pa.concat_tables([read_table(p, MATRIX_SCHEMA).select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA)
-                             for p in files])
+    tables = []
+    for p in files:
+        try:
+            tables.append(read_table(p, MATRIX_SCHEMA).select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA))
+        except BenchError as exc:
+            if problems is None:
+                raise
+            problems.append(f"matrix file skipped: {exc}")
+    return pa.concat_tables(tables) if tables else None

@@ -208,9 +208,10 @@ def matrix_entries(run_dir: Path | str, out: Path, save_figure: Callable[..., li
     from reports/build.py (atomic writes)."""
     from bench.matrix import read_matrix
 
-    table_pa = read_matrix(run_dir)
+    problems: list[str] = []
+    table_pa = read_matrix(run_dir, problems)
     if table_pa is None:
-        return []
+        return [Entry("Robustness matrix: no readable unit", (), tuple(problems))] if problems else []
     df = table_pa.to_pandas()
     table = matrix_table(df)
     sentences = summary_sentences(df)
@@ -225,7 +226,7 @@ def matrix_entries(run_dir: Path | str, out: Path, save_figure: Callable[..., li
         entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf"), tuple(built.notes), image=f"{stem}.png"))
     write_text(out / "matrix.md", matrix_markdown(table, sentences, unsupported))
     write_text(out / "matrix.csv", table.to_csv(index=False))
-    notes = tuple(sentences)
+    notes = tuple(sentences) + tuple(problems)
     if len(unsupported):
         notes += (f"{len(unsupported)} unit(s) cannot run; see matrix.md",)
     entries.append(Entry("Robustness matrix: summary and table", ("matrix.md", "matrix.csv"), notes))

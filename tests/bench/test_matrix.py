@@ -294,6 +294,12 @@ def test_report__matrix_section_from_a_tiny_run(toy: str, tiny_run: Path, tmp_pa
     assert "Robustness matrix" in (out / "index.md").read_text()
     csv = pd.read_csv(out / "matrix.csv")
     assert set(csv.execution) == {"argmax", "sample", "sample@0.5", "planner"}
+    victim = sorted((run / "matrix").glob("*/*.parquet"))[0]
+    victim.write_bytes(b"not parquet")  # a corrupt unit is named, the rest is reported
+    build_report(run)
+    assert f"matrix file skipped: corrupt Parquet file '{victim}'" in (out / "index.md").read_text()
+    with pytest.raises(BenchError, match="corrupt Parquet file"):
+        read_matrix(run)
 
 
 def test_matrix__a_failing_unit_is_not_written_and_a_rerun_retries_it(toy: str, tiny_run: Path, tmp_path: Path,
