@@ -26,7 +26,7 @@ from matplotlib.axes import Axes
 
 from algorithms.common.execution import HEADLINE, PLANNER
 from reports.index import Entry
-from reports.plotting import Built, method_label, new_figure, paper_style, placeholder
+from reports.plotting import Built, label_order, method_label, new_figure, paper_style, placeholder
 from reports.stats import mean_ci
 
 KEYS = ["method", "train_n", "train_p", "eval_n", "eval_p", "loss_model", "burst_length", "execution"]
@@ -50,6 +50,11 @@ def matrix_table(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=KEYS + ["success", "lo", "hi", "seeds"])
 
 
+def _order(method: str) -> tuple[int, str]:
+    """The paper's method first, then the baselines (as in every report figure)."""
+    return label_order(method_label(method)), method
+
+
 def headline(df: pd.DataFrame) -> pd.DataFrame:
     return df[df["execution"].isin([HEADLINE, PLANNER])]
 
@@ -62,7 +67,7 @@ def heatmaps(table: pd.DataFrame) -> Built:
     """Success (headline mode, Bernoulli) per method: rows (N, p) trained, columns (N', p')."""
     t = headline(table)
     t = t[t["loss_model"] == "bernoulli"]
-    methods = sorted(t["method"].unique(), key=method_label)
+    methods = sorted(t["method"].unique(), key=_order)
     with paper_style():
         ncols = max(len(t.drop_duplicates(["eval_n", "eval_p"])), 1)
         fig = new_figure(1.0 + 1.1 * max(len(methods), 1), max(3.5, 0.45 * ncols + 1.2))
@@ -97,7 +102,7 @@ def degradation(table: pd.DataFrame) -> Built:
     """success(p') at the training team size, one line per trained p (Bernoulli, headline)."""
     t = headline(table)
     t = t[(t["loss_model"] == "bernoulli") & (t["eval_n"] == t["train_n"])]
-    methods = sorted(t["method"].unique(), key=method_label)
+    methods = sorted(t["method"].unique(), key=_order)
     with paper_style():
         fig = new_figure(1.6 * max(len(methods), 1))
         axes = fig.subplots(max(len(methods), 1), 1, squeeze=False)[:, 0]
@@ -113,7 +118,7 @@ def degradation(table: pd.DataFrame) -> Built:
             ax.set_xlabel("evaluation loss p'")
             ax.set_ylabel("success rate")
             ax.set_ylim(-0.02, 1.02)
-            ax.legend(loc="lower left", frameon=False)
+            ax.legend(loc="best", frameon=True, framealpha=0.8)
     return Built(fig, ["N' = training N; Bernoulli loss; band: t 95% interval over seeds"])
 
 
@@ -128,7 +133,7 @@ def bursty(df: pd.DataFrame) -> tuple[Built, pd.DataFrame]:
         rows.append({"method": key[0], "eval_p": key[1], "loss_model": key[2], "burst_length": key[3],
                      "success": m, "lo": lo, "hi": hi, "seeds": len(g)})
     t = pd.DataFrame(rows, columns=["method", "eval_p", "loss_model", "burst_length", "success", "lo", "hi", "seeds"])
-    methods = sorted(t["method"].unique(), key=method_label)
+    methods = sorted(t["method"].unique(), key=_order)
     with paper_style():
         fig = new_figure(1.6 * max(len(methods), 1))
         axes = fig.subplots(max(len(methods), 1), 1, squeeze=False)[:, 0]
@@ -147,7 +152,7 @@ def bursty(df: pd.DataFrame) -> tuple[Built, pd.DataFrame]:
             ax.set_xlabel("mean evaluation loss p'")
             ax.set_ylabel("success rate")
             ax.set_ylim(-0.02, 1.02)
-            ax.legend(loc="lower left", frameon=False)
+            ax.legend(loc="best", frameon=True, framealpha=0.8)
     return Built(fig, ["N' = training N, per seed the mean over trained p; band: t 95% interval over seeds"]), t
 
 
@@ -162,7 +167,7 @@ def summary_sentences(df: pd.DataFrame) -> list[str]:
         if target == p or not (g["eval_p"] == p).any():
             continue
         parts = []
-        for method, gm in sorted(g.groupby("method"), key=lambda kv: method_label(kv[0])):
+        for method, gm in sorted(g.groupby("method"), key=lambda kv: _order(kv[0])):
             wide = gm.pivot_table(index="seed", columns="eval_p", values=METRIC)
             if p not in wide or target not in wide:
                 continue
