@@ -317,7 +317,8 @@ class RunStore:
         """Files of this run directory that the bench itself writes (and only those).
 
         manifest.json, cells.parquet, train/<cell_id>/part-<k>.parquet,
-        eval/<cell_id>.parquet, checkpoints/<cell_id>.pt (cell_id: 12 hex digits) and the
+        eval/<cell_id>.parquet, checkpoints/<cell_id>.pt, matrix/<cell_id>/*.parquet
+        (``bench matrix``; cell_id: 12 hex digits) and the
         temp files ('.<name>.<random>.tmp') of interrupted writes of these. Anything else,
         and anything behind a symlink, is the user's.
         """
@@ -335,6 +336,11 @@ class RunStore:
         for d, suffix in ((self.eval_dir, ".parquet"), (self.ckpt_dir, ".pt")):
             out += [p for p, name in plain(d)
                     if name.endswith(suffix) and CELL_ID_RE.fullmatch(name.removesuffix(suffix))]
+        matrix = self.root / "matrix"  # bench matrix: matrix/<cell_id>/<condition>.parquet
+        if matrix.is_dir() and not matrix.is_symlink():
+            for d in matrix.iterdir():
+                if CELL_ID_RE.fullmatch(d.name):
+                    out += [p for p, name in plain(d) if name.endswith(".parquet")]
         return sorted(out)
 
     def check_fresh(self) -> None:

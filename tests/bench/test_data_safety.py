@@ -76,8 +76,13 @@ def test_fresh__wipe_deletes_only_files_the_bench_wrote(finished: tuple[Path, Pa
         path.write_text(text)
     temp = out / "checkpoints" / f".{cid}.pt.abc123.tmp"  # a torn bench write: ours
     temp.write_bytes(b"torn")
+    matrix_unit = out / "matrix" / cid / "n8-p0.2-bernoulli.parquet"  # bench matrix output: ours
+    matrix_unit.parent.mkdir(parents=True)
+    matrix_unit.write_bytes(b"unit")
+    mine[out / "matrix" / "notes.md"] = "mine too"
+    (out / "matrix" / "notes.md").write_text("mine too")
     bench_files = set(store.bench_files())
-    assert temp in bench_files and not bench_files & set(mine)
+    assert temp in bench_files and matrix_unit in bench_files and not bench_files & set(mine)
     deleted = store.wipe()
     assert set(deleted) == bench_files
     assert {p: p.read_text() for p in mine} == mine, "a user file was touched"
