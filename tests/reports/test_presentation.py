@@ -79,6 +79,8 @@ def test_build__captions_in_html_sidecar_and_pdf_metadata(report):
 
 # ------------------------------------------------------------------ palette, labels, panels
 def test_figures__hierarchical_is_blue_and_labelled_ours_everywhere(paper, smoke):
+    h, s, v = colorsys.rgb_to_hsv(*BLUE)
+    assert 0.53 < h < 0.67 and s > 0.5  # the paper's method is blue
     for train, evals in (paper, smoke):
         for fig in (fig1_training(train).fig, fig2_success(evals).fig, fig3_payload(evals).fig):
             lines = _lines(fig, METHOD_LABELS["hierarchical"])
