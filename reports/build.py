@@ -35,10 +35,14 @@ from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.plotting import DPI
 from reports.store import load_store
-from reports.summary import SUMMARY_CAPTION, summary_display, summary_frame, summary_markdown
+from reports.summary import SUMMARY_CAPTION, ci_display, summary_display, summary_frame, summary_markdown
 from reports.table1_safety import table1_caption, table1_display, table1_frame, table1_latex, table1_markdown
 
 REPORT_DIR = "report"
+ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
+ABLATION_METRICS = {"success_rate": ("success rate", "pct"), "collision_rate": ("collision rate", "pct"),
+                    "correction_rate": ("correction rate", "pct"), "fallback_rate": ("fallback rate", "pct"),
+                    "payload_scalars_per_step": ("payload (scalars/step)", "payload")}
 FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
 
 
@@ -183,7 +187,10 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
         write_text(out / "ablation.md", ab_md)
         write_text(out / "ablation.csv", ablation.to_csv(index=False))
         entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv"),
-                             tables=tuple(markdown_tables(ab_md, "Ablation (mean over seeds [95% CI])"))))
+                             tables=tuple(
+                                 (f"Ablation, {mode} execution: mean over seeds [95% CI over {g['ci_over'].iloc[0]}]",
+                                  ci_display(g, ABLATION_LABELS, ABLATION_METRICS))
+                                 for mode, g in ablation.groupby("execution", sort=False))))
 
     claims = all_claims(train, evals, at=claims_at, cells=store.cells)
     cal = _calibration(out)

@@ -123,7 +123,7 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
         return [p.strip().replace("\\|", "|").replace("**", "").replace("`", "") for p in parts]
 
     def flush() -> None:
-        if len(rows) >= 2:
+        if len(rows) >= 2 and all(len(r) == len(rows[0]) for r in rows):
             out.append((f"{title}: {heading}" if heading else title, pd.DataFrame(rows[2:], columns=rows[0])))
         rows.clear()
 

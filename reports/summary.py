@@ -78,7 +78,7 @@ def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
     return rec
 
 
-def _fmt(v: float, lo: float, hi: float, kind: str) -> str:
+def fmt_ci(v: float, lo: float, hi: float, kind: str) -> str:
     """``kind``: "pct" (a fraction shown in percent), "payload" (scalars per step, one
     decimal with thousands separators, the same everywhere) or "num" (3 significant digits)."""
     if not np.isfinite(v):
@@ -110,17 +110,27 @@ def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
             f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
             + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
             str(r["eval_episodes"]),
-            _fmt(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], "pct"),
-            _fmt(r["success_rate_iqm"], np.nan, np.nan, "pct"),
-            _fmt(r["team_return"], r["team_return_lo"], r["team_return_hi"], "num"),
-            _fmt(r["team_return_iqm"], np.nan, np.nan, "num"),
-            _fmt(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], "pct"),
-            _fmt(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], "pct")
+            fmt_ci(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], "pct"),
+            fmt_ci(r["success_rate_iqm"], np.nan, np.nan, "pct"),
+            fmt_ci(r["team_return"], r["team_return_lo"], r["team_return_hi"], "num"),
+            fmt_ci(r["team_return_iqm"], np.nan, np.nan, "num"),
+            fmt_ci(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], "pct"),
+            fmt_ci(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], "pct")
             if filt else "n/a",
-            _fmt(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
+            fmt_ci(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
                  r["payload_scalars_per_step_hi"], "payload"),
             str(r["ci_over"])])
     return pd.DataFrame(rows, columns=SUMMARY_HEAD)
+
+
+def ci_display(frame: pd.DataFrame, labels: dict[str, str], metrics: dict[str, tuple[str, str]]) -> pd.DataFrame:
+    """Display strings of a frame of (mean, _lo, _hi) columns, e.g. the ablation's:
+    ``labels`` maps plain columns to headers, ``metrics`` maps a metric to (header, kind of
+    ``fmt_ci``)."""
+    out = {h: frame[c].astype(str).tolist() for c, h in labels.items()}
+    for m, (h, kind) in metrics.items():
+        out[h] = [fmt_ci(v, lo, hi, kind) for v, lo, hi in zip(frame[m], frame[f"{m}_lo"], frame[f"{m}_hi"], strict=True)]
+    return pd.DataFrame(out)
 
 
 def summary_markdown(frame: pd.DataFrame) -> str:
