@@ -197,7 +197,9 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     write_text(out / "claims.md", claims_markdown(claims, cal))
     checks = claims_frame(claims)
     write_text(out / "claims.csv", checks.to_csv(index=False))
-    cal_tables = markdown_tables((out / cal).read_text(encoding="utf-8"), "Calibration of the claim tests") if cal else []
+    cal_tables = markdown_tables((out / cal).read_text(encoding="utf-8"), (
+        "Calibration of the claim tests: rate of 'supported' on simulated data where the claim is "
+        "false (null, must be <= 5% + MC error) or true (effect: the power)")) if cal else []
     entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ()),
                          tables=(("Claims of the paper's Sec. IV: one row per claim, scope, configuration and "
                                   "execution mode, with the numbers and the test behind each verdict.",
@@ -206,11 +208,13 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     studies, studies_note = _study_entries(Path(run_dir), out)
     entries += studies
 
-    # GIFs written by `bench replay` (default RUN/replays/) are copied into the report folder.
-    for gif in sorted((Path(run_dir) / "replays").glob("*.gif")):
-        if gif.resolve().parent != (out / "replays").resolve():
-            _copy(gif, out / "replays" / gif.name)
-    replays = sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
+    # Replays written by `bench replay` (default RUN/replays/) are copied into the report
+    # folder, so its links stay inside it.
+    kinds = ("*.gif", "*.mp4")
+    for clip in sorted(c for k in kinds for c in (Path(run_dir) / "replays").glob(k)):
+        if clip.resolve().parent != (out / "replays").resolve():
+            _copy(clip, out / "replays" / clip.name)
+    replays = sorted(str(p.relative_to(out)) for k in kinds for p in out.glob(f"replays/{k}"))
     data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
                      store.problems, replays, studies_note)
     write_text(out / "index.md", index_markdown(data))

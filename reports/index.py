@@ -124,7 +124,8 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
 
     def flush() -> None:
         if len(rows) >= 2 and all(len(r) == len(rows[0]) for r in rows):
-            out.append((f"{title}: {heading}" if heading else title, pd.DataFrame(rows[2:], columns=rows[0])))
+            cap = f"{title}: {heading}" if heading and heading != title else title
+            out.append((cap, pd.DataFrame(rows[2:], columns=rows[0])))
         rows.clear()
 
     for line in md.splitlines() + [""]:
