@@ -160,7 +160,7 @@ line-height:1.4}table{border-collapse:collapse;margin:.5em 0}td,th{border:1px so
 padding:2px 6px;font-size:90%;vertical-align:top}img{max-width:100%;border:1px solid #eee}
 .supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
 .not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
-code{font-size:90%}caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
+code{font-size:90%}table.data{display:block;overflow-x:auto;max-width:100%}caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
 figure{margin:.5em 0}figcaption{font-size:90%;color:#333;max-width:700px}"""
 
 
