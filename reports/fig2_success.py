@@ -70,7 +70,8 @@ def _caption(counts: dict[str, tuple[set[int], set[int]]], modes: list[str]) -> 
     return ("Fig. 2: success rate (% of robots at goal) of evaluation episodes against their percentile, "
             f"per team size N (rows), loss probability p (columns) and execution mode ({', '.join(modes)}). "
             + "; ".join(parts) + ". Line: mean over seeds of each seed's quantile curve; shaded band: "
-            "95% Student t interval over seeds of that mean (none with one seed).")
+            "95% Student t interval over seeds of that mean, cut at 0 and 100% (none with one seed; "
+            "with two seeds the t quantile is 12.7, so the band is wide).")
 
 
 def fig2_success(evals: pd.DataFrame) -> Built:
@@ -115,7 +116,8 @@ def fig2_success(evals: pd.DataFrame) -> Built:
                     seeds.add(rows["cell_id"].nunique())
                     eps.update(rows.groupby("cell_id").size().tolist())
                     if np.isfinite(lo).any():
-                        ax.fill_between(GRID, 100 * lo, 100 * hi, color=color, alpha=0.25, lw=0)
+                        ax.fill_between(GRID, 100 * np.clip(lo, 0, 1), 100 * np.clip(hi, 0, 1),
+                                        color=color, alpha=0.25, lw=0)  # a success rate is in 0..100%
                     drawn = True
                 if not drawn:
                     placeholder(ax, "no data")
