@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from PIL import Image
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgb
 
@@ -73,7 +74,8 @@ def test_build__captions_in_html_sidecar_and_pdf_metadata(report):
         caption = (report / f"{stem}.txt").read_text().strip()
         assert caption.startswith("Fig. ")
         assert f"<figcaption>{caption[:40]}" in page.replace("&#x27;", "'")
-        assert b"/Subject" in (report / f"{stem}.pdf").read_bytes()
+        assert b"/Subject (" + caption.split("(")[0][:30].encode() in (report / f"{stem}.pdf").read_bytes()
+        assert Image.open(report / f"{stem}.png").text["Description"] == caption
     assert page.count("<figcaption>") == 3
 
 
