@@ -112,8 +112,7 @@ def _paper(rec: pd.Series, key: str, unit: str = "%") -> str:
 
 HEAD = ["N", "Collision rate", "(paper)", "Correction rate", "(paper)", "Mean candidates",
         "(paper)", "Predictor error", "Fallback rate", "Seeds", "Episodes"]
-DISPLAY_HEAD = ["N", "row", "Collision rate (%)", "Correction rate (%)", "Mean candidates",
-                "Predictor error", "Fallback rate (%)", "Seeds", "Episodes"]
+DISPLAY_HEAD = ["N", "row", "Coll. (%)", "Corr. (%)", "Cand.", "Pred. err.", "Fallb. (%)", "Seeds/eps."]
 PAPER_KEYS = ("collision_rate", "correction_rate", "mean_candidates")
 
 
@@ -142,15 +141,15 @@ def table1_display(frame: pd.DataFrame, mode: str) -> pd.DataFrame:
     for _, rec in frame[frame["execution"] == mode].iterrows():
         n = str(rec["n_robots"])
         if rec["status"] == "not run":
-            out.append([n, "ours", "not run", *[MISSING] * 4, "0", "0"])
+            out.append([n, "ours", "not run", *[MISSING] * 4, "0/0"])
         else:
             out.append([n, "ours", *[_value(rec, m, rec[m], "") for m in METRICS],
-                        str(rec["seeds"]), str(rec["episodes"])])
+                        f"{rec['seeds']}/{rec['episodes']}"])
             cis = [_ci(rec, m, "") for m in METRICS]
             if any(cis):
-                out.append(["", f"95% CI ({rec['ci_over']})", *[c or MISSING for c in cis], "", ""])
+                out.append(["", "95% CI", *[c or MISSING for c in cis], ""])
         if np.isfinite(rec["paper_collision_rate"]):
-            out.append(["", "paper", *[_paper(rec, k, "") for k in PAPER_KEYS], MISSING, MISSING, "", ""])
+            out.append(["", "paper", *[_paper(rec, k, "") for k in PAPER_KEYS], MISSING, MISSING, ""])
     return pd.DataFrame(out, columns=DISPLAY_HEAD)
 
 
@@ -158,10 +157,12 @@ def table1_caption(frame: pd.DataFrame, mode: str) -> str:
     """The caption of Table I in one execution mode (plain text)."""
     p = fmt_p(frame["loss_p"].iloc[0]) if len(frame) else fmt_p(PAPER_P)
     return (f"Safety filter performance of the hierarchical method under p = {p}, {mode} execution: "
-            "mean over seeds of per-seed means over evaluation episodes, with a 95% CI (Student t over "
+            "mean over seeds of per-seed means over evaluation episodes (ours), a 95% CI (Student t over "
             "seeds, or bootstrap over episodes with one seed) and the paper's Table I (argmax "
-            "execution). Predictor error: mean squared error of predicted messages on lost links; "
-            "fallback rate: group-steps that fell back to the joint Wait.")
+            "execution). Coll.: collision rate; Corr.: correction rate; Cand.: mean candidates; "
+            "Pred. err.: mean squared error of predicted messages on lost links; Fallb.: group-steps "
+            "that fell back to the joint Wait; Seeds/eps.: seeds and evaluation episodes; n/a: no "
+            "safety filter.")
 
 
 def table1_markdown(frame: pd.DataFrame, notes: list[str]) -> str:
@@ -202,8 +203,9 @@ def table1_latex(frame: pd.DataFrame) -> str:
         disp = table1_display(frame, mode).rename(columns={"row": ""})
         styler = (disp.style.hide(axis="index").format(escape="latex")
                   .format_index(escape="latex", axis=1))
-        parts.append(styler.to_latex(
+        tex = styler.to_latex(
             environment="table*", position="t", position_float="centering", hrules=True,
             column_format="ll" + "r" * (disp.shape[1] - 2), label=f"tab:safety_reproduced_{label}",
-            caption=_latex_text(table1_caption(frame, mode))))
+            caption=_latex_text(table1_caption(frame, mode)))
+        parts.append(tex.replace("\\begin{tabular}", "\\small\n\\begin{tabular}", 1))
     return "\n".join(parts)

@@ -185,12 +185,12 @@ def test_table1_latex__parses_fits_and_says_na_without_a_filter(paper):
     frame = _no_filter_frame(paper)
     tex = table1_latex(frame)
     check_latex(tex)
-    assert tex.count(r"\begin{tabular}{llrrrrrrr}") == 1  # 9 short columns, CIs on their own row
+    assert tex.count(r"\begin{tabular}{llrrrrrr}") == 1  # 8 short columns, CIs on their own row
     row40 = next(line for line in tex.splitlines() if line.startswith("40 & ours"))
     assert row40.split(" & ")[3:5] == ["n/a", "n/a"]
     disp = table1_display(frame, "argmax")
-    assert "0.00" not in disp.loc[disp["N"] == "40", "Correction rate (%)"].tolist()
-    assert (disp.loc[disp["N"] == "60", "Correction rate (%)"] != "n/a").all()
+    assert "0.00" not in disp.loc[disp["N"] == "40", "Corr. (%)"].tolist()
+    assert (disp.loc[disp["N"] == "60", "Corr. (%)"] != "n/a").all()
 
 
 def test_check_latex__catches_an_unbalanced_brace_and_a_bad_end(paper):
