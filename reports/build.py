@@ -35,8 +35,20 @@ from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.plotting import DPI
 from reports.store import load_store
-from reports.summary import SUMMARY_CAPTION, ci_display, summary_display, summary_frame, summary_markdown
-from reports.table1_safety import table1_caption, table1_display, table1_frame, table1_latex, table1_markdown
+from reports.summary import (
+    SUMMARY_CAPTION,
+    ci_display,
+    summary_display,
+    summary_frame,
+    summary_markdown,
+)
+from reports.table1_safety import (
+    table1_caption,
+    table1_display,
+    table1_frame,
+    table1_latex,
+    table1_markdown,
+)
 
 REPORT_DIR = "report"
 ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}

@@ -15,7 +15,15 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator, NullFormatter
 
-from reports.plotting import Built, fmt_list, method_color, method_label, new_figure, paper_style, placeholder
+from reports.plotting import (
+    Built,
+    fmt_list,
+    method_color,
+    method_label,
+    new_figure,
+    paper_style,
+    placeholder,
+)
 from reports.store import fmt_p, select
 
 PAPER_P = 0.2
