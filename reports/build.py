@@ -33,14 +33,30 @@ from reports.claims_page import calibration_markdown, claims_frame, claims_markd
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
-from reports.index import Entry, IndexData, index_html, index_markdown
+from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.matrix import matrix_entries
 from reports.plotting import DPI
 from reports.store import load_store
-from reports.summary import summary_frame, summary_markdown
-from reports.table1_safety import table1_frame, table1_latex, table1_markdown
+from reports.summary import (
+    SUMMARY_CAPTION,
+    ci_display,
+    summary_display,
+    summary_frame,
+    summary_markdown,
+)
+from reports.table1_safety import (
+    table1_caption,
+    table1_display,
+    table1_frame,
+    table1_latex,
+    table1_markdown,
+)
 
 REPORT_DIR = "report"
+ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
+ABLATION_METRICS = {"success_rate": ("success rate", "pct"), "collision_rate": ("collision rate", "pct"),
+                    "correction_rate": ("correction rate", "pct"), "fallback_rate": ("fallback rate", "pct"),
+                    "payload_scalars_per_step": ("payload (scalars/step)", "payload")}
 FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
 
 
@@ -67,28 +83,55 @@ def write_text(path: Path, text: str) -> Path:
     return _atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
 
-def save_figure(fig: Figure, stem: Path) -> list[Path]:
-    """``stem``.png (200 dpi) and ``stem``.pdf."""
-    return [_atomic(stem.with_suffix(f".{fmt}"),
-                    lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=DPI))
-            for fmt in ("png", "pdf")]
+def save_figure(fig: Figure, stem: Path, caption: str = "") -> list[Path]:
+    """``stem``.png (200 dpi) and ``stem``.pdf; with a caption, also ``stem``.txt holding it
+    and the caption in the files' metadata (PDF Subject, PNG Description)."""
+    keys = {"png": "Description", "pdf": "Subject"}
+    out = [_atomic(stem.with_suffix(f".{fmt}"),
+                   lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=DPI,
+                                                    metadata={keys[fmt]: caption} if caption else None))
+           for fmt in ("png", "pdf")]
+    if caption:
+        out.append(write_text(stem.with_suffix(".txt"), caption + "\n"))
+    return out
 
 
-def _study_entries(run_dir: Path, out: Path) -> list[Entry]:
-    """Optuna studies beside the run (``<run>/../studies/<name>/trials.parquet``, where
-    ``bench tune`` exports them): their reports are rebuilt and linked from the index
-    (optimization history, the L x |R_z| landscape, parameter importances)."""
-    from studies.export import TRIALS_FILE
+STUDY_LINK_KEY = "run"  # studies/<name>/study.json: the run folder name the study was launched for
+HOW_TO_LINK = ("No study records this run. A study is linked when its studies/<name>/study.json "
+               "(beside the run folder) holds \"run\": \"{run}\"; its report is then copied into "
+               "this report's studies/<name>/ folder.")
+
+
+def _copy(src: Path, dst: Path) -> str:
+    """Copy ``src`` to ``dst`` atomically; returns ``dst``'s name relative to its report."""
+    _atomic(dst, lambda tmp: shutil.copyfile(src, tmp))
+    return dst.name
+
+
+def _study_entries(run_dir: Path, out: Path) -> tuple[list[Entry], str]:
+    """Optuna studies launched for this run (``<run>/../studies/<name>/study.json`` naming
+    the run folder under ``"run"``): their reports are rebuilt, copied into
+    ``<report>/studies/<name>/`` (links stay inside the report folder) and linked. Returns
+    the entries and, when none is linked, a note saying how to link one."""
+    from studies.export import CONFIG_FILE, TRIALS_FILE
     from studies.report import build_study_report
 
     entries = []
-    for trials in sorted((run_dir.resolve().parent / "studies").glob(f"*/{TRIALS_FILE}")):
+    run = run_dir.resolve()
+    for trials in sorted((run.parent / "studies").glob(f"*/{TRIALS_FILE}")):
+        cfg_path = trials.parent / CONFIG_FILE
+        cfg = json.loads(cfg_path.read_text(encoding="utf-8")) if cfg_path.exists() else {}
+        if str(cfg.get(STUDY_LINK_KEY, "")) not in (run.name, str(run)):
+            continue
+        name = trials.parent.name
         files = build_study_report(trials.parent)
-        rel = tuple(os.path.relpath(f, out) for f in files
-                    if f.suffix in (".md", ".png"))
+        rel = tuple(f"studies/{name}/{_copy(f, out / 'studies' / name / f.name)}"
+                    for f in files if f.suffix in (".html", ".md", ".png", ".pdf"))
         image = next((r for r in rel if r.endswith("study_landscape.png")), None)
-        entries.append(Entry(f"Study {trials.parent.name}: |R_z| x L (bench tune)", rel, image=image))
-    return entries
+        entries.append(Entry(f"Study {name}: |R_z| x L (bench tune)",
+                             tuple(r for r in rel if r.endswith((".html", ".md"))) + rel, image=image,
+                             caption=f"Study {name}: tuning landscape (see its study page for trials and curves)."))
+    return entries, "" if entries else HOW_TO_LINK.format(run=run.name)
 
 
 CALIBRATION = Path(__file__).with_name("calibration.json")  # `bench calibrate --out`, committed
@@ -131,44 +174,64 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                 "fig3_comm_payload": lambda: fig3_payload(evals)}
     for stem in FIGURES:
         built = builders[stem]()
-        save_figure(built.fig, out / stem)
-        entries.append(Entry(titles[stem], (f"{stem}.png", f"{stem}.pdf"), tuple(built.notes),
-                             image=f"{stem}.png"))
+        save_figure(built.fig, out / stem, built.caption)
+        entries.append(Entry(titles[stem], (f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"), tuple(built.notes),
+                             image=f"{stem}.png", caption=built.caption))
 
     table, t_notes = table1_frame(evals)
     write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
     write_text(out / "table1_safety.tex", table1_latex(table))
     write_text(out / "table1_safety.csv", table.to_csv(index=False))
+    modes = list(dict.fromkeys(table["execution"])) if len(table) else []
     entries.append(Entry("Table I: safety filter, per execution mode",
-                         ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes)))
+                         ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes),
+                         tables=tuple((f"Table I ({m}). " + table1_caption(table, m), table1_display(table, m))
+                                      for m in modes)))
 
     summary = summary_frame(evals, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
-                         ("summary.md", "summary.csv")))
+                         ("summary.md", "summary.csv"),
+                         tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
 
     ablation = ablation_frame(evals, store.cells)
     if len(ablation):  # runs of the ablation grid
-        write_text(out / "ablation.md", ablation_markdown(
-            ablation, component_values(evals, store.cells), setting(store.cells)))
+        ab_md = ablation_markdown(ablation, component_values(evals, store.cells), setting(store.cells))
+        write_text(out / "ablation.md", ab_md)
         write_text(out / "ablation.csv", ablation.to_csv(index=False))
-        entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv")))
+        entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv"),
+                             tables=tuple(
+                                 (f"Ablation, {mode} execution: mean over seeds [95% CI over {g['ci_over'].iloc[0]}]",
+                                  ci_display(g, ABLATION_LABELS, ABLATION_METRICS))
+                                 for mode, g in ablation.groupby("execution", sort=False))))
 
     claims = all_claims(train, evals, at=claims_at, cells=store.cells)
     cal = _calibration(out)
     write_text(out / "claims.md", claims_markdown(claims, cal))
-    write_text(out / "claims.csv", claims_frame(claims).to_csv(index=False))
-    entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ())))
+    checks = claims_frame(claims)
+    write_text(out / "claims.csv", checks.to_csv(index=False))
+    cal_tables = markdown_tables((out / cal).read_text(encoding="utf-8"), (
+        "Calibration of the claim tests: rate of 'supported' on simulated data where the claim is "
+        "false (null, must be <= 5% + MC error) or true (effect: the power)")) if cal else []
+    entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv") + ((cal,) if cal else ()),
+                         tables=(("Claims of the paper's Sec. IV: one row per claim, scope, configuration and "
+                                  "execution mode, with the numbers and the test behind each verdict.",
+                                  checks),) + tuple(cal_tables)))
 
-    entries += _study_entries(Path(run_dir), out)
+    studies, studies_note = _study_entries(Path(run_dir), out)
+    entries += studies
     entries += matrix_entries(run_dir, out, save_figure, write_text)  # RUN/matrix/ (bench matrix)
 
-    # GIFs written by `bench replay` (default RUN/replays/) or into the report folder.
-    replays = sorted(os.path.relpath(p, out) for p in (Path(run_dir) / "replays").glob("*.gif"))
-    replays += sorted(str(p.relative_to(out)) for p in out.glob("replays/*.gif"))
+    # Replays written by `bench replay` (default RUN/replays/) are copied into the report
+    # folder, so its links stay inside it.
+    kinds = ("*.gif", "*.mp4")
+    for clip in sorted(c for k in kinds for c in (Path(run_dir) / "replays").glob(k)):
+        if clip.resolve().parent != (out / "replays").resolve():
+            _copy(clip, out / "replays" / clip.name)
+    replays = sorted(str(p.relative_to(out)) for k in kinds for p in out.glob(f"replays/{k}"))
     data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
-                     store.problems, replays)
+                     store.problems, replays, studies_note)
     write_text(out / "index.md", index_markdown(data))
     write_text(out / "index.html", index_html(data))
     return out

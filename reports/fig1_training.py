@@ -1,10 +1,12 @@
-"""Fig. 1: training convergence (smoothed episode reward vs training episode).
+"""Fig. 1: training convergence (smoothed team return vs training episode).
 
 (a) hierarchical vs decentralized for N = 20, 40, 60; (b) hierarchical for N = 80, 90,
 100; both at p = 0.2 (paper Sec. IV, fig:fig1). Each curve is the trailing moving average
 of the team return (eq:reward summed over the episode); with several seeds, the mean over
 seeds and a 95% bootstrap band over seeds. Configurations the run lacks are named in the
-notes; a run with other team sizes (e.g. smoke) plots the ones it has.
+notes; a run with other team sizes (e.g. smoke) plots the ones it has in (a). Panel (b) is
+drawn only when the run has hierarchical training data at N = 80-100: it never re-plots
+(a)'s team sizes. The caption names p, seeds, episodes, the smoothing window and the band.
 """
 from __future__ import annotations
 
@@ -23,10 +25,10 @@ from reports.plotting import (
     label_order,
     method_color,
     method_label,
-    n_palette,
     new_figure,
     paper_style,
     placeholder,
+    shades,
     thousands,
 )
 from reports.stats import bootstrap_band, smooth, smoothing_window
@@ -46,6 +48,7 @@ class Curve:
     lo: np.ndarray
     hi: np.ndarray
     seeds: int
+    window: int
 
 
 def training_curve(train: pd.DataFrame, method: str, n: int, p: float,
@@ -60,7 +63,7 @@ def training_curve(train: pd.DataFrame, method: str, n: int, p: float,
     curves = np.stack([smooth(wide[c].to_numpy(), window) for c in wide.columns])  # (S, T)
     curves[np.isnan(wide.to_numpy().T)] = np.nan  # keep gaps of shorter runs as gaps
     mean, lo, hi = bootstrap_band(curves)
-    return Curve(wide.index.to_numpy(), mean, lo, hi, curves.shape[0])
+    return Curve(wide.index.to_numpy(), mean, lo, hi, curves.shape[0], window)
 
 
 def _draw(ax: Axes, curve: Curve, color: tuple[float, float, float], label: str) -> None:
@@ -78,6 +81,27 @@ def _pick_p(train: pd.DataFrame) -> tuple[float | None, list[str]]:
     return ps[0], [f"the run has no p = {fmt_p(PAPER_P)}; showing p = {fmt_p(ps[0])}"]
 
 
+def _caption(p: str, curves: list[tuple[str, Curve]], has_b: bool) -> str:
+    """Fig. 1's caption: configuration, seeds, episodes, smoothing and the band."""
+    seeds = sorted({c.seeds for _, c in curves})
+    eps = sorted({int(c.episode.max()) + 1 for _, c in curves})
+    wins = sorted({c.window for _, c in curves})
+    what = "(a) hierarchical (ours) vs decentralized" + (", (b) hierarchical (ours) at N = 80-100" if has_b else "")
+    if not curves:
+        return f"Fig. 1: training convergence at p = {p}; the run has no training data to plot."
+    band = ("shaded band: 95% bootstrap interval over seeds of the mean curve"
+            if max(seeds) > 1 else "no band (one seed per configuration)")
+    return (f"Fig. 1: training convergence, {what}, at p = {p}. Team return per training episode, "
+            f"trailing moving average over {'/'.join(map(str, wins))} episodes (5% of training); "
+            f"line: mean over {'/'.join(map(str, seeds))} seed(s) per configuration "
+            f"({'/'.join(map(str, eps))} training episodes each); {band}.")
+
+
+def _episode_axis(ax: Axes, nbins: int) -> None:
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=nbins, steps=[1, 2, 5, 10], integer=True))
+    ax.xaxis.set_major_formatter(FuncFormatter(thousands))
+
+
 def fig1_training(train: pd.DataFrame) -> Built:
     """Build Fig. 1 from training rows joined with their cell config (reports.store)."""
     notes: list[str] = []
@@ -86,19 +110,25 @@ def fig1_training(train: pd.DataFrame) -> Built:
     at_p = select(train, loss_p=p) if p is not None else train.iloc[0:0]
     ab_ns = set(select(at_p, "hierarchical")["n_robots"]) | set(select(at_p, "decentralized")["n_robots"])
     a_ns, a_missing = choose(PAPER_A_N, ab_ns, 3)
-    b_ns, b_missing = choose(PAPER_B_N, set(select(at_p, "hierarchical")["n_robots"]), 3, largest=True)
+    hier_ns = {int(n) for n in select(at_p, "hierarchical")["n_robots"]}
+    b_ns = [n for n in PAPER_B_N if n in hier_ns]  # (b) only at the paper's N = 80-100
+    b_missing = [n for n in PAPER_B_N if n not in hier_ns]
     ptxt = fmt_p(p) if p is not None else fmt_p(PAPER_P)
     if a_missing:
         notes.append(f"(a) the run has no training data for N = {fmt_list(a_missing)} at p = {ptxt}")
     if b_missing:
-        notes.append(f"(b) the run has no hierarchical training data for N = {fmt_list(b_missing)} at p = {ptxt}")
+        notes.append(f"(b) the run has no hierarchical training data for N = {fmt_list(b_missing)} at p = {ptxt}"
+                     + ("; panel (b) is omitted" if not b_ns else ""))
+    drawn_curves: list[tuple[str, Curve]] = []
 
     with paper_style():
-        fig = new_figure(3.7)
+        fig = new_figure(3.7 if b_ns else 1.9)
         ncol = max(len(a_ns), 1)
-        top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.1])
+        if b_ns:
+            top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.1])
+        else:
+            top, bottom = fig, None
         axes_a = list(top.subplots(1, ncol, sharey=True, squeeze=False)[0])
-        ax_b = bottom.subplots()
         handles: dict[str, object] = {}
         for k, ax in enumerate(axes_a):
             if k >= len(a_ns):
@@ -112,41 +142,38 @@ def fig1_training(train: pd.DataFrame) -> Built:
                     notes.append(f"(a) N = {n}: no {method} training data at p = {ptxt}")
                     continue
                 _draw(ax, c, method_color(method), method_label(method))
+                drawn_curves.append((method, c))
                 drawn = True
             if not drawn:
                 placeholder(ax, "no data")
             ax.set_title(f"N = {n}")
-            ax.xaxis.set_major_locator(MaxNLocator(nbins=3, steps=[1, 2, 5, 10], integer=True))
-            ax.xaxis.set_major_formatter(FuncFormatter(thousands))
+            _episode_axis(ax, 3)
             if k > 0:
                 ax.tick_params(labelleft=False)
             for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
                 handles.setdefault(lab, h)
-        axes_a[0].set_ylabel("episode reward")
+        axes_a[0].set_ylabel("team return")
         top.supxlabel("training episode", fontsize=FONT_PT)
         if handles:
             order = sorted(handles, key=label_order)
             top.legend([handles[k] for k in order], order, loc="outside upper center",
                        ncol=len(handles), frameon=False, handlelength=1.5, columnspacing=1.0)
-        axes_a[0].annotate("(a)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
-                           textcoords="offset points", fontweight="bold", va="bottom")
-
-        colors = n_palette([int(n) for n in b_ns])
-        drawn_b = False
-        for n in b_ns:
-            c = training_curve(at_p, "hierarchical", int(n), p)
-            if c is not None:
-                _draw(ax_b, c, colors[int(n)], f"N = {int(n)}")
-                drawn_b = True
-        if drawn_b:
+        if bottom is not None:
+            axes_a[0].annotate("(a)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
+                               textcoords="offset points", fontweight="bold", va="bottom")
+            ax_b = bottom.subplots()
+            colors = shades("hierarchical", b_ns)
+            for n in b_ns:
+                c = training_curve(at_p, "hierarchical", int(n), p)
+                if c is not None:
+                    _draw(ax_b, c, colors[int(n)], f"N = {int(n)}")
+                    drawn_curves.append(("hierarchical", c))
             ax_b.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False,
-                        title="Hierarchical\n(ours)", handlelength=1.2, borderaxespad=0.2)
-            ax_b.xaxis.set_major_formatter(FuncFormatter(thousands))
-            ax_b.xaxis.set_major_locator(MaxNLocator(nbins=5, steps=[1, 2, 5, 10], integer=True))
-        else:
-            placeholder(ax_b, f"no hierarchical training data at p = {ptxt}")
-        ax_b.set_xlabel("training episode")
-        ax_b.set_ylabel("episode reward")
-        ax_b.annotate("(b)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
-                      textcoords="offset points", fontweight="bold", va="bottom")
-    return Built(fig, notes)
+                        title=method_label("hierarchical").replace(" (", "\n("), handlelength=1.2,
+                        borderaxespad=0.2)
+            _episode_axis(ax_b, 5)
+            ax_b.set_xlabel("training episode")
+            ax_b.set_ylabel("team return")
+            ax_b.annotate("(b)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
+                          textcoords="offset points", fontweight="bold", va="bottom")
+    return Built(fig, notes, _caption(ptxt, drawn_curves, bool(b_ns)))

@@ -4,14 +4,17 @@ Panels: N = 40, 60 (rows) x p = 0.2, 0.4, 0.6 (columns), paper Sec. IV, fig:fig2
 for every execution mode of the run (rows grouped by mode: argmax, sample, sample@T; both
 methods in a panel ran the same mode on the same scenarios). As in
 the paper, the evaluation episodes of a configuration are sorted by success rate (fraction
-of robots that reached their goal) and plotted against their percentile. Episodes of all
-seeds are pooled for the curve; with several seeds a 95% bootstrap band over seeds (each
-seed's quantile curve resampled) is drawn around it.
+of robots that reached their goal) and plotted against their percentile. Line and band
+come from one estimator: each seed's quantile curve on a 101-point percentile grid (Hazen
+positions), the line their mean over seeds and, with two or more seeds, the band a 95%
+Student t interval over seeds of that same mean (so the line always lies inside its
+band). The caption gives the seed and episode counts per method.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy import stats as sps
 
 from reports.plotting import (
     FONT_PT,
@@ -25,7 +28,7 @@ from reports.plotting import (
     paper_style,
     placeholder,
 )
-from reports.stats import bootstrap_band, percentile_curve, quantile_curve
+from reports.stats import quantile_curve
 from reports.store import execution_order, fmt_p, select
 
 PAPER_N = (40, 60)
@@ -39,6 +42,36 @@ def seed_quantile_curves(evals: pd.DataFrame, metric: str = "success_rate") -> n
     """(S, G) quantile curve of ``metric`` on ``GRID`` for each cell (seed) of ``evals``."""
     return np.stack([quantile_curve(g[metric].to_numpy(), GRID)
                      for _, g in evals.groupby("cell_id", sort=True)])
+
+
+def seed_mean_band(curves: np.ndarray, level: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(mean, lo, hi), each (G,), of (S, G) per-seed curves: the mean over seeds and a
+    Student t interval over seeds (NaN bounds with fewer than two seeds)."""
+    c = np.asarray(curves, dtype=np.float64)
+    k = np.sum(np.isfinite(c), axis=0)
+    mean = np.nanmean(c, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sd = np.nanstd(c, axis=0, ddof=1) if c.shape[0] > 1 else np.full(c.shape[1], np.nan)
+        half = sps.t.ppf(0.5 + level / 2, np.maximum(k - 1, 1)) * sd / np.sqrt(k)
+    half = np.where(k >= 2, half, np.nan)
+    return mean, mean - half, mean + half
+
+
+def _caption(counts: dict[str, tuple[set[int], set[int]]], modes: list[str]) -> str:
+    """Fig. 2's caption: seeds and episodes per method, the estimator and the band."""
+    parts = []
+    for method in METHODS:
+        seeds, eps = counts.get(method, (set(), set()))
+        if seeds:
+            parts.append(f"{method_label(method)}: {'/'.join(map(str, sorted(seeds)))} seed(s) x "
+                         f"{'/'.join(map(str, sorted(eps)))} evaluation episodes per seed")
+    if not parts:
+        return "Fig. 2: success-rate percentile curves; the run has no hierarchical or IC3Net evaluation."
+    return ("Fig. 2: success rate (% of robots at goal) of evaluation episodes against their percentile, "
+            f"per team size N (rows), loss probability p (columns) and execution mode ({', '.join(modes)}). "
+            + "; ".join(parts) + ". Line: mean over seeds of each seed's quantile curve; shaded band: "
+            "95% Student t interval over seeds of that mean, cut at 0 and 100% (none with one seed; "
+            "with two seeds the t quantile is 12.7, so the band is wide).")
 
 
 def fig2_success(evals: pd.DataFrame) -> Built:
@@ -58,6 +91,7 @@ def fig2_success(evals: pd.DataFrame) -> Built:
         fig = new_figure(1.0 + 1.25 * nrow)
         axes = fig.subplots(nrow, ncol, sharex=True, sharey=True, squeeze=False)
         handles: dict[str, object] = {}
+        counts: dict[str, tuple[set[int], set[int]]] = {}
         for i in range(nrow):
             mode, i_n = modes[i // per_mode], i % per_mode
             in_mode = both[both["execution"] == mode]
@@ -73,14 +107,17 @@ def fig2_success(evals: pd.DataFrame) -> Built:
                     if rows.empty:
                         notes.append(f"N = {n}, p = {fmt_p(p)}, {mode}: no {method} evaluation")
                         continue
-                    pct, val = percentile_curve(rows["success_rate"].to_numpy())
+                    mean, lo, hi = seed_mean_band(seed_quantile_curves(rows))
                     color = method_color(method)
-                    (line,) = ax.plot(pct, 100 * val, color=color, label=method_label(method),
-                                      drawstyle="steps-mid", ls=STYLES[method], zorder=2 + METHODS.index(method))
+                    (line,) = ax.plot(GRID, 100 * mean, color=color, label=method_label(method),
+                                      ls=STYLES[method], zorder=2 + METHODS.index(method))
                     handles.setdefault(method_label(method), line)
-                    if rows["cell_id"].nunique() > 1:
-                        _, lo, hi = bootstrap_band(seed_quantile_curves(rows))
-                        ax.fill_between(GRID, 100 * lo, 100 * hi, color=color, alpha=0.25, lw=0)
+                    seeds, eps = counts.setdefault(method, (set(), set()))
+                    seeds.add(rows["cell_id"].nunique())
+                    eps.update(rows.groupby("cell_id").size().tolist())
+                    if np.isfinite(lo).any():
+                        ax.fill_between(GRID, 100 * np.clip(lo, 0, 1), 100 * np.clip(hi, 0, 1),
+                                        color=color, alpha=0.25, lw=0)  # a success rate is in 0..100%
                     drawn = True
                 if not drawn:
                     placeholder(ax, "no data")
@@ -95,4 +132,4 @@ def fig2_success(evals: pd.DataFrame) -> Built:
             order = sorted(handles, key=label_order)
             fig.legend([handles[k] for k in order], order, loc="outside upper center",
                        ncol=len(handles), frameon=False)
-    return Built(fig, notes)
+    return Built(fig, notes, _caption(counts, modes))

@@ -1,20 +1,29 @@
 """Fig. 3: communication payload per step, and the measured ratio against (Z-1)/(N-1).
 
-(a) scalars transmitted per step vs N for the hierarchical method and the decentralized
-all-to-all baseline, with the analytical N (Z-1) d_m and N (N-1) d_m as dashed lines;
+(a) scalars transmitted per step vs N for the hierarchical method, the decentralized
+all-to-all baseline and IC3Net (its gated broadcast, measured per step), with the analytical N (Z-1) d_m and N (N-1) d_m as dashed lines;
 (b) measured C_hier / C_dec vs the analytical bound (Z-1)/(N-1) of Sec. III-A
 (the inequality after eq:gru_pred_loss, "C_hier <= N(Z-1)d_m"). Measured payloads are
 means over evaluation episodes (all seeds) at p = 0.2 when the run has it, else over
 every p. C_dec is the decentralized method's measured payload at the same N when the run
 has it, else the all-to-all reference the channel reports (``payload_dec_per_step``).
+Ticks sit on the measured team sizes only.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullFormatter
+from matplotlib.ticker import FixedLocator, FuncFormatter, LogLocator, NullFormatter
 
-from reports.plotting import Built, method_color, method_label, new_figure, paper_style, placeholder
+from reports.plotting import (
+    Built,
+    fmt_list,
+    method_color,
+    method_label,
+    new_figure,
+    paper_style,
+    placeholder,
+)
 from reports.store import fmt_p, select
 
 PAPER_P = 0.2
@@ -57,36 +66,66 @@ def payload_points(evals: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out, columns=cols)
 
 
+BASELINES = ("decentralized", "ic3net")  # measured payload per step, drawn beside hierarchical
+MARKERS = {"hierarchical": "o-", "decentralized": "s-", "ic3net": "^-"}
+
+
+def _caption(pts: pd.DataFrame, ev: pd.DataFrame) -> str:
+    """Fig. 3's caption: p, seeds and episodes behind each measured point."""
+    if pts.empty:
+        return "Fig. 3: communication payload; the run has no hierarchical evaluation rows."
+    p = pts["p_used"].iloc[0]
+    parts = []
+    for method in ("hierarchical", *BASELINES):
+        rows = select(ev, method)
+        if len(rows):
+            per = rows.groupby("n_robots").agg(seeds=("cell_id", "nunique"), eps=("episode", "size"))
+            parts.append(f"{method_label(method)} at N = {fmt_list(per.index)} "
+                         f"({'/'.join(map(str, sorted(set(per['seeds']))))} seed(s), "
+                         f"{'/'.join(map(str, sorted(set(per['eps']))))} evaluation episodes in all)")
+    ptxt = f"p = {p}" if p != "all" else "pooled over every p"
+    return (f"Fig. 3: (a) scalars transmitted per step (mean over evaluation episodes and seeds, {ptxt}) "
+            "against team size, dotted lines the analytical N(Z-1)d_m and N(N-1)d_m; (b) measured "
+            "C_hier / C_dec against the bound (Z-1)/(N-1). " + "; ".join(parts) + ". Points are means; no band is drawn "
+            "(the per-episode spread is in summary.csv).")
+
+
 def fig3_payload(evals: pd.DataFrame) -> Built:
     """Build Fig. 3 from evaluation rows joined with their cell config."""
     notes: list[str] = []
     pts = payload_points(evals)
     ev = select(evals, loss_p=PAPER_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
-    dec = select(ev, "decentralized").groupby("n_robots")["payload_scalars_per_step"].mean()
+    base = {m: select(ev, m).groupby("n_robots")["payload_scalars_per_step"].mean() for m in BASELINES}
+    dec = base["decentralized"]
     if pts.empty:
         notes.append("the run has no hierarchical evaluation rows: nothing to plot")
     elif pts["p_used"].iloc[0] == "all":
         notes.append(f"no p = {fmt_p(PAPER_P)} in the run; payloads pooled over every p")
     if dec.empty:
         notes.append("no decentralized evaluation rows: C_dec is the all-to-all reference N(N-1)d_m")
+    if base["ic3net"].empty:
+        notes.append("no IC3Net evaluation rows: IC3Net is absent from (a)")
+    caption = _caption(pts, ev)
     with paper_style():
         fig = new_figure(2.3)
         ax_a, ax_b = fig.subplots(1, 2)
         if pts.empty:
             placeholder(ax_a, "no hierarchical\nevaluation data")
             placeholder(ax_b, "no hierarchical\nevaluation data")
-            return Built(fig, notes)
-        ns = np.concatenate([pts["n_robots"].to_numpy(dtype=np.float64), dec.index.to_numpy(dtype=np.float64)])
+            return Built(fig, notes, caption)
+        measured = sorted({int(n) for n in pts["n_robots"]} | {int(n) for s in base.values() for n in s.index})
+        ns = np.asarray(measured, dtype=np.float64)
         lo_n, hi_n = max(ns.min(), 2.0), ns.max()
         if hi_n - lo_n < 2:
             lo_n, hi_n = max(2.0, lo_n - 2), hi_n + 2
         grid = np.linspace(lo_n, hi_n, 60)
         d_m = float(np.nanmean(pts["d_m"]))
-        ax_a.plot(pts["n_robots"], pts["c_hier"], "o-", color=method_color("hierarchical"),
-                  label=method_label("hierarchical").replace(" (ours)", ""))
-        if not dec.empty:
-            ax_a.plot(dec.index, dec.to_numpy(), "s-", color=method_color("decentralized"),
-                      label=method_label("decentralized"))
+        ax_a.plot(pts["n_robots"], pts["c_hier"], MARKERS["hierarchical"], color=method_color("hierarchical"),
+                  label=method_label("hierarchical"))
+        for m in BASELINES:
+            if not base[m].empty:
+                ax_a.plot(base[m].index, base[m].to_numpy(), MARKERS[m], color=method_color(m),
+                          label=method_label(m))
         for z in sorted(set(pts["groups"])):
             ax_a.plot(grid, grid * (z - 1) * d_m, ":", color=method_color("hierarchical"),
                       lw=0.8, label=f"N(Z-1)d$_m$, Z={z}")
@@ -98,8 +137,9 @@ def fig3_payload(evals: pd.DataFrame) -> Built:
         ax_a.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
         ax_a.yaxis.set_major_formatter(FuncFormatter(lambda v, _p: f"{v:g}"))
         ax_a.yaxis.set_minor_formatter(NullFormatter())
-        for ax in (ax_a, ax_b):
-            ax.xaxis.set_major_locator(MaxNLocator(4, integer=True))
+        for ax in (ax_a, ax_b):  # ticks on the measured team sizes only
+            ax.xaxis.set_major_locator(FixedLocator(measured))
+            ax.xaxis.set_minor_locator(FixedLocator([]))
         ax_a.set_xlabel("team size N (robots)")
         ax_a.set_ylabel("payload (scalars / step)")
         ax_a.set_title("(a) payload per step", loc="left")
@@ -120,4 +160,4 @@ def fig3_payload(evals: pd.DataFrame) -> Built:
         fig.legend(handles, labels, loc="outside lower center", ncol=3, frameon=False,
                    handlelength=1.6, columnspacing=1.0)
         ax_b.set_title("(b) payload ratio", loc="left")
-    return Built(fig, notes)
+    return Built(fig, notes, caption)

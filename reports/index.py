@@ -1,10 +1,17 @@
 """The report's front page, ``index.md`` and ``index.html``: every output, its notes, the
 claims' verdicts, what the run lacks (cells not done, failed with their error, paper
-configurations absent) and the run's manifest (versions, git commit, command)."""
+configurations absent) and the run's manifest (versions, git commit, command).
+
+In ``index.html`` every figure has its caption under it and every table (Table I per
+execution mode, the summary, the claims with their readable names and numbers, the
+ablation) is an HTML table with a caption, written by pandas' ``Styler.to_html`` with every
+cell escaped. Every link is relative to the report folder and stays inside it (no ``..``),
+so a copied report folder keeps working."""
 from __future__ import annotations
 
 import html
 import json
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,6 +28,8 @@ class Entry:
     files: tuple[str, ...]
     notes: tuple[str, ...] = ()
     image: str | None = None  # PNG shown inline in the HTML page
+    caption: str = ""  # printed under the figure (index.html, index.md)
+    tables: tuple[tuple[str, pd.DataFrame], ...] = ()  # (caption, display strings) -> HTML tables
 
 
 @dataclass
@@ -32,6 +41,7 @@ class IndexData:
     claims: list[Claim]
     problems: list[str] = field(default_factory=list)
     replays: list[str] = field(default_factory=list)
+    studies_note: str = ""  # why no study is linked, and how to link one
 
 
 def _manifest_rows(manifest: dict[str, Any]) -> list[tuple[str, str]]:
@@ -75,9 +85,13 @@ def index_markdown(d: IndexData) -> str:
         lines.append(f"### {e.title}\n\n{links}\n")
         if e.image:
             lines.append(f"![{e.title}]({e.image})\n")
+            if e.caption:
+                lines.append(f"*{e.caption}*\n")
         lines += [f"- {n}" for n in e.notes]
         if e.notes:
             lines.append("")
+    if d.studies_note:
+        lines += ["## Studies", "", d.studies_note, ""]
     if d.replays:
         lines += ["## Replays", ""] + [f"- [{r}]({r})" for r in d.replays] + [""]
     lines += ["## What this run lacks", "", head, ""]
@@ -97,10 +111,48 @@ def index_markdown(d: IndexData) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _table(head: list[str], rows: list[list[str]]) -> str:
+def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
+    """The pipe tables of a Markdown page as (caption, frame of cell strings): the caption is
+    ``title`` plus the heading above the table. For pages other modules write as Markdown
+    only (ablation, calibration), so the index shows them as HTML tables too."""
+    out: list[tuple[str, pd.DataFrame]] = []
+    heading, rows = "", []
+
+    def cells(line: str) -> list[str]:
+        parts = re.split(r"(?<!\\)\|", line.strip()[1:-1])
+        return [p.strip().replace("\\|", "|").replace("**", "").replace("`", "") for p in parts]
+
+    def flush() -> None:
+        if len(rows) >= 2 and all(len(r) == len(rows[0]) for r in rows):
+            cap = f"{title}: {heading}" if heading and heading != title else title
+            out.append((cap, pd.DataFrame(rows[2:], columns=rows[0])))
+        rows.clear()
+
+    for line in md.splitlines() + [""]:
+        if line.startswith("|") and line.rstrip().endswith("|"):
+            rows.append(cells(line))
+            continue
+        flush()
+        if line.startswith("#"):
+            heading = line.lstrip("#").strip()
+    return out
+
+
+def html_table(frame: pd.DataFrame, caption: str, uid: str) -> str:
+    """``frame`` (display strings) as an HTML ``<table>`` with ``<caption>``; cells, headers
+    and caption escaped. ``uid`` makes the element ids deterministic."""
+    sty = (frame.style.hide(axis="index").format(escape="html")
+           .format_index(escape="html", axis=1).set_caption(html.escape(caption))
+           .set_uuid("".join(c if c.isalnum() else "_" for c in uid)))
+    return sty.to_html(table_attributes='class="data"')
+
+
+def _table(head: list[str], rows: list[list[str]], caption: str) -> str:
+    """A small table of already-escaped cell HTML (verdict badges, code) with a caption."""
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f"<table><thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
+    return (f"<table><caption>{html.escape(caption)}</caption><thead><tr>{h}</tr></thead>"
+            f"<tbody>{body}</tbody></table>")
 
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;
@@ -108,7 +160,8 @@ line-height:1.4}table{border-collapse:collapse;margin:.5em 0}td,th{border:1px so
 padding:2px 6px;font-size:90%;vertical-align:top}img{max-width:100%;border:1px solid #eee}
 .supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
 .not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
-code{font-size:90%}"""
+code{font-size:90%}table.data{display:block;overflow-x:auto;max-width:100%}caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
+figure{margin:.5em 0}figcaption{font-size:90%;color:#333;max-width:700px}"""
 
 
 def index_html(d: IndexData) -> str:
@@ -117,17 +170,23 @@ def index_html(d: IndexData) -> str:
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Report: {title}</title>"
              f"<style>{_CSS}</style></head><body><h1>Report: {title}</h1>",
              f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", "<h2>Claims of the paper (Sec. IV)</h2>"]
-    parts.append(_table(["claim", "verdict"], [
-        [e(c.key), f"<b class='{c.verdict.replace(' ', '-')}'>{e(c.verdict)}</b>"] for c in d.claims]))
-    parts.append("<p>Details, numbers and tests: <a href='claims.md'>claims.md</a></p>")
+    parts.append(_table(["claim", "key", "verdict"], [
+        [e(c.name), f"<code>{e(c.key)}</code>", f"<b class='{c.verdict.replace(' ', '-')}'>{e(c.verdict)}</b>"]
+        for c in d.claims], "Verdict of each claim at the paper's configurations (numbers per "
+        "configuration and execution mode in the claims table below)"))
     parts.append("<h2>Figures and tables</h2>")
-    for en in d.entries:
+    for k, en in enumerate(d.entries):
         links = ", ".join(f"<a href='{e(f)}'>{e(f)}</a>" for f in en.files)
-        parts.append(f"<h3>{e(en.title)}</h3><p>{links}</p>")
+        parts.append(f"<h3>{e(en.title)}</h3><p>Files: {links}</p>")
         if en.image:
-            parts.append(f"<img src='{e(en.image)}' alt='{e(en.title)}' width='700'>")
+            cap = f"<figcaption>{e(en.caption)}</figcaption>" if en.caption else ""
+            parts.append(f"<figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>{cap}</figure>")
+        for j, (caption, frame) in enumerate(en.tables):
+            parts.append(html_table(frame, caption, f"t{k}_{j}"))
         if en.notes:
             parts.append("<ul>" + "".join(f"<li>{e(n)}</li>" for n in en.notes) + "</ul>")
+    if d.studies_note:
+        parts.append(f"<h2>Studies</h2><p>{e(d.studies_note)}</p>")
     if d.replays:
         parts.append("<h2>Replays</h2><ul>" + "".join(
             f"<li><a href='{e(r)}'>{e(r)}</a></li>" for r in d.replays) + "</ul>")
@@ -135,13 +194,15 @@ def index_html(d: IndexData) -> str:
     parts.append(f"<h2>What this run lacks</h2><p>{e(head)}</p>")
     if missing:
         keys = ["cell", "method", "N", "p", "seed", "status", "error"]
-        parts.append(_table(keys, [[e(r[k]) for k in keys] for r in missing]))
+        parts.append(_table(keys, [[e(r[k]) for k in keys] for r in missing],
+                            "Cells of the store that are not done, with the last line of their error"))
     else:
         parts.append("<p>Every cell of the store is done.</p>")
     if d.problems:
         parts.append("<ul>" + "".join(f"<li>{e(p)}</li>" for p in d.problems) + "</ul>")
     parts.append("<h2>Manifest</h2>")
     rows = [[e(k), f"<code>{e(v)}</code>"] for k, v in _manifest_rows(d.manifest)]
-    parts.append(_table(["key", "value"], rows or [["(no manifest.json)", ""]]))
+    parts.append(_table(["key", "value"], rows or [["(no manifest.json)", ""]],
+                        "The run's manifest: versions, git commit and command"))
     parts.append("</body></html>")
     return "\n".join(parts) + "\n"

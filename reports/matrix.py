@@ -222,17 +222,28 @@ def matrix_entries(run_dir: Path | str, out: Path, save_figure: Callable[..., li
     sentences = summary_sentences(df)
     unsupported = df[df["status"] != "ok"].drop_duplicates(["cell_id", "condition"])
     entries = []
-    for stem, title, built in (
-        ("matrix_heatmaps", "Robustness matrix: success, trained x evaluated condition", heatmaps(table)),
-        ("matrix_degradation", "Robustness matrix: success(p') per trained p", degradation(table)),
-        ("matrix_bursty", "Robustness matrix: Bernoulli vs bursty loss at the same mean", bursty(df)[0]),
+    seeds = int(df["seed"].nunique()) if "seed" in df else 0
+    common = (f" Success rate in argmax execution (planner for PIBT), mean over {seeds} seed(s) of the "
+              "per-seed evaluation means; every method evaluated on the same scenarios per condition.")
+    for stem, title, built, what in (
+        ("matrix_heatmaps", "Robustness matrix: success, trained x evaluated condition", heatmaps(table),
+         "Rows: the condition a policy was trained at (N, p); columns: the evaluation condition (N', p', loss model)."),
+        ("matrix_degradation", "Robustness matrix: success(p') per trained p", degradation(table),
+         "Success against the evaluation loss probability p' (Bernoulli), one line per trained p; band: "
+         "95% Student t interval over seeds."),
+        ("matrix_bursty", "Robustness matrix: Bernoulli vs bursty loss at the same mean", bursty(df)[0],
+         "Bernoulli loss against Gilbert-Elliott loss with the same mean p' (burst lengths as labelled)."),
     ):
-        save_figure(built.fig, out / stem)
-        entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf"), tuple(built.notes), image=f"{stem}.png"))
+        caption = what + common
+        save_figure(built.fig, out / stem, caption)
+        entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf"), tuple(built.notes), image=f"{stem}.png",
+                             caption=caption))
     write_text(out / "matrix.md", matrix_markdown(table, sentences, unsupported))
     write_text(out / "matrix.csv", table.to_csv(index=False))
     notes = tuple(sentences) + tuple(problems)
     if len(unsupported):
         notes += (f"{len(unsupported)} unit(s) cannot run; see matrix.md",)
-    entries.append(Entry("Robustness matrix: summary and table", ("matrix.md", "matrix.csv"), notes))
+    entries.append(Entry("Robustness matrix: summary and table", ("matrix.md", "matrix.csv"), notes,
+                         tables=(("Robustness matrix: one row per trained cell condition, evaluation "
+                                  "condition and execution mode (matrix.csv has every column).", table),)))
     return entries

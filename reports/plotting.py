@@ -3,7 +3,12 @@
 Figures are built as ``matplotlib.figure.Figure`` objects without pyplot (no global
 state, no GUI backend; rendering uses Agg), styled with seaborn, sized for a paper column
 (3.5 in wide) with 7 pt text. Builders return a ``Built`` (the figure plus notes that the
-index prints under it, e.g. which of the paper's configurations the run lacks).
+index prints under it, e.g. which of the paper's configurations the run lacks) and a
+caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
+under the figure and ``reports.build.save_figure`` stores as PDF metadata and a sidecar
+``.txt``. One palette and one label per method (``METHOD_COLORS``, ``METHOD_LABELS``) for
+every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
+shades of that method's colour (``shades``), never another palette.
 """
 from __future__ import annotations
 
@@ -41,6 +46,7 @@ class Built:
 
     fig: Figure
     notes: list[str] = field(default_factory=list)
+    caption: str = ""
 
 
 @contextmanager
@@ -68,11 +74,16 @@ def label_order(label: str) -> int:
     return labels.index(label) if label in labels else len(labels)
 
 
-def n_palette(ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
-    """One colour per team size, dark to light."""
-    cmap = matplotlib.colormaps["viridis"]
-    pos = np.linspace(0.0, 0.8, len(ns)) if len(ns) != 1 else [0.4]
-    return {int(n): tuple(cmap(x)[:3]) for x, n in zip(pos, sorted(ns), strict=True)}
+def shades(method: str, ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
+    """One shade of ``method``'s colour per team size, dark (small N) to light (large N),
+    so a panel of one method keeps that method's hue."""
+    base = np.asarray(method_color(method), dtype=np.float64)
+    mix = np.linspace(-0.35, 0.35, len(ns)) if len(ns) > 1 else np.zeros(1)
+    out = {}
+    for m, n in zip(mix, sorted(ns), strict=True):  # < 0 darkens toward black, > 0 lightens toward white
+        c = base * (1 + m) if m < 0 else base + (1 - base) * m
+        out[int(n)] = tuple(float(x) for x in np.clip(c, 0, 1))
+    return out
 
 
 def placeholder(ax: Axes, text: str) -> None:
@@ -104,5 +115,5 @@ def fmt_list(values: Iterable[float]) -> str:
 
 
 def thousands(x: float, _pos: int | None = None) -> str:
-    """Tick formatter: 1500 -> '1.5k'."""
+    """Tick formatter: 1500 -> '1.5k', 150 -> '150' (exact, so two ticks never share a label)."""
     return f"{x / 1000:g}k" if abs(x) >= 1000 else f"{x:g}"

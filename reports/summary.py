@@ -64,6 +64,8 @@ def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
         "cells": len(group_cells), "cells_done": int((status == "done").sum()),
         "cells_failed": int((status == "failed").sum()), "seeds": rows["cell_id"].nunique(),
         "eval_episodes": len(rows),
+        "safety_filter": bool(rows["safety_filter"].any()) if len(rows) and "safety_filter" in rows
+        else bool(group_cells["safety_filter"].any()),
     }
     unit = "-"
     for m in SUMMARY_METRICS:
@@ -76,39 +78,66 @@ def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
     return rec
 
 
-def _fmt(v: float, lo: float, hi: float, pct: bool) -> str:
+def fmt_ci(v: float, lo: float, hi: float, kind: str) -> str:
+    """``kind``: "pct" (a fraction shown in percent), "payload" (scalars per step, one
+    decimal with thousands separators, the same everywhere) or "num" (3 significant digits)."""
     if not np.isfinite(v):
         return "—"
-    f = (lambda x: f"{100 * x:.1f}%") if pct else (lambda x: f"{x:.3g}")
+    f = {"pct": lambda x: f"{100 * x:.1f}%", "payload": lambda x: f"{x:,.1f}",
+         "num": lambda x: f"{x:.3g}"}[kind]
     return f"{f(v)} [{f(lo)}, {f(hi)}]" if np.isfinite(lo) else f(v)
 
 
-def summary_markdown(frame: pd.DataFrame) -> str:
-    head = ["method", "N", "p", "execution", "seeds (done/cells)", "eval episodes", "success rate",
-            "success IQM", "team return", "return IQM", "collision rate", "correction rate",
-            "payload (scalars/step)", "CI over"]
-    lines = ["# Summary of every configuration", "",
-             "Mean over seeds [95% CI]; the CI is a Student t interval over seeds when a "
-             "configuration has two or more done seeds, else a bootstrap over the evaluation episodes "
-             "of its single seed (column \"CI over\"). IQM: interquartile mean over pooled evaluation "
-             "episodes. Execution: how controls were picked (argmax; sample = softmax(logits); "
-             "sample@T = softmax(logits / T); planner = PIBT), every mode on the same evaluation "
-             "scenarios.", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+SUMMARY_HEAD = ["method", "N", "p", "execution", "seeds (done/cells)", "eval episodes", "success rate",
+                "success IQM", "team return", "return IQM", "collision rate", "correction rate",
+                "payload (scalars/step)", "CI over"]
+SUMMARY_CAPTION = (
+    "Mean over seeds [95% CI]; the CI is a Student t interval over seeds when a configuration has "
+    "two or more done seeds, else a bootstrap over the evaluation episodes of its single seed "
+    "(column \"CI over\"). IQM: interquartile mean over pooled evaluation episodes. n/a: the "
+    "method has no safety filter. Execution: how controls were picked (argmax; sample = "
+    "softmax(logits); sample@T = softmax(logits / T); planner = PIBT), every mode on the same "
+    "evaluation scenarios.")
+
+
+def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
+    """The summary as display strings, one row per configuration and execution mode."""
+    rows = []
     for _, r in frame.iterrows():
-        cells = [str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
-                 f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
-                 + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
-                 str(r["eval_episodes"]),
-                 _fmt(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], True),
-                 _fmt(r["success_rate_iqm"], np.nan, np.nan, True),
-                 _fmt(r["team_return"], r["team_return_lo"], r["team_return_hi"], False),
-                 _fmt(r["team_return_iqm"], np.nan, np.nan, False),
-                 _fmt(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], True),
-                 _fmt(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], True),
-                 _fmt(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
-                      r["payload_scalars_per_step_hi"], False),
-                 str(r["ci_over"])]
+        filt = bool(r.get("safety_filter", True))
+        rows.append([
+            str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
+            f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
+            + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
+            str(r["eval_episodes"]),
+            fmt_ci(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], "pct"),
+            fmt_ci(r["success_rate_iqm"], np.nan, np.nan, "pct"),
+            fmt_ci(r["team_return"], r["team_return_lo"], r["team_return_hi"], "num"),
+            fmt_ci(r["team_return_iqm"], np.nan, np.nan, "num"),
+            fmt_ci(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], "pct"),
+            fmt_ci(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], "pct")
+            if filt else "n/a",
+            fmt_ci(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
+                 r["payload_scalars_per_step_hi"], "payload"),
+            str(r["ci_over"])])
+    return pd.DataFrame(rows, columns=SUMMARY_HEAD)
+
+
+def ci_display(frame: pd.DataFrame, labels: dict[str, str], metrics: dict[str, tuple[str, str]]) -> pd.DataFrame:
+    """Display strings of a frame of (mean, _lo, _hi) columns, e.g. the ablation's:
+    ``labels`` maps plain columns to headers, ``metrics`` maps a metric to (header, kind of
+    ``fmt_ci``)."""
+    out = {h: frame[c].astype(str).tolist() for c, h in labels.items()}
+    for m, (h, kind) in metrics.items():
+        out[h] = [fmt_ci(v, lo, hi, kind) for v, lo, hi in zip(frame[m], frame[f"{m}_lo"], frame[f"{m}_hi"], strict=True)]
+    return pd.DataFrame(out)
+
+
+def summary_markdown(frame: pd.DataFrame) -> str:
+    head = SUMMARY_HEAD
+    lines = ["# Summary of every configuration", "", SUMMARY_CAPTION, "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for cells in summary_display(frame).itertuples(index=False):
         lines.append("| " + " | ".join(cells) + " |")
     if frame.empty:
         lines.append("\n(no cells in the store)")

@@ -97,4 +97,6 @@ def test_bench_report__tiny_ablation_run_builds_the_section(tmp_path) -> None:
     assert text.count("points [") == 8 * len(modes)  # every component, with a CI over 2 vs 2 seeds
     assert text.count("no verdict") == 8 * len(modes)  # 2 seeds per arm: below the 3-seed rule
     assert "ablation.md" in (report / "index.md").read_text()
+    page = (report / "index.html").read_text()  # rendered as HTML tables, one per mode
+    assert all(f"<caption>Ablation, {m} execution" in page for m in modes)
     assert np.isfinite(table["success_rate"]).all() and (table["collision_rate"] >= 0).all()

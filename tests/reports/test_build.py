@@ -127,7 +127,8 @@ def test_build_report__smoke_sized_store_plots_what_it_has(tmp_path):
     (tmp_path / "replays" / "abc-ep0.gif").write_bytes(b"GIF89a")  # as `bench replay` writes
     out = build_report(tmp_path)
     md = (out / "index.md").read_text()
-    assert "[../replays/abc-ep0.gif](../replays/abc-ep0.gif)" in md
+    assert "[replays/abc-ep0.gif](replays/abc-ep0.gif)" in md  # copied: the folder is self-contained
+    assert (out / "replays" / "abc-ep0.gif").read_bytes() == b"GIF89a"
     assert "(a) the run has no training data for N = 20, 40, 60 at p = 0.2" in md
     assert "the run has no hierarchical or IC3Net evaluation for N = 40, 60" in md
     claims = (out / "claims.md").read_text()
@@ -181,8 +182,15 @@ def test_build_report__links_studies_exported_beside_the_run(tmp_path):
         trial = study.ask({"ref_size": optuna.distributions.CategoricalDistribution([2, 4, 8]),
                            "search_radius": optuna.distributions.CategoricalDistribution([0, 1, 2])})
         study.tell(trial, value)
-    write_trials(study, tmp_path / "studies" / "demo")
+    write_trials(study, tmp_path / "studies" / "other")  # launched for no run: never linked
     out = build_report(run)
     index = (out / "index.md").read_text()
-    assert "Study demo" in index
+    assert "Study other" not in index and "No study records this run" in index
+    assert "\"run\": \"smoke\"" in index  # says how to link one
+    write_trials(study, tmp_path / "studies" / "demo", {"run": "smoke"})
+    out = build_report(run)
+    index, page = (out / "index.md").read_text(), (out / "index.html").read_text()
+    assert "Study demo" in index and "Study other" not in index
     assert (tmp_path / "studies" / "demo" / "report" / "study_landscape.png").stat().st_size > 0
+    assert (out / "studies" / "demo" / "study_landscape.png").stat().st_size > 0  # copied in
+    assert "href='studies/demo/study.html'" in page and "../" not in page
