@@ -201,5 +201,20 @@ def versions() -> dict[str, str]:
     }
 
 
+def machine() -> dict[str, Any]:
+    """Where a run executed (recorded per run in the manifest): host, OS, CPU model and count."""
+    import os
+    import platform
+
+    model = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            model = next((ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")), model)
+    except OSError:
+        pass
+    return {"host": platform.node(), "os": platform.platform(terse=True), "arch": platform.machine(),
+            "cpu": model, "cpus": os.cpu_count() or 0}
+
+
 def versions_json() -> str:
     return json.dumps(versions(), sort_keys=True)

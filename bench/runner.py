@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.grids import Grid
-from bench.plan import CellState, plan_run, versions, versions_json
+from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
 from bench.schema import SCHEMA_VERSION
@@ -162,9 +162,11 @@ class _Run:
                 store.discard_parts_from(st.cell_id, st.episodes_done if st.has_checkpoint else 0)
         now = datetime.now(timezone.utc).isoformat(timespec="seconds")
         manifest = (None if self.fresh else store.read_manifest()) or {"created": now, "runs": []}
-        runs = list(manifest.get("runs", []))[-49:] + [{"grid": self.grid.name, "started": now,
-                                                         "command": self.command}]
         v = versions()
+        self.run_record = {"grid": self.grid.name, "started": now, "command": self.command,
+                           "git": v["git"], "machine": machine(), "workers": self.n_workers,
+                           "cells_done_before": sum(s.phase == "done" for s in self.states)}
+        runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
         manifest.update({
             "schema_version": SCHEMA_VERSION, "package_version": v["package"], "git_sha": v["git"],
             "versions": v, "grid": self.grid.name, "command": self.command, "updated": now,
@@ -172,6 +174,21 @@ class _Run:
         })
         store.write_manifest(manifest)
         self._write_cells()
+
+    def _close_run_record(self) -> None:
+        """The manifest's entry of this run gets its end, wall time and cells finished
+        (issue 13: commit, machine and wall time of each part of a long run)."""
+        manifest = self.store.read_manifest()
+        if not manifest or not manifest.get("runs") or manifest["runs"][-1].get("started") != self.run_record["started"]:
+            return
+        done = sum(s.phase == "done" for s in self.states)
+        self.run_record.update({
+            "ended": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "wall_s": round(time.monotonic() - self.t0, 1),
+            "cells_done_in_run": done - self.run_record["cells_done_before"], "cells_done_after": done,
+        })
+        manifest["runs"][-1] = self.run_record
+        self.store.write_manifest(manifest)
 
     def _write_cells(self) -> None:
         self.store.write_cells(self.others + [s.row(self.grid.name) for s in self.states])
@@ -217,6 +234,7 @@ class _Run:
             if slots and not self.ctx.lost:  # a lost cluster has no workers left to release
                 release_workers(slots, keep=not self.ctx.started_here)
             self._write_cells()
+            self._close_run_record()
             self.progress.close()
         failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
         return RunSummary(self.store.root, len(self.states), sum(s.phase == "done" for s in self.states),

@@ -56,6 +56,13 @@ def test_run__one_and_two_workers_give_identical_metrics_and_rerun_changes_nothi
     assert again.done == 4
     after = {k: v for k, v in snapshot(tmp_path / "w1").items() if k.startswith(("train", "eval", "checkpoints"))}
     assert after == data
+    # every run of the folder is one manifest record: commit, machine, workers, end, wall, cells
+    runs = RunStore(tmp_path / "w1").require_run()["runs"]
+    assert len(runs) == 2 and runs[0]["workers"] == 1
+    assert [(r["cells_done_before"], r["cells_done_in_run"], r["cells_done_after"]) for r in runs] == [(0, 4, 4), (4, 0, 4)]
+    first = runs[0]
+    assert first["git"] and first["machine"]["cpus"] >= 1 and first["machine"]["host"]
+    assert 0 < first["wall_s"] and first["started"] <= first["ended"] <= runs[1]["started"]
 
 
 def test_run__interrupted_then_resumed_equals_an_uninterrupted_run(toy: str, tmp_path: Path) -> None:
@@ -75,6 +82,9 @@ def test_run__interrupted_then_resumed_equals_an_uninterrupted_run(toy: str, tmp
     run_grid(grid, tmp_path / "b", workers=2, checkpoint_every=3)
     ca, ta, ea = _frames(tmp_path / "a")
     _, tb, eb = _frames(tmp_path / "b")
+    cut, resumed = RunStore(tmp_path / "a").require_run()["runs"]  # the interrupted run is closed too
+    assert cut["cells_done_in_run"] + resumed["cells_done_in_run"] == 4 and resumed["cells_done_after"] == 4
+    assert "ended" in cut and cut["cells_done_after"] < 4
     assert (ca["status"] == "done").all()
     assert not ta.duplicated(["cell_id", "episode"]).any()
     pd.testing.assert_frame_equal(ta, tb)

@@ -1,0 +1,29 @@
+"""scripts/stage_run_state.py: what a committed long run keeps in git."""
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import pandas as pd
+
+_spec = importlib.util.spec_from_file_location(
+    "stage_run_state", Path(__file__).resolve().parents[2] / "scripts" / "stage_run_state.py")
+stage = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(stage)
+
+
+def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: Path) -> None:
+    run = tmp_path / "paper"
+    (run / "checkpoints").mkdir(parents=True)
+    (run / "train").mkdir()
+    pd.DataFrame({"cell_id": ["aaa", "bbb", "ccc"], "status": ["done", "running", "pending"]}).to_parquet(
+        run / "cells.parquet")
+    (run / "manifest.json").write_text("{}")
+    for cid in ("aaa", "bbb"):
+        (run / "checkpoints" / f"{cid}.pt").write_bytes(b"x")
+    tracked = {str(run / "checkpoints" / "aaa.pt"), str(run / "checkpoints" / "bbb.pt"), str(run / "train" / "x")}
+    add, drop = stage.plan(run, tracked)
+    assert add == [str(run / "cells.parquet"), str(run / "manifest.json"), str(run / "train"),
+                   str(run / "checkpoints" / "bbb.pt")]  # no eval/, matrix/ or report/ yet; ccc has none
+    assert drop == [str(run / "checkpoints" / "aaa.pt")]  # done: its checkpoint leaves the index only
+    assert (run / "checkpoints" / "aaa.pt").exists()
