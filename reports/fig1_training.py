@@ -3,7 +3,7 @@
 (a) hierarchical vs decentralized for N = 20, 40, 60; (b) hierarchical for N = 80, 90,
 100; both at p = 0.2 (paper Sec. IV, fig:fig1). Each curve is the trailing moving average
 of the team return (eq:reward summed over the episode); with several seeds, the mean over
-seeds and a 95% bootstrap band over seeds. Configurations the run lacks are named in the
+seeds and a pointwise 95% Student t band over seeds. Configurations the run lacks are named in the
 notes; a run with other team sizes (e.g. smoke) plots the ones it has in (a). Panel (b) is
 drawn only when the run has hierarchical training data at N = 80-100: it never re-plots
 (a)'s team sizes. The caption names p, seeds, episodes, the smoothing window and the band.
@@ -31,7 +31,7 @@ from reports.plotting import (
     shades,
     thousands,
 )
-from reports.stats import bootstrap_band, smooth, smoothing_window
+from reports.stats import smooth, smoothing_window, t_band
 from reports.store import fmt_p, select
 
 PAPER_A_N = (20, 40, 60)
@@ -62,7 +62,7 @@ def training_curve(train: pd.DataFrame, method: str, n: int, p: float,
     window = smoothing_window(len(wide))
     curves = np.stack([smooth(wide[c].to_numpy(), window) for c in wide.columns])  # (S, T)
     curves[np.isnan(wide.to_numpy().T)] = np.nan  # keep gaps of shorter runs as gaps
-    mean, lo, hi = bootstrap_band(curves)
+    mean, lo, hi = t_band(curves)
     return Curve(wide.index.to_numpy(), mean, lo, hi, curves.shape[0], window)
 
 
@@ -89,7 +89,7 @@ def _caption(p: str, curves: list[tuple[str, Curve]], has_b: bool) -> str:
     what = "(a) hierarchical (ours) vs decentralized" + (", (b) hierarchical (ours) at N = 80-100" if has_b else "")
     if not curves:
         return f"Fig. 1: training convergence at p = {p}; the run has no training data to plot."
-    band = ("shaded band: 95% bootstrap interval over seeds of the mean curve"
+    band = ("shaded band: pointwise 95% Student t interval over seeds of the mean curve"
             if max(seeds) > 1 else "no band (one seed per configuration)")
     return (f"Fig. 1: training convergence, {what}, at p = {p}. Team return per training episode, "
             f"trailing moving average over {'/'.join(map(str, wins))} episodes (5% of training); "

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-from scipy import stats as sps
 
 from reports.plotting import (
     FONT_PT,
@@ -28,7 +27,7 @@ from reports.plotting import (
     paper_style,
     placeholder,
 )
-from reports.stats import quantile_curve
+from reports.stats import quantile_curve, t_band
 from reports.store import execution_order, fmt_p, select
 
 PAPER_N = (40, 60)
@@ -42,19 +41,6 @@ def seed_quantile_curves(evals: pd.DataFrame, metric: str = "success_rate") -> n
     """(S, G) quantile curve of ``metric`` on ``GRID`` for each cell (seed) of ``evals``."""
     return np.stack([quantile_curve(g[metric].to_numpy(), GRID)
                      for _, g in evals.groupby("cell_id", sort=True)])
-
-
-def seed_mean_band(curves: np.ndarray, level: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(mean, lo, hi), each (G,), of (S, G) per-seed curves: the mean over seeds and a
-    Student t interval over seeds (NaN bounds with fewer than two seeds)."""
-    c = np.asarray(curves, dtype=np.float64)
-    k = np.sum(np.isfinite(c), axis=0)
-    mean = np.nanmean(c, axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sd = np.nanstd(c, axis=0, ddof=1) if c.shape[0] > 1 else np.full(c.shape[1], np.nan)
-        half = sps.t.ppf(0.5 + level / 2, np.maximum(k - 1, 1)) * sd / np.sqrt(k)
-    half = np.where(k >= 2, half, np.nan)
-    return mean, mean - half, mean + half
 
 
 def _caption(counts: dict[str, tuple[set[int], set[int]]], modes: list[str]) -> str:
@@ -107,7 +93,7 @@ def fig2_success(evals: pd.DataFrame) -> Built:
                     if rows.empty:
                         notes.append(f"N = {n}, p = {fmt_p(p)}, {mode}: no {method} evaluation")
                         continue
-                    mean, lo, hi = seed_mean_band(seed_quantile_curves(rows))
+                    mean, lo, hi = t_band(seed_quantile_curves(rows))
                     color = method_color(method)
                     (line,) = ax.plot(GRID, 100 * mean, color=color, label=method_label(method),
                                       ls=STYLES[method], zorder=2 + METHODS.index(method))

@@ -4,8 +4,8 @@ One row per team size (the paper's 40, 60, 80, 90, 100 plus any other N the run 
 collision rate, correction rate and mean candidates (Algorithm 1, eq:safety_conditions)
 as in the paper, plus the predictor error (eq:gru_pred_loss on lost messages) and the
 fallback rate (group-steps that fell back to the joint Wait). Each value is the mean
-over seeds of the per-seed mean over evaluation episodes, with a 95% bootstrap CI over
-seeds (over evaluation episodes when there is one seed). The paper's values sit beside
+over seeds of the per-seed mean over evaluation episodes, with a 95% Student t CI over
+seeds (a bootstrap over evaluation episodes when there is one seed). The paper's values sit beside
 ours; team sizes the run lacks are marked "not run". One table per execution mode
 (argmax, sample, sample@T: the filter corrects what the policy proposes, so the mode
 changes every column); the paper's values are for its argmax execution.

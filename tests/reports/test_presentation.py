@@ -19,9 +19,10 @@ from PIL import Image
 
 from reports.build import build_report
 from reports.fig1_training import fig1_training
-from reports.fig2_success import GRID, fig2_success, seed_mean_band, seed_quantile_curves
+from reports.fig2_success import GRID, fig2_success, seed_quantile_curves
 from reports.fig3_payload import fig3_payload
 from reports.plotting import METHOD_COLORS, METHOD_LABELS
+from reports.stats import t_band
 from reports.table1_safety import table1_display, table1_frame, table1_latex
 from tests.reports.synthetic import frames, joined, smoke_specs, write_store
 
@@ -62,7 +63,7 @@ def test_figures__every_caption_names_configuration_seeds_episodes_and_band(whic
     train, evals = request.getfixturevalue(which)
     c1, c2, c3 = fig1_training(train).caption, fig2_success(evals).caption, fig3_payload(evals).caption
     assert "p = 0.2" in c1 and "2 seed(s)" in c1 and "training episodes" in c1
-    assert re.search(r"moving average over \d+ episodes", c1) and "bootstrap interval over seeds" in c1
+    assert re.search(r"moving average over \d+ episodes", c1) and "Student t interval over seeds" in c1
     assert "2 seed(s) x" in c2 and "evaluation episodes per seed" in c2 and "Student t interval over seeds" in c2
     assert "p = 0.2" in c3 and "IC3Net at N =" in c3 and "2 seed(s)" in c3
 
@@ -135,10 +136,10 @@ def test_fig2__line_is_the_mean_of_seed_curves_and_lies_in_its_band():
     rows = pd.DataFrame({"cell_id": ["a"] * 5 + ["b"] * 40,
                          "success_rate": np.r_[rng.uniform(0.0, 0.3, 5), rng.uniform(0.6, 1.0, 40)]})
     curves = seed_quantile_curves(rows)
-    mean, lo, hi = seed_mean_band(curves)
+    mean, lo, hi = t_band(curves)
     np.testing.assert_allclose(mean, curves.mean(axis=0))
     assert np.all(lo <= mean + 1e-12) and np.all(mean <= hi + 1e-12)
-    one = seed_mean_band(curves[:1])
+    one = t_band(curves[:1])
     assert np.isnan(one[1]).all()
 
 

@@ -9,12 +9,12 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy import stats as sps
 
 from reports.stats import (
     Convergence,
     CurveShape,
     TTest,
-    bootstrap_band,
     bootstrap_ci,
     convergence_test,
     curve_shape,
@@ -26,6 +26,7 @@ from reports.stats import (
     simultaneous_band,
     smooth,
     smoothing_window,
+    t_band,
     t_test,
     welch_parts,
     zero_events_bound,
@@ -210,33 +211,20 @@ def test_bootstrap_ci__is_seeded():
     assert bootstrap_ci(x) == bootstrap_ci(x, n_boot=2000, level=0.95, seed=0)  # the defaults
 
 
-def test_bootstrap_band__collapses_spans_and_is_seeded():
-    c = np.array([[1.0, 2.0, 3.0]])
-    mean, lo, hi = bootstrap_band(c)
-    np.testing.assert_array_equal(lo, c[0])
-    np.testing.assert_array_equal(hi, c[0])
-    mean, lo, hi = bootstrap_band(np.array([[0.0, 0.0], [2.0, 4.0]]))
-    np.testing.assert_array_equal(mean, [1.0, 2.0])
-    np.testing.assert_array_equal(lo, [0.0, 0.0])
-    np.testing.assert_array_equal(hi, [2.0, 4.0])
-    mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.2)
-    assert (lo[0], hi[0]) == (0.5, 0.5)
-    mean, lo, hi = bootstrap_band(np.array([[0.0], [1.0]]), level=0.4)  # 30/70% quantiles
-    assert (lo[0], hi[0]) == (0.5, 0.5)
-    rng = np.random.default_rng(0)
-    curves = rng.normal(size=(30, 4))
-    _, lo1, _ = bootstrap_band(curves, seed=1)
-    np.testing.assert_array_equal(bootstrap_band(curves, seed=1)[1], lo1)
-    assert not np.array_equal(bootstrap_band(curves, seed=2)[1], lo1)
-    assert not np.array_equal(bootstrap_band(curves, n_boot=30, seed=1)[1], lo1)
-    for got, want in zip(bootstrap_band(curves), bootstrap_band(curves, n_boot=1000, level=0.95, seed=0),
-                         strict=True):
-        np.testing.assert_array_equal(got, want)  # the defaults
-    mean, lo, hi = bootstrap_band(np.array([[0.0, np.nan], [2.0, 4.0]]))
-    assert mean[1] == 4.0 and lo[1] == 4.0  # NaNs ignored per column
+def test_t_band__is_the_t_interval_per_point_and_ignores_nans():
+    c = np.array([[0.0, 1.0, np.nan], [2.0, 1.0, 5.0], [4.0, 4.0, np.nan]])
+    mean, lo, hi = t_band(c)
+    for j in range(2):
+        m, a, b = mean_ci(c[:, j])
+        assert (mean[j], lo[j], hi[j]) == pytest.approx((m, a, b))
+    assert mean[2] == 5.0 and np.isnan(lo[2]) and np.isnan(hi[2])  # one value: no band
+    assert hi[0] - mean[0] == pytest.approx(sps.t.ppf(0.975, 2) * 2.0 / np.sqrt(3))
+    _, lo90, hi90 = t_band(c, level=0.9)
+    assert lo[0] < lo90[0] < mean[0] < hi90[0] < hi[0]
+    np.testing.assert_array_equal(t_band(c[:1])[1], [np.nan] * 3)  # one seed: no band
     for bad in (np.zeros((0, 3)), np.zeros(3)):
         with pytest.raises(ValueError, match=r"\(S, T\)"):
-            bootstrap_band(bad)
+            t_band(bad)
 
 
 # ------------------------------------------------------------------ curves
