@@ -1,4 +1,4 @@
-"""Plant a known bug, run the fast tests that must catch it, restore the file (issue 18).
+"""Plant a known bug, run the fast tests that must catch it, restore the file (issues 11, 18).
 
 Usage: python scripts/planted_bugs.py [NAME ...]   (default: all). Needs a clean work tree
 for the planted files; each file is restored with ``git checkout`` after its run.
@@ -10,8 +10,23 @@ import sys
 
 METHOD = "algorithms/hierarchical/method.py"
 FILTER = "algorithms/hierarchical/safety_filter.py"
+IC3 = "algorithms/ic3net.py"
+DEC = "algorithms/decentralized.py"
+BASELINE_TESTS = "tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py tests/algorithms/test_trainer.py"
 PLANTS: dict[str, tuple[str, str, str, str]] = {
     # name: (file, old, new, tests)
+    # issue 11: the trainer bugs that once passed the whole suite
+    "ic3_no_baseline": (IC3, "adv = crit.adv[..., None].expand_as(active)",
+                        "adv = crit.returns[..., None].expand_as(active)", BASELINE_TESTS),
+    "ic3_values_not_denormalized": (IC3, "(self.policy.value_norm.denormalize(values)\n", "(values\n",
+                                    BASELINE_TESTS),
+    "ic3_finished_not_masked": (IC3, "action_loss = -(adv[sl] * logp * m).sum()",
+                                "action_loss = -(adv[sl] * logp).sum()", BASELINE_TESTS),
+    "ic3_no_gate_term": (IC3, "logp = logp + logp_g.gather(", "logp = logp + 0 * logp_g.gather(", BASELINE_TESTS),
+    "dec_critic_frozen": (DEC, "critic_update(self.critic, self.critic_opt,",
+                          "critic_update(self.critic, torch.optim.SGD(self.critic.parameters(), lr=0.0),",
+                          BASELINE_TESTS),
+    # issue 18: the hierarchical method and its filter
     "leak": (METHOD, "own = robot_features(core, state.patch, gs.groups)",
              "own = robot_features(core, state.patch, None)", "tests/algorithms/hierarchical"),
     "truth": (METHOD, "return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs)",
@@ -50,7 +65,7 @@ def main() -> None:
             continue
         open(path, "w").write(text.replace(old, new))
         try:
-            res = subprocess.run([sys.executable, "-m", "pytest", tests, "-q", "-p", "no:cacheprovider",
+            res = subprocess.run([sys.executable, "-m", "pytest", *tests.split(), "-q", "-p", "no:cacheprovider",
                                   "-m", "not slow"], capture_output=True, text=True)
             tail = res.stdout.strip().splitlines()[-1] if res.stdout.strip() else res.stderr[-200:]
             print(f"{name}: {'CAUGHT' if res.returncode else 'NOT CAUGHT'} ({tail})", flush=True)
