@@ -93,7 +93,7 @@ class WarehouseCore:
         self._idx = np.arange(m, dtype=np.int64)
         self._dummy = b * f + self._idx
         self._claim = np.zeros(b * f + m, dtype=np.int64)
-        self._occ = np.full(b * f + m, -1, dtype=np.int64)
+        self._dest = np.full(b * f + m, -1, dtype=np.int64)  # next key by current key
 
     @property
     def occupying(self) -> np.ndarray:
@@ -124,33 +124,36 @@ class WarehouseCore:
         running, every robot on the floor, B = 1), bit for bit the same arrays
         (tests/envs/test_core_fast_path.py keeps the plain step as the reference).
         """
-        running = ~self.ended  # (B,)
         all_running = not self.ended.any()
+        running = None if all_running else ~self.ended  # (B,)
         # Completed robots and finished episodes Wait.
         frozen = self.done if all_running else self.done | ~running[:, None]
         a = np.where(frozen, WAIT, actions).astype(np.int64, copy=False)  # a new array
         flat = self.pos * N_ACTIONS + a
         tgt = self._next[flat]  # a new array: _resolve edits it into the next keys
-        invalid = self._invalid[flat]
+        invalid = self._invalid[flat]  # frozen robots Wait, always valid: no & active
 
-        occ = self.occupying
-        on_floor = bool(occ.all())
-        occ = occ.reshape(-1)
+        on_floor = not (self.remove and self.done.any())  # every robot occupies its cell
         single = self.batch == 1  # b * F offsets are all 0
         key_now = (self.pos if single else self._base + self.pos).reshape(-1)
         key_next = (tgt if single else self._base + tgt).reshape(-1)
         if not on_floor:  # robots off the floor claim a private dummy slot
+            occ = ~self.done.reshape(-1)
             key_now = np.where(occ, key_now, self._dummy)
             key_next = np.where(occ, key_next, self._dummy)
-        collision = self._resolve(key_now, key_next, occ, on_floor)
+        collision = self._resolve(key_now, key_next)
         new_pos = key_next.reshape(self.pos.shape)
         if not single:
             new_pos = new_pos - self._base
         if not on_floor:
             new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
         active = ~frozen  # robot-steps that count for rates
-        # A completed robot ("stay") that is bumped into gets no terms (docs/decisions.md).
-        collision = collision.reshape(self.pos.shape) & active
+        collision = collision.reshape(self.pos.shape)
+        if not self.remove:
+            # A completed robot that stays and is bumped into gets no terms
+            # (docs/decisions.md). Under "remove" it is off the floor, and in a finished
+            # episode nobody moves: & active would change nothing.
+            collision = collision & active
 
         q_p, q_g, q_c, q_tau = self._q
         new_dist = self._fields[self._goal_base + new_pos]
@@ -160,7 +163,8 @@ class WarehouseCore:
         progress = np.multiply(q_p, self.dist - new_dist, dtype=np.float64)
         goal_bonus = q_g * reached
         collision_penalty = -q_c * collision
-        time_penalty = -q_tau * (active & ~done)
+        # Active and unfinished; active = running & ~done_t, and done_{t+1} covers done_t.
+        time_penalty = -q_tau * (~done if all_running else active & ~done)
         reward = (progress + goal_bonus + collision_penalty + time_penalty).sum(axis=1) / self.n
 
         self.pos, self.dist, self.done = new_pos, new_dist, done
@@ -169,28 +173,30 @@ class WarehouseCore:
         terminated = done.all(axis=1)
         if not all_running:
             terminated &= running
-        truncated = (running & ~terminated) if self.t >= self.horizon else np.zeros_like(terminated)
+        if self.t < self.horizon:
+            truncated = np.zeros(self.batch, bool)
+        else:
+            truncated = ~terminated if all_running else running & ~terminated
         self.ended = self.ended | terminated | truncated
         return StepResult(
             reward=reward, progress=progress, goal_bonus=goal_bonus.astype(np.float64, copy=False),
             collision_penalty=collision_penalty,
             time_penalty=time_penalty.astype(np.float64, copy=False),
-            collision=collision, invalid=invalid & active, reached=reached, active=active,
+            collision=collision, invalid=invalid, reached=reached, active=active,
             terminated=terminated, truncated=truncated,
         )
 
-    def _resolve(self, key_now: np.ndarray, key_next: np.ndarray, occ: np.ndarray,
-                 on_floor: bool = False) -> np.ndarray:
+    def _resolve(self, key_now: np.ndarray, key_next: np.ndarray) -> np.ndarray:
         """Revert conflicting moves in place of ``key_next`` until none remain.
 
         Returns (B*N,) bool: robots involved in a vertex or edge conflict in any round.
-        ``on_floor``: every robot occupies its cell (``occ`` all True).
+        Robots off the floor have private dummy keys (never claimed by another robot).
 
         Edge conflicts are looked for in the first round only: later rounds only revert
         robots to their current cell, so two robots still moving after round one kept
         the targets they had there, where any swap between them was already found.
         """
-        idx, claim, occ_grid = self._idx, self._claim, self._occ
+        idx, claim = self._idx, self._claim
         moving = key_next != key_now
         if not moving.any():
             return np.zeros(idx.shape, dtype=bool)
@@ -200,17 +206,13 @@ class WarehouseCore:
         claim[key_next] = idx
         conflict = claim[key_next] != idx
         conflict[claim[key_next[conflict]]] = True
-        # Edge conflicts: i moves into j's cell while j moves into i's cell.
-        if on_floor:
-            occ_grid[key_now] = idx
-        else:
-            occ_grid[key_now[occ]] = idx[occ]
-        ci = moving.nonzero()[0]
-        jj = occ_grid[key_next[ci]]
-        swap = (jj >= 0) & (key_next[jj] == key_now[ci])  # jj = -1 reads a masked entry
-        conflict[ci[swap]] = True
-        conflict[jj[swap]] = True
-        occ_grid[key_now if on_floor else key_now[occ]] = -1
+        # Edge conflicts: i moves into j's cell while j moves into i's cell. dest[c] is
+        # the next key of the robot whose key is c (-1 where none), so i swaps exactly
+        # when it moves and dest[key_next[i]] == key_now[i]; j is found the same way.
+        dest = self._dest
+        dest[key_now] = key_next
+        conflict |= moving & (dest[key_next] == key_now)
+        dest[key_now] = -1
         collision = conflict
         while conflict.any():
             # Reverting a robot that did not move rewrites its key with the same value.

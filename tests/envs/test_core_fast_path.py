@@ -1,7 +1,8 @@
 """``WarehouseCore.step`` (fewer array passes for the common cases) against the plain
-formulas it replaced, kept here verbatim: every returned array and the state after each
-step are the same bit for bit, with the default (non-dyadic) reward weights, B = 1 and
-B > 1, both ``on_goal`` modes, episodes ending at different times and robots leaving.
+formulas it replaced (``PlainCore``, kept verbatim in tests/envs/plain_paths.py): every
+returned array and the state after each step are the same bit for bit, with the default
+(non-dyadic) reward weights, B = 1 and B > 1, both ``on_goal`` modes, episodes ending at
+different times and robots leaving.
 
 Runtime: about 1 s.
 """
@@ -13,90 +14,12 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from envs.actions import N_ACTIONS, WAIT
+from envs.actions import N_ACTIONS
 from envs.config import EnvConfig
 from envs.core import StepResult, WarehouseCore
 from envs.layouts import preset
 from envs.scenarios import sample_scenarios
-
-
-class PlainCore(WarehouseCore):
-    """The core with the step and conflict resolution as first written."""
-
-    def step(self, actions: np.ndarray) -> StepResult:
-        valid = np.ascontiguousarray(self.layout.move_valid.reshape(-1))
-        a = np.asarray(actions)
-        running = ~self.ended  # (B,)
-        frozen = self.done | ~running[:, None]
-        a = np.where(frozen, WAIT, a).astype(np.int64)
-        flat = self.pos * N_ACTIONS + a
-        tgt = self._next[flat]
-        invalid = ~valid[flat]
-
-        occ = self.occupying.reshape(-1)
-        key_now = (self._base + self.pos).reshape(-1)
-        key_next = (self._base + tgt).reshape(-1)
-        if not occ.all():
-            key_now = np.where(occ, key_now, self._dummy)
-            key_next = np.where(occ, key_next, self._dummy)
-        collision = self._plain_resolve(key_now, key_next, occ)
-        new_key = key_next
-        new_pos = (new_key.reshape(self.pos.shape) - self._base)
-        new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
-        active = ~frozen
-        collision = collision.reshape(self.pos.shape) & active
-
-        q_p, q_g, q_c, q_tau = self._q
-        new_dist = self._fields[self._goal_base + new_pos]
-        reached = ~self.done & (new_pos == self.goal)
-        done = self.done | reached
-        progress = q_p * (self.dist - new_dist).astype(np.float64)
-        goal_bonus = q_g * reached
-        collision_penalty = -q_c * collision
-        time_penalty = -q_tau * (active & ~done)
-        reward = (progress + goal_bonus + collision_penalty + time_penalty).sum(axis=1) / self.n
-
-        self.pos, self.dist, self.done = new_pos, new_dist, done
-        self.prev_actions = a
-        self.t += 1
-        terminated = running & done.all(axis=1)
-        truncated = running & ~terminated & (self.t >= self.horizon)
-        self.ended = self.ended | terminated | truncated
-        return StepResult(
-            reward=reward, progress=progress, goal_bonus=goal_bonus.astype(np.float64),
-            collision_penalty=collision_penalty, time_penalty=time_penalty.astype(np.float64),
-            collision=collision, invalid=invalid & active, reached=reached, active=active,
-            terminated=terminated, truncated=truncated,
-        )
-
-    def _plain_resolve(self, key_now, key_next, occ):
-        idx, claim, occ_grid = self._idx, self._claim, self._occ
-        flag = np.zeros(claim.shape, dtype=bool)
-        collision = np.zeros(idx.shape, dtype=bool)
-        moving = key_next != key_now
-        if not moving.any():
-            return collision
-        occ_grid[key_now[occ]] = idx[occ]
-        while True:
-            claim[key_next] = idx
-            dup_keys = key_next[claim[key_next] != idx]
-            flag[dup_keys] = True
-            conflict = flag[key_next]
-            flag[dup_keys] = False
-            ci = np.flatnonzero(moving)
-            jj = occ_grid[key_next[ci]]
-            swap = (jj >= 0) & (key_next[jj] == key_now[ci])
-            conflict[ci[swap]] = True
-            conflict[jj[swap]] = True
-            if not conflict.any():
-                break
-            collision |= conflict
-            revert = conflict & moving
-            key_next[revert] = key_now[revert]
-            moving &= ~revert
-        occ_grid[key_now[occ]] = -1
-        return collision
-
+from tests.envs.plain_paths import PlainCore
 
 STATE = ("pos", "dist", "done", "ended", "prev_actions", "t")
 
