@@ -40,8 +40,8 @@ class PatchExtractor:
         dr, dc = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
         self.offsets = (dr * self.padded_shape[1] + dc).reshape(-1)  # (P,)
         self._scratch: dict[tuple[str, int], np.ndarray] = {}
-        self._pairs: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # see _pair_index
-        self._use_pairs: dict[tuple, bool] = {}
+        self._pairs: dict[tuple, tuple] = {}  # see _pair_plan
+        self._ext: dict[int, np.ndarray] = {}  # (B N + 1,) padded-grid index, sentinel last
         # Window lookup for the pair writer: padded-grid index differences d = center[q] -
         # center[p] with q in p's window are exactly ``offsets`` (a column offset |dc| <=
         # W - 1 cannot alias one of -k..k because the padded width is W + 2k), so
@@ -49,7 +49,7 @@ class PatchExtractor:
         # observer's own cell, and both clipped ends).
         span = int(self.offsets.max())
         self._shift = span + 1
-        slot = np.zeros(2 * span + 3, dtype=np.int64)  # slot + 1, 0 where unseen
+        slot = np.zeros(2 * span + 3, dtype=np.uint8 if self.offsets.size < 255 else np.int64)  # slot + 1, 0 where unseen
         slot[self.offsets + self._shift] = np.arange(1, self.offsets.size + 1)
         slot[self._shift] = 0  # a robot on the observer's cell (possible off the floor)
         self._slot = slot
@@ -65,11 +65,18 @@ class PatchExtractor:
             grid = self._scratch[key] = np.zeros(size, dtype=dtype)
         return grid
 
-    def shelf_table(self) -> np.ndarray:
-        """(F, P) float32 shelf/wall window of every free cell (static; built once)."""
-        table = self._scratch.get(("shelf_table", 0))
+    def cell_table(self) -> np.ndarray:
+        """(F, 11 + 2 P) float32: the ``robot_features`` row of a robot alone on each
+        free cell, as far as it depends on the cell: position / shape (columns 0:2), the
+        shelf/wall window (11:11 + P); 0 elsewhere (static; built once)."""
+        table = self._scratch.get(("cell_table", 0))
         if table is None:
-            table = self._scratch[("shelf_table", 0)] = self.pad_obs[self.center[:, None] + self.offsets]
+            layout = self.core.layout
+            p = self.offsets.size
+            table = np.zeros((layout.n_free, STATE_SIZE + 2 * p), np.float32)
+            table[:, :2] = layout.float_cells / np.array(layout.shape, dtype=np.float32)
+            table[:, STATE_SIZE:STATE_SIZE + p] = self.pad_obs[self.center[:, None] + self.offsets]
+            table = self._scratch[("cell_table", 0)] = table
         return table
 
     def robots_into(self, out: np.ndarray, groups: np.ndarray | None = None) -> None:
@@ -85,47 +92,72 @@ class PatchExtractor:
 
     def use_pairs(self, groups: np.ndarray | None) -> bool:
         """Whether ``_robots_by_pairs`` handles fewer elements than ``_robots_by_gather``:
-        the ordered pairs of distinct robots of one group, per episode, against the N P
-        window cells (Z = 4 groups of 25 robots, k = 5: 2,400 against 12,100). Cached."""
-        n = self.core.pos.shape[1]
-        key = (n, None if groups is None else np.asarray(groups).tobytes())
-        hit = self._use_pairs.get(key)
-        if hit is None:
-            sizes = np.array([n]) if groups is None else np.bincount(np.asarray(groups))
-            pairs = int((sizes * (sizes - 1)).sum())
-            hit = self._use_pairs[key] = pairs <= n * self.offsets.size
-        return hit
+        Z S^2 (observer, other) entries of the group table (S = largest group) against
+        the N P window cells (Z = 4 groups of 25 robots, k = 5: 2,500 against 12,100)."""
+        return self._pair_plan(groups)[3]
 
-    def _pair_index(self, groups: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """(M,) observer and (M,) other-robot indices into the flat (B N) robots of every
-        ordered pair of distinct robots of one group in one episode (static; cached)."""
+    def _pair_plan(self, groups: np.ndarray | None) -> tuple:
+        """Static tables of the pair writer for the current batch shape and ``groups``
+        (cached): ``members`` (B Z, S) flat robot index of each group's members, padded
+        with the sentinel B N; ``observer`` (B Z S S,) flat index of the observer of each
+        (observer, other) entry; a dict of per-row-width write bases; ``use_pairs``."""
         b, n = self.core.pos.shape
         key = (b, n, None if groups is None else np.asarray(groups).tobytes())
-        pairs = self._pairs.get(key)
-        if pairs is None:
+        plan = self._pairs.get(key)
+        if plan is None:
             g = np.zeros(n, np.int64) if groups is None else np.asarray(groups)
-            same = g[:, None] == g[None, :]
-            np.fill_diagonal(same, False)
-            i, j = np.nonzero(same)
-            first = (np.arange(b, dtype=np.int64) * n)[:, None]
-            pairs = self._pairs[key] = ((first + i).reshape(-1), (first + j).reshape(-1))
-        return pairs
+            labels, sizes = np.unique(g, return_counts=True)
+            size = int(sizes.max())
+            one = np.full((len(labels), size), -1, dtype=np.int64)  # (Z, S) of one episode
+            for z, label in enumerate(labels):
+                one[z, : sizes[z]] = np.flatnonzero(g == label)
+            first = (np.arange(b, dtype=np.int64) * n)[:, None, None]
+            members = np.where(one >= 0, first + one, b * n).reshape(-1, size)  # (B Z, S)
+            observer = np.broadcast_to(members[:, :, None], members.shape + (size,))
+            observer = np.where(observer < b * n, observer, 0).reshape(-1)
+            use = len(labels) * size * size <= n * self.offsets.size
+            plan = self._pairs[key] = (members, observer, {}, use)
+        return plan
 
-    def _robots_by_pairs(self, groups: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        """(K,) flat observer index and (K,) window slot of each robot seen by another.
+    def _pair_slots(self, groups: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, tuple]:
+        """(K,) entries of the pair table in which the other robot is seen, (K,) its
+        window slot + 1 there, and the plan (``_pair_plan``).
 
-        For every ordered pair (p, q) of one group: q is marked in p's window if q is on
-        the floor and within the window, never on p's own slot (the centre)."""
+        For every (observer p, other q) of one group: q is seen if it is on the floor and
+        within p's window, never on p's own slot (the centre); the sentinel (padding) is
+        far from every cell, so it is never seen and never sees."""
         core = self.core
-        obs, other = self._pair_index(groups)
-        center = self.center.take(core.pos.reshape(-1))  # (B N,)
-        shifted = center + self._shift
+        plan = self._pair_plan(groups)
+        members = plan[0]
+        bn = core.pos.size
+        ext = self._ext.get(bn)
+        if ext is None:
+            ext = self._ext[bn] = np.full(bn + 1, 2 * self._off_floor, dtype=np.int64)
+        np.take(self.center, core.pos.reshape(-1), out=ext[:bn])  # padded-grid index
+        shifted = ext + self._shift
         occ = core.occupying.reshape(-1)
         if not occ.all():
-            shifted[~occ] += self._off_floor
-        slot = self._slot.take(shifted.take(other) - center.take(obs), mode="clip")
-        seen = slot.nonzero()[0]
-        return obs.take(seen), slot.take(seen) - 1
+            shifted[:bn][~occ] += self._off_floor
+        obs_c = ext.take(members)  # (B Z, S)
+        other_c = shifted.take(members)
+        slot = self._slot.take(other_c[:, None, :] - obs_c[:, :, None], mode="clip").reshape(-1)
+        seen = (slot != 0).nonzero()[0]  # faster than slot.nonzero() on integers
+        return seen, slot.take(seen), plan
+
+    def _robots_by_pairs(self, groups: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """(K,) flat observer index and (K,) window slot of each robot seen by another."""
+        seen, slot, plan = self._pair_slots(groups)
+        return plan[1].take(seen), slot - 1
+
+    def robot_marks(self, groups: np.ndarray | None, width: int, col: int) -> np.ndarray:
+        """Flat indices, into a C-contiguous (B, N, ``width``) array whose robot channel
+        starts at column ``col``, of the 1s of ``_robots_by_pairs``."""
+        seen, slot, plan = self._pair_slots(groups)
+        bases = plan[2]
+        base = bases.get((width, col))
+        if base is None:
+            base = bases[(width, col)] = plan[1] * width + (col - 1)
+        return base.take(seen) + slot
 
     def _robots_by_gather(self, out: np.ndarray, groups: np.ndarray | None) -> None:
         """The robot channel by one gather of every (B, N) window from a marked grid."""
@@ -186,37 +218,32 @@ def robot_features(
 ) -> np.ndarray:
     """(B, N, F_obs) float32 per-robot features; see ``feature_size``.
 
-    [state_features (11), local patch (2 (2k+1)^2)], written into one new buffer: the
-    state columns in place (``state_features_into``), the shelf channel from a per-free-
-    cell table and the robot channel by ``PatchExtractor``'s cheaper writer; the same
-    numbers as ``np.concatenate([state_features, patch(groups)])``
-    (tests/envs/test_observations.py).
+    [state_features (11), local patch (2 (2k+1)^2)] in one new array: the rows of a
+    per-free-cell table (position / shape, shelf channel, zeros), then the other state
+    columns in place (``state_features_into``) and the 1s of the robot channel by
+    ``PatchExtractor``'s cheaper writer; the same numbers as
+    ``np.concatenate([state_features, patch(groups)])`` (tests/envs/test_observations.py).
     """
-    b, n = core.pos.shape
     p = patch.offsets.size
-    width = STATE_SIZE + 2 * p
-    out = np.empty((b, n, width), dtype=np.float32)
-    state_features_into(core, out[..., :STATE_SIZE])
-    out[..., STATE_SIZE:STATE_SIZE + p] = patch.shelf_table()[core.pos]
-    robots = out[..., STATE_SIZE + p:]
+    out = patch.cell_table()[core.pos]  # a new (B, N, F_obs) array, robot channel 0
+    state_features_into(core, out[..., :STATE_SIZE], position=False)
     if patch.use_pairs(groups):
-        robots[...] = 0.0
-        obs, slots = patch._robots_by_pairs(groups)
-        out.reshape(-1)[obs * width + (STATE_SIZE + p) + slots] = 1.0
+        out.reshape(-1)[patch.robot_marks(groups, out.shape[-1], STATE_SIZE + p)] = 1.0
     else:
-        patch._robots_by_gather(robots, groups)
+        patch._robots_by_gather(out[..., STATE_SIZE + p:], groups)
     return out
 
 
-def state_features_into(core: WarehouseCore, out: np.ndarray) -> None:
+def state_features_into(core: WarehouseCore, out: np.ndarray, position: bool = True) -> None:
     """Write ``state_features(core)`` into ``out`` (B, N, 11) float32 (the same numbers,
-    with fewer temporaries)."""
+    with fewer temporaries); ``position=False`` leaves columns 0:2 (position / shape)."""
     layout = core.layout
     h, w = layout.shape
     scale = np.array([h, w], dtype=np.float32)
     cells = layout.float_cells
     rc = cells[core.pos]  # (B, N, 2); fancy indexing: take(axis=0) is slower for short rows
-    np.divide(rc, scale, out=out[..., 0:2])
+    if position:
+        np.divide(rc, scale, out=out[..., 0:2])
     np.subtract(cells[core.goal], rc, out=out[..., 2:4])
     np.divide(out[..., 2:4], scale, out=out[..., 2:4])
     np.divide(np.minimum(core.dist, h * w), float(h + w), out=out[..., 4])  # in float64
