@@ -79,6 +79,7 @@ class WarehouseCore:
         self.batch = b
         self.pos = starts.copy()  # (B, N) cell index p_t
         self.goal = goals.copy()  # (B, N) cell index g
+        self.goal_rc = self.layout.float_cells[self.goal]  # (B, N, 2) float32 (row, col) of g
         self.t = 0
         self.done = self.pos == self.goal  # (B, N) task completed
         self.ended = np.zeros(b, dtype=bool)  # (B,) episode over

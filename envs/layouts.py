@@ -56,6 +56,13 @@ class Layout:
         out.setflags(write=False)
         return out
 
+    @cached_property
+    def float_shape(self) -> np.ndarray:
+        """(2,) float32 (H, W) (for observation features)."""
+        out = np.array(self.shape, dtype=np.float32)
+        out.setflags(write=False)
+        return out
+
     @property
     def n_free(self) -> int:
         return int(self.cells.shape[0])

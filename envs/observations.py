@@ -74,7 +74,7 @@ class PatchExtractor:
             layout = self.core.layout
             p = self.offsets.size
             table = np.zeros((layout.n_free, STATE_SIZE + 2 * p), np.float32)
-            table[:, :2] = layout.float_cells / np.array(layout.shape, dtype=np.float32)
+            table[:, :2] = layout.float_cells / layout.float_shape
             table[:, STATE_SIZE:STATE_SIZE + p] = self.pad_obs[self.center[:, None] + self.offsets]
             table = self._scratch[("cell_table", 0)] = table
         return table
@@ -119,21 +119,23 @@ class PatchExtractor:
             plan = self._pairs[key] = (members, observer, {}, use)
         return plan
 
-    def _pair_slots(self, groups: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, tuple]:
+    def _pair_slots(self, groups: np.ndarray | None, plan: tuple | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, tuple]:
         """(K,) entries of the pair table in which the other robot is seen, (K,) its
         window slot + 1 there, and the plan (``_pair_plan``).
 
         For every (observer p, other q) of one group: q is seen if it is on the floor and
         within p's window, never on p's own slot (the centre); the sentinel (padding) is
-        far from every cell, so it is never seen and never sees."""
+        far from every cell, so it is never seen and never sees. ``plan``: the
+        ``_pair_plan(groups)`` if the caller has it."""
         core = self.core
-        plan = self._pair_plan(groups)
+        plan = self._pair_plan(groups) if plan is None else plan
         members = plan[0]
         bn = core.pos.size
         ext = self._ext.get(bn)
         if ext is None:
             ext = self._ext[bn] = np.full(bn + 1, 2 * self._off_floor, dtype=np.int64)
-        np.take(self.center, core.pos.reshape(-1), out=ext[:bn])  # padded-grid index
+        self.center.take(core.pos.reshape(-1), out=ext[:bn])  # padded-grid index
         shifted = ext + self._shift
         occ = core.occupying.reshape(-1)
         if not occ.all():
@@ -149,10 +151,11 @@ class PatchExtractor:
         seen, slot, plan = self._pair_slots(groups)
         return plan[1].take(seen), slot - 1
 
-    def robot_marks(self, groups: np.ndarray | None, width: int, col: int) -> np.ndarray:
+    def robot_marks(self, groups: np.ndarray | None, width: int, col: int,
+                    plan: tuple | None = None) -> np.ndarray:
         """Flat indices, into a C-contiguous (B, N, ``width``) array whose robot channel
         starts at column ``col``, of the 1s of ``_robots_by_pairs``."""
-        seen, slot, plan = self._pair_slots(groups)
+        seen, slot, plan = self._pair_slots(groups, plan)
         bases = plan[2]
         base = bases.get((width, col))
         if base is None:
@@ -227,8 +230,9 @@ def robot_features(
     p = patch.offsets.size
     out = patch.cell_table()[core.pos]  # a new (B, N, F_obs) array, robot channel 0
     state_features_into(core, out[..., :STATE_SIZE], position=False)
-    if patch.use_pairs(groups):
-        out.reshape(-1)[patch.robot_marks(groups, out.shape[-1], STATE_SIZE + p)] = 1.0
+    plan = patch._pair_plan(groups)
+    if plan[3]:  # use_pairs
+        out.reshape(-1)[patch.robot_marks(groups, out.shape[-1], STATE_SIZE + p, plan)] = 1.0
     else:
         patch._robots_by_gather(out[..., STATE_SIZE + p:], groups)
     return out
@@ -239,12 +243,11 @@ def state_features_into(core: WarehouseCore, out: np.ndarray, position: bool = T
     with fewer temporaries); ``position=False`` leaves columns 0:2 (position / shape)."""
     layout = core.layout
     h, w = layout.shape
-    scale = np.array([h, w], dtype=np.float32)
-    cells = layout.float_cells
-    rc = cells[core.pos]  # (B, N, 2); fancy indexing: take(axis=0) is slower for short rows
+    scale = layout.float_shape
+    rc = layout.float_cells[core.pos]  # (B, N, 2); fancy indexing: take(axis=0) is slower
     if position:
         np.divide(rc, scale, out=out[..., 0:2])
-    np.subtract(cells[core.goal], rc, out=out[..., 2:4])
+    np.subtract(core.goal_rc, rc, out=out[..., 2:4])
     np.divide(out[..., 2:4], scale, out=out[..., 2:4])
     np.divide(np.minimum(core.dist, h * w), float(h + w), out=out[..., 4])  # in float64
     out[..., 5] = core.done
