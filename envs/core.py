@@ -125,7 +125,8 @@ class WarehouseCore:
         running, every robot on the floor, B = 1), bit for bit the same arrays
         (tests/envs/test_core_fast_path.py keeps the plain step as the reference).
         """
-        all_running = not self.ended.any()
+        # np.count_nonzero: a third of the cost of .any() on these small arrays
+        all_running = not np.count_nonzero(self.ended)
         running = None if all_running else ~self.ended  # (B,)
         # Completed robots and finished episodes Wait.
         frozen = self.done if all_running else self.done | ~running[:, None]
@@ -134,7 +135,7 @@ class WarehouseCore:
         tgt = self._next[flat]  # a new array: _resolve edits it into the next keys
         invalid = self._invalid[flat]  # frozen robots Wait, always valid: no & active
 
-        on_floor = not (self.remove and self.done.any())  # every robot occupies its cell
+        on_floor = not (self.remove and np.count_nonzero(self.done))  # all occupy their cells
         single = self.batch == 1  # b * F offsets are all 0
         key_now = (self.pos if single else self._base + self.pos).reshape(-1)
         key_next = (tgt if single else self._base + tgt).reshape(-1)
@@ -199,7 +200,7 @@ class WarehouseCore:
         """
         idx, claim = self._idx, self._claim
         moving = key_next != key_now
-        if not moving.any():
+        if not np.count_nonzero(moving):
             return np.zeros(idx.shape, dtype=bool)
         # Vertex conflicts: a key claimed by two or more robots. After the write each
         # claimed key holds one claimant (the last); every other claimant sees another
@@ -215,7 +216,7 @@ class WarehouseCore:
         conflict |= moving & (dest[key_next] == key_now)
         dest[key_now] = -1
         collision = conflict
-        while conflict.any():
+        while np.count_nonzero(conflict):
             # Reverting a robot that did not move rewrites its key with the same value.
             key_next[conflict] = key_now[conflict]
             claim[key_next] = idx

@@ -138,7 +138,7 @@ class PatchExtractor:
         self.center.take(core.pos.reshape(-1), out=ext[:bn])  # padded-grid index
         shifted = ext + self._shift
         occ = core.occupying.reshape(-1)
-        if not occ.all():
+        if np.count_nonzero(occ) < bn:
             shifted[:bn][~occ] += self._off_floor
         obs_c = ext.take(members)  # (B Z, S)
         other_c = shifted.take(members)

@@ -203,7 +203,7 @@ class WarehouseParallelEnv(ParallelEnv):
         elif self.core.remove:
             done = self.core.done[0]
             term = done if live is None else done[live]
-            if term.any():
+            if np.count_nonzero(term):
                 terminations = dict(zip(names, term.tolist(), strict=True))
             else:
                 term, terminations = None, false.copy()
@@ -248,7 +248,7 @@ class WarehouseParallelEnv(ParallelEnv):
         is complete (they cannot move in either ``on_goal`` mode)."""
         done = self.core.done[0]
         cells = self.core.pos[0]
-        if done.any():
+        if np.count_nonzero(done):
             cells = np.where(done, len(self._mask_table) - 1, cells)
         return self._mask_table[cells]  # a new array
 
