@@ -62,7 +62,7 @@ class WarehouseCore:
         w = config.reward
         self._q = (float(w.q_p), float(w.q_g), float(w.q_c), float(w.q_tau))
         self._next = np.ascontiguousarray(self.layout.next_cell.reshape(-1))  # (F*5,)
-        self._valid = np.ascontiguousarray(self.layout.move_valid.reshape(-1))
+        self._invalid = ~self.layout.move_valid.reshape(-1)  # (F*5,) moves into a shelf
         self._dist = distance_cache(self.layout)
         self.batch = 0
 
@@ -79,6 +79,7 @@ class WarehouseCore:
         self.batch = b
         self.pos = starts.copy()  # (B, N) cell index p_t
         self.goal = goals.copy()  # (B, N) cell index g
+        self.goal_rc = self.layout.float_cells[self.goal]  # (B, N, 2) float32 (row, col) of g
         self.t = 0
         self.done = self.pos == self.goal  # (B, N) task completed
         self.ended = np.zeros(b, dtype=bool)  # (B,) episode over
@@ -93,8 +94,7 @@ class WarehouseCore:
         self._idx = np.arange(m, dtype=np.int64)
         self._dummy = b * f + self._idx
         self._claim = np.zeros(b * f + m, dtype=np.int64)
-        self._flag = np.zeros(b * f + m, dtype=bool)
-        self._occ = np.full(b * f + m, -1, dtype=np.int64)
+        self._dest = np.full(b * f + m, -1, dtype=np.int64)  # next key by current key
 
     @property
     def occupying(self) -> np.ndarray:
@@ -115,80 +115,112 @@ class WarehouseCore:
         if a.size and (a.min() < 0 or a.max() >= N_ACTIONS):
             bad = int(a.reshape(-1)[(a.reshape(-1) < 0) | (a.reshape(-1) >= N_ACTIONS)][0])
             raise BenchError(f"step: action {bad} outside 0..{N_ACTIONS - 1} (Up, Down, Left, Right, Wait)")
-        running = ~self.ended  # (B,)
-        frozen = self.done | ~running[:, None]  # completed robots and finished episodes Wait
-        a = np.where(frozen, WAIT, a).astype(np.int64)
-        flat = self.pos * N_ACTIONS + a
-        tgt = self._next[flat]
-        invalid = ~self._valid[flat]
+        return self.step_checked(a)
 
-        occ = self.occupying.reshape(-1)
-        key_now = (self._base + self.pos).reshape(-1)
-        key_next = (self._base + tgt).reshape(-1)
-        if not occ.all():  # robots off the floor claim a private dummy slot
+    def step_checked(self, actions: np.ndarray) -> StepResult:
+        """``step`` for actions already known to be a (B, N) integer array in 0..4 (the
+        PettingZoo adapter checks each agent's action itself); the same results.
+
+        Fewer array passes than the plain formulas for the common cases (every episode
+        running, every robot on the floor, B = 1), bit for bit the same arrays
+        (tests/envs/test_core_fast_path.py keeps the plain step as the reference).
+        """
+        # np.count_nonzero: a third of the cost of .any() on these small arrays
+        all_running = not np.count_nonzero(self.ended)
+        running = None if all_running else ~self.ended  # (B,)
+        # Completed robots and finished episodes Wait.
+        frozen = self.done if all_running else self.done | ~running[:, None]
+        a = np.where(frozen, WAIT, actions).astype(np.int64, copy=False)  # a new array
+        flat = self.pos * N_ACTIONS + a
+        tgt = self._next[flat]  # a new array: _resolve edits it into the next keys
+        invalid = self._invalid[flat]  # frozen robots Wait, always valid: no & active
+
+        on_floor = not (self.remove and np.count_nonzero(self.done))  # all occupy their cells
+        single = self.batch == 1  # b * F offsets are all 0
+        key_now = (self.pos if single else self._base + self.pos).reshape(-1)
+        key_next = (tgt if single else self._base + tgt).reshape(-1)
+        if not on_floor:  # robots off the floor claim a private dummy slot
+            occ = ~self.done.reshape(-1)
             key_now = np.where(occ, key_now, self._dummy)
             key_next = np.where(occ, key_next, self._dummy)
-        collision = self._resolve(key_now, key_next, occ)
-        new_key = key_next
-        new_pos = (new_key.reshape(self.pos.shape) - self._base)
-        new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
+        collision = self._resolve(key_now, key_next)
+        new_pos = key_next.reshape(self.pos.shape)
+        if not single:
+            new_pos = new_pos - self._base
+        if not on_floor:
+            new_pos = np.where(occ.reshape(self.pos.shape), new_pos, self.pos)
         active = ~frozen  # robot-steps that count for rates
-        # A completed robot ("stay") that is bumped into gets no terms (docs/decisions.md).
-        collision = collision.reshape(self.pos.shape) & active
+        collision = collision.reshape(self.pos.shape)
+        if not self.remove:
+            # A completed robot that stays and is bumped into gets no terms
+            # (docs/decisions.md). Under "remove" it is off the floor, and in a finished
+            # episode nobody moves: & active would change nothing.
+            collision = collision & active
 
         q_p, q_g, q_c, q_tau = self._q
         new_dist = self._fields[self._goal_base + new_pos]
-        reached = ~self.done & (new_pos == self.goal)
+        reached = (new_pos == self.goal) & active if all_running else (
+            ~self.done & (new_pos == self.goal))
         done = self.done | reached
-        progress = q_p * (self.dist - new_dist).astype(np.float64)
+        progress = np.multiply(q_p, self.dist - new_dist, dtype=np.float64)
         goal_bonus = q_g * reached
         collision_penalty = -q_c * collision
-        time_penalty = -q_tau * (active & ~done)
+        # Active and unfinished; active = running & ~done_t, and done_{t+1} covers done_t.
+        time_penalty = -q_tau * (~done if all_running else active & ~done)
         reward = (progress + goal_bonus + collision_penalty + time_penalty).sum(axis=1) / self.n
 
         self.pos, self.dist, self.done = new_pos, new_dist, done
         self.prev_actions = a
         self.t += 1
-        terminated = running & done.all(axis=1)
-        truncated = running & ~terminated & (self.t >= self.horizon)
+        terminated = done.all(axis=1)
+        if not all_running:
+            terminated &= running
+        if self.t < self.horizon:
+            truncated = np.zeros(self.batch, bool)
+        else:
+            truncated = ~terminated if all_running else running & ~terminated
         self.ended = self.ended | terminated | truncated
         return StepResult(
-            reward=reward, progress=progress, goal_bonus=goal_bonus.astype(np.float64),
-            collision_penalty=collision_penalty, time_penalty=time_penalty.astype(np.float64),
-            collision=collision, invalid=invalid & active, reached=reached, active=active,
+            reward=reward, progress=progress, goal_bonus=goal_bonus.astype(np.float64, copy=False),
+            collision_penalty=collision_penalty,
+            time_penalty=time_penalty.astype(np.float64, copy=False),
+            collision=collision, invalid=invalid, reached=reached, active=active,
             terminated=terminated, truncated=truncated,
         )
 
-    def _resolve(self, key_now: np.ndarray, key_next: np.ndarray, occ: np.ndarray) -> np.ndarray:
+    def _resolve(self, key_now: np.ndarray, key_next: np.ndarray) -> np.ndarray:
         """Revert conflicting moves in place of ``key_next`` until none remain.
 
         Returns (B*N,) bool: robots involved in a vertex or edge conflict in any round.
+        Robots off the floor have private dummy keys (never claimed by another robot).
+
+        Edge conflicts are looked for in the first round only: later rounds only revert
+        robots to their current cell, so two robots still moving after round one kept
+        the targets they had there, where any swap between them was already found.
         """
-        idx, claim, flag, occ_grid = self._idx, self._claim, self._flag, self._occ
-        collision = np.zeros(idx.shape, dtype=bool)
+        idx, claim = self._idx, self._claim
         moving = key_next != key_now
-        if not moving.any():
-            return collision
-        occ_grid[key_now[occ]] = idx[occ]
-        while True:
-            # Vertex conflicts: a key claimed by two or more robots (the last write wins,
-            # so every other claimant of a shared key sees someone else's index).
+        if not np.count_nonzero(moving):
+            return np.zeros(idx.shape, dtype=bool)
+        # Vertex conflicts: a key claimed by two or more robots. After the write each
+        # claimed key holds one claimant (the last); every other claimant sees another
+        # index there, and the one it sees is the remaining claimant of that key.
+        claim[key_next] = idx
+        conflict = claim[key_next] != idx
+        conflict[claim[key_next[conflict]]] = True
+        # Edge conflicts: i moves into j's cell while j moves into i's cell. dest[c] is
+        # the next key of the robot whose key is c (-1 where none), so i swaps exactly
+        # when it moves and dest[key_next[i]] == key_now[i]; j is found the same way.
+        dest = self._dest
+        dest[key_now] = key_next
+        conflict |= moving & (dest[key_next] == key_now)
+        dest[key_now] = -1
+        collision = conflict
+        while np.count_nonzero(conflict):
+            # Reverting a robot that did not move rewrites its key with the same value.
+            key_next[conflict] = key_now[conflict]
             claim[key_next] = idx
-            dup_keys = key_next[claim[key_next] != idx]
-            flag[dup_keys] = True
-            conflict = flag[key_next]
-            flag[dup_keys] = False
-            # Edge conflicts: i moves into j's cell while j moves into i's cell.
-            ci = np.flatnonzero(moving)
-            jj = occ_grid[key_next[ci]]
-            swap = (jj >= 0) & (key_next[jj] == key_now[ci])
-            conflict[ci[swap]] = True
-            conflict[jj[swap]] = True
-            if not conflict.any():
-                break
+            conflict = claim[key_next] != idx
+            conflict[claim[key_next[conflict]]] = True
             collision |= conflict
-            revert = conflict & moving
-            key_next[revert] = key_now[revert]
-            moving &= ~revert
-        occ_grid[key_now[occ]] = -1
         return collision

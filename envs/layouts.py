@@ -49,6 +49,20 @@ class Layout:
         """(F, 2) int64 (row, col) of every free cell, row-major."""
         return np.argwhere(~self.obstacles).astype(np.int64)
 
+    @cached_property
+    def float_cells(self) -> np.ndarray:
+        """(F, 2) float32 ``cells`` (for observation features)."""
+        out = self.cells.astype(np.float32)
+        out.setflags(write=False)
+        return out
+
+    @cached_property
+    def float_shape(self) -> np.ndarray:
+        """(2,) float32 (H, W) (for observation features)."""
+        out = np.array(self.shape, dtype=np.float32)
+        out.setflags(write=False)
+        return out
+
     @property
     def n_free(self) -> int:
         return int(self.cells.shape[0])

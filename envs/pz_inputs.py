@@ -57,19 +57,24 @@ def action_vector(
         raise BenchError(
             f"step: actions must be a dict {{agent: action}}, got {type(actions).__name__}")
     # Fast path (C-level passes): integer types, all in range, names known; the common
-    # dict over every agent in index order is one copy.
+    # dict over every agent in index order is converted straight into ``out``.
     keys, values = list(actions), list(actions.values())
     if _FAST_INT_TYPES.issuperset(map(type, values)):
-        try:
-            a = np.array(values, dtype=np.int64)
-        except OverflowError:  # a Python int beyond int64: the slow path names it
-            a = np.full(1, N_ACTIONS)
-        if (a.view(np.uint64) < N_ACTIONS).all():  # negatives wrap to huge values
-            if keys == names:
-                out[:] = a
-                return out
+        if keys == names:
+            try:
+                out[:] = values
+            except OverflowError:  # a Python int beyond int64: the slow path names it
+                pass
+            else:
+                if out.view(np.uint64).max() < N_ACTIONS:  # negatives wrap to huge values
+                    return out
+        else:
+            try:
+                a = np.array(values, dtype=np.int64)
+            except OverflowError:
+                a = np.full(1, N_ACTIONS)
             idx = list(map(agent_ids.get, keys))
-            if None not in idx:
+            if (a.view(np.uint64) < N_ACTIONS).all() and None not in idx:
                 given = np.zeros(len(out), dtype=bool)
                 given[idx] = True
                 if (given | ~live).all():

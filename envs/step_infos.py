@@ -21,13 +21,29 @@ INFO_KEYS = (
     "goal_bonus", "collision_penalty", "time_penalty", "link_available", "payload_hier",
     "payload_dec", "t",
 )
-_PENDING = object()  # placeholder value of an agent whose info is not built yet
+
+
+class _Pending:
+    """The placeholder value of an agent whose info is not built yet (one instance,
+    kept by pickle and copy: the adapter stores a ``StepInfos.template``)."""
+
+    __slots__ = ()
+
+    def __reduce__(self) -> str:
+        return "_PENDING"
+
+    def __repr__(self) -> str:
+        return "<pending info>"
+
+
+_PENDING = _Pending()
 
 
 class StepInfos(dict):
     """{agent: info} for one step; see the module docstring.
 
-    ``agent_ids`` maps agent names to robot indices i; ``columns`` (or a function called
+    ``names`` are the agents (a list, or a ``template(names)`` dict reused across
+    steps); ``agent_ids`` maps agent names to robot indices i; ``columns`` (or a function called
     on the first read that returns them, so nothing is computed for unread infos) holds,
     per robot i,
     ``position``/``goal`` (N, 2) (row, col), ``group`` (N,), ``collision``, ``at_goal``,
@@ -38,12 +54,18 @@ class StepInfos(dict):
 
     __slots__ = ("_ids", "_cols", "_lists", "_const")
 
-    def __init__(self, names: list[str], agent_ids: Mapping[str, int],
+    def __init__(self, names: list[str] | dict[str, Any], agent_ids: Mapping[str, int],
                  columns: dict[str, np.ndarray] | Callable[[], dict[str, np.ndarray]],
                  constants: dict[str, int]) -> None:
-        dict.update(self, dict.fromkeys(names, _PENDING))
+        dict.update(self, names if type(names) is dict else self.template(names))
         self._ids, self._cols, self._const = agent_ids, columns, constants
         self._lists: dict[str, list] | None = None
+
+    @staticmethod
+    def template(names: list[str]) -> dict[str, Any]:
+        """The not-yet-built entries of ``names``: a dict to pass as ``names`` (and reuse
+        across steps with the same agents; it is copied, never changed)."""
+        return dict.fromkeys(names, _PENDING)
 
     def _build(self, agent: str) -> dict[str, Any]:
         lists = self._lists

@@ -105,6 +105,10 @@ class WarehouseParallelEnv(ParallelEnv):
         self.agents: list[str] = []
         self._live = np.zeros(n, dtype=bool)  # (N,) robots in ``agents``
         self._actions = np.full(n, WAIT, dtype=np.int64)  # (N,) scratch for step()
+        self._tmpl: tuple | None = None  # see _templates()
+        # (F + 1, 5) int8 action mask by cell; the last row (only Wait) for finished robots.
+        self._mask_table = np.concatenate(
+            [self.layout.move_valid, np.arange(N_ACTIONS)[None] == WAIT]).astype(np.int8)
 
         h, w = self.layout.shape
         size = feature_size(obs_radius)
@@ -171,7 +175,7 @@ class WarehouseParallelEnv(ParallelEnv):
         zero = np.zeros(n)
         no = np.zeros(n, dtype=bool)
         return (self._observations(None),
-                self._infos(self.agents, zero, zero, zero, zero, no, no))
+                self._infos(self._templates()[2], zero, zero, zero, zero, no, no))
 
     # ------------------------------------------------------------------- step
     def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
@@ -184,68 +188,94 @@ class WarehouseParallelEnv(ParallelEnv):
                 f"step: the episode ended at t={self.core.t} (no agents left); call reset()")
         u = action_vector(actions, self.possible_agents, self.agent_ids, self._live,
                           self._actions)
-        res = self.core.step(u[None])
+        res = self.core.step_checked(u[None])  # action_vector checked every action
         self._last = res
         self.links = self.channel.step()[0]  # A_{t+1}: messages carrying X_{t+1}
 
         names = self.agents  # alive at the start of this step, in index order
-        everyone = len(names) == self.config.n_robots
-        live = None if everyone else np.flatnonzero(self._live)
+        false, true, pending, live = self._templates()
         terminated, truncated = bool(res.terminated[0]), bool(res.truncated[0])
         # "remove": a robot is terminated the step it completes (or at the first step if
         # it started on its goal); "stay": only when the whole team has completed.
-        if terminated or not self.core.remove:
-            term = np.full(len(names), terminated)
+        term = None  # per-agent flags, when they differ
+        if terminated:
+            terminations = true.copy()
+        elif self.core.remove:
+            done = self.core.done[0]
+            term = done if live is None else done[live]
+            if np.count_nonzero(term):
+                terminations = dict(zip(names, term.tolist(), strict=True))
+            else:
+                term, terminations = None, false.copy()
         else:
-            term = self.core.done[0] if everyone else self.core.done[0, live]
-        rewards = dict.fromkeys(names, float(res.reward[0]))
-        any_term = bool(term.any())
-        terminations = (dict(zip(names, term.tolist(), strict=True)) if any_term
-                        else dict.fromkeys(names, False))
-        truncations = (dict(zip(names, (~term).tolist(), strict=True)) if truncated
-                       else dict.fromkeys(names, False))
-        obs = self._observations(live)
-        infos = self._infos(names, res.progress[0], res.goal_bonus[0], res.collision_penalty[0],
-                            res.time_penalty[0], res.collision[0], res.invalid[0])
+            terminations = false.copy()
+        if not truncated:
+            truncations = false.copy()
+        elif term is None:
+            truncations = true.copy()
+        else:
+            truncations = dict(zip(names, (~term).tolist(), strict=True))
+        rewards = dict.fromkeys(false, float(res.reward[0]))
+        obs = self._observations(live, names)
+        infos = self._infos(pending, res.progress[0], res.goal_bonus[0],
+                            res.collision_penalty[0], res.time_penalty[0], res.collision[0],
+                            res.invalid[0])
         if terminated or truncated:
             self._live[:] = False
             self.agents = []
-        elif any_term:
+        elif term is not None:
             self._live[np.flatnonzero(self._live)[term]] = False
             self.agents = [a for a, done in zip(names, term.tolist(), strict=True) if not done]
         if self.record:
             self.frames.append(self._frame())
         return obs, rewards, terminations, truncations, infos
 
+    def _templates(self) -> tuple[dict, dict, dict, np.ndarray | None]:
+        """{agent: False}, {agent: True} and StepInfos' pending dict over ``agents``, and
+        their robot indices (None: all N): built when ``agents`` changes (``reset`` and
+        ``step`` replace the list, never edit it), copied by each step."""
+        names = self.agents
+        cached = self._tmpl
+        if cached is None or cached[0] is not names:
+            live = None if len(names) == self.config.n_robots else np.flatnonzero(self._live)
+            cached = self._tmpl = (names, dict.fromkeys(names, False),
+                                   dict.fromkeys(names, True), StepInfos.template(names), live)
+        return cached[1:]
+
     # --------------------------------------------------------- per-agent views
     def action_masks(self) -> np.ndarray:
         """(N, 5) int8: 1 for actions that move (or Wait); only Wait for robots whose task
         is complete (they cannot move in either ``on_goal`` mode)."""
-        mask = self.layout.move_valid[self.core.pos[0]].astype(np.int8)
-        mask[self.core.done[0], :WAIT] = 0
-        return mask
+        done = self.core.done[0]
+        cells = self.core.pos[0]
+        if np.count_nonzero(done):
+            cells = np.where(done, len(self._mask_table) - 1, cells)
+        return self._mask_table[cells]  # a new array
 
-    def _observations(self, idx: np.ndarray | None) -> dict[str, Any]:
-        """Observations of robots ``idx`` (None: all): row views of one (N, F) feature
-        array and one (N, 5) mask array of this step."""
+    def _observations(self, idx: np.ndarray | None, names: list[str] | None = None
+                      ) -> dict[str, Any]:
+        """Observations of robots ``idx`` (None: all) named ``names`` (default: theirs):
+        row views of one (N, F) feature array and one (N, 5) mask array of this step."""
         feats = robot_features(self.core, self.patch, self.groups)[0]  # (N, F)
         mask = self.action_masks()
-        if idx is None:
-            names = self.possible_agents
-        else:
-            names = [self.possible_agents[i] for i in idx.tolist()]
+        if idx is not None:
             feats, mask = feats[idx], mask[idx]
+        if names is None:
+            names = (self.possible_agents if idx is None
+                     else [self.possible_agents[i] for i in idx.tolist()])
         if self.flat_obs:
             return dict(zip(names, np.concatenate([feats, mask.astype(np.float32)], axis=1),
                             strict=True))
+        # list(): the row views in one C loop (faster than zip over the arrays themselves)
         return {a: {"observation": f, "action_mask": m}
-                for a, f, m in zip(names, feats, mask, strict=True)}
+                for a, f, m in zip(names, list(feats), list(mask), strict=True)}
 
-    def _infos(self, names: list[str], progress: np.ndarray, goal_bonus: np.ndarray,
+    def _infos(self, names: list[str] | dict, progress: np.ndarray, goal_bonus: np.ndarray,
                collision_penalty: np.ndarray, time_penalty: np.ndarray,
                collision: np.ndarray, invalid: np.ndarray) -> StepInfos:
-        """Infos of agents ``names`` (keys ``INFO_KEYS``), built on first read from
-        copies of this step's (N,) arrays (``envs.step_infos``)."""
+        """Infos of agents ``names`` (or their ``StepInfos.template``; keys
+        ``INFO_KEYS``), built on first read from copies of this step's (N,) arrays
+        (``envs.step_infos``)."""
         # Copies (a few hundred bytes): the infos must not change if the core or the
         # channel ever reuse their arrays in place.
         columns = partial(_info_columns, self.layout.cells, *(x.copy() for x in (

@@ -104,3 +104,46 @@ def test_robot_features__one_buffer_equals_the_plain_concatenation_over_a_batch(
                 np.testing.assert_array_equal(robot_features(core, fused, g), plain)
             core.step(rng.integers(0, 5, size=(b, n)))
     assert core.done.any() and (~core.occupying).any()  # finished robots were covered
+
+
+def test_robot_channel__pair_and_gather_writers_equal_the_plain_patch() -> None:
+    """Both writers of the robot channel (``_robots_by_pairs``, ``_robots_by_gather``),
+    whichever ``use_pairs`` picks, against ``PatchExtractor.__call__`` bit for bit: robots
+    at the map's edges, finished robots off the floor (``on_goal="remove"``, one standing
+    on another's cell) or staying, with and without the group mask, B = 1 and 3."""
+    from envs.layouts import load_layout
+    from envs.scenarios import sample_scenarios
+
+    layout = load_layout("wh20")
+    rng = np.random.default_rng(5)
+    n = 20
+    groups = group_assignment(n, 4)
+    shared = 0
+    for on_goal in ("remove", "stay"):
+        for b in (1, 3):
+            core = WarehouseCore(EnvConfig.make(n_robots=n, groups=4, on_goal=on_goal), layout)
+            core.reset(*sample_scenarios(layout, n, b, rng))
+            for radius in (0, 1, 5):
+                patch = PatchExtractor(core, radius)
+                p = patch.offsets.size
+                for _ in range(15):
+                    for g in (None, groups):
+                        want = patch(g)[:, :, 1].reshape(b, n, p)
+                        by_gather = np.full((b, n, p), 7.0, np.float32)
+                        patch._robots_by_gather(by_gather, g)
+                        by_pairs = np.zeros((b, n, p), np.float32)
+                        obs, slots = patch._robots_by_pairs(g)
+                        by_pairs[obs // n, obs % n, slots] = 1.0
+                        into = np.full((b, n, p), 7.0, np.float32)
+                        patch.robots_into(into, g)
+                        for got in (by_gather, by_pairs, into):
+                            assert got.tobytes() == want.tobytes()
+                        assert robot_features(core, patch, g)[..., -p:].tobytes() == want.tobytes()
+                    for e in range(b):  # an off-floor robot on an on-floor robot's cell
+                        occ = core.occupying[e]
+                        shared += bool(np.isin(core.pos[e][~occ], core.pos[e][occ]).any())
+                    core.step(rng.integers(0, 5, size=(b, n)))
+            assert core.done.any()
+    assert shared
+    # radius 0 (P = 1) uses the gather, radius 5 the pairs.
+    assert not PatchExtractor(core, 0).use_pairs(groups) and PatchExtractor(core, 5).use_pairs(groups)
