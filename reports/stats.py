@@ -206,8 +206,8 @@ def t_band(curves: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.nda
     with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns and single values
         mean = np.nanmean(c, axis=0)
+        # nanstd with ddof=1 is NaN below two values, so such columns get no band
         half = sps.t.ppf(0.5 + level / 2.0, np.maximum(k - 1, 1)) * np.nanstd(c, axis=0, ddof=1) / np.sqrt(k)
-    half = np.where(k >= 2, half, np.nan)
     return mean, mean - half, mean + half
 
 
