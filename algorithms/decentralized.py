@@ -39,19 +39,19 @@ from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
-    action_mask,
-    local_view,
+    action_mask_into,
+    local_view_into,
     local_view_size,
-    own_history,
+    own_history_into,
     robots_on_target_index,
 )
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
     clip_and_step,
-    critic_inputs,
     critic_shapes,
     critic_update,
+    store_critic_inputs,
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import DELTAS, N_ACTIONS
@@ -151,24 +151,32 @@ class DecentralizedMethod(Method):
                                    np.zeros((b, n), dtype=bool))
         return state
 
-    def observe_robots(self, state: DecentralizedState) -> np.ndarray:
-        """(B, N, F) observations from the core and the received messages."""
+    def observe_robots(self, state: DecentralizedState, out: np.ndarray | None = None) -> np.ndarray:
+        """(B, N, F) observations from the core and the received messages, written into
+        ``out`` (e.g. the rollout buffer's row) when given:
+        [local_view, own_history, message maps]."""
         core = state.board.core
-        return np.concatenate([local_view(core, state.patch), own_history(core, state.collided),
-                               state.board.features()], axis=-1)
+        if out is None:
+            out = np.empty(core.pos.shape + (self.n_obs,), dtype=np.float32)
+        lv = local_view_size(self.params.patch_radius)
+        local_view_into(core, state.patch, out[..., :lv])
+        own_history_into(core, state.collided, out[..., lv:lv + HISTORY_SIZE])
+        state.board.features(out[..., lv + HISTORY_SIZE:])
+        return out
 
     def decide(self, batch: EpisodeBatch, state: DecentralizedState, choice: ActionChoice) -> Decision:
-        core = batch.core
+        core, buf = batch.core, state.buffer
         state.board.receive()
-        obs = self.observe_robots(state)
-        mask = action_mask(core)
+        # Training: observations, masks and critic inputs go straight into the buffer row.
+        obs = self.observe_robots(state, None if buf is None else buf.row("obs"))
+        mask = np.empty(core.pos.shape + (N_ACTIONS,), dtype=bool) if buf is None else buf.row("mask")
+        action_mask_into(core, mask)
         logits = self.actor(torch.from_numpy(obs), torch.from_numpy(mask))
         actions = choice(logits).numpy()
         state.running = ~core.ended
-        if state.buffer is not None:
-            state.buffer.add(obs=obs, mask=mask, actions=actions,
-                             active=~core.done & state.running[:, None],
-                             **critic_inputs(core, self.env.horizon))
+        if buf is not None:
+            store_critic_inputs(buf, core, self.env.horizon)
+            buf.add(actions=actions, active=~core.done & state.running[:, None])
         dec = Decision(actions=actions, payload=float(state.board.payload))
         if self.filter is not None:
             self.apply_filter(state.board, logits, dec)

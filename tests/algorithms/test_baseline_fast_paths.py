@@ -1,0 +1,102 @@
+"""The baselines' in-place rollout paths equal the plain formulas exactly (bit for bit).
+
+The decentralized baseline writes its observations, masks and critic inputs straight into
+the rollout buffer's row, and ``AllToAllBoard`` keeps narrow integer arrays; these tests
+run the optimized path and the plain one on the same inputs. Runtime: about 2 s.
+"""
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from algorithms.common.all_to_all import AllToAllBoard
+from algorithms.common.episodes import EpisodeBatch, batch_rng
+from algorithms.common.execution import ActionChoice
+from algorithms.common.robot_obs import (
+    action_mask,
+    action_mask_into,
+    local_view,
+    local_view_into,
+    own_history,
+    own_history_into,
+)
+from algorithms.common.trainer import critic_features, critic_inputs
+from algorithms.decentralized import DecentralizedMethod
+from envs.channel import LossProcess
+from envs.config import EnvConfig
+from envs.observations import PatchExtractor
+
+
+def plain_critic_features(core) -> np.ndarray:
+    """``critic_features`` as first written (one concatenate)."""
+    h, w = core.layout.shape
+    scale = np.array([h, w], dtype=np.float32)
+    rc = core.layout.cells[core.pos].astype(np.float32) / scale
+    grc = core.layout.cells[core.goal].astype(np.float32) / scale
+    dist = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)[..., None]
+    done = core.done.astype(np.float32)[..., None]
+    return np.concatenate([rc, grc, dist, done], axis=-1)
+
+
+def test_into_helpers__equal_the_allocating_ones_bit_for_bit() -> None:
+    env = EnvConfig.make(n_robots=30, layout="wh20", horizon=30, loss_p=0.3, on_goal="remove")
+    batch = EpisodeBatch(env, 3, batch_rng(0, 0, 1))
+    core, rng = batch.core, np.random.default_rng(0)
+    for radius in (1, 2, 3):
+        patch = PatchExtractor(core, radius)
+        for _ in range(6):
+            collided = rng.random(core.pos.shape) < 0.2
+            lv = local_view(core, patch)
+            out = np.full(lv.shape, np.nan, dtype=np.float32)
+            local_view_into(core, patch, out)
+            assert out.tobytes() == lv.tobytes()
+            hist = np.full((*core.pos.shape, 6), np.nan, dtype=np.float32)
+            own_history_into(core, collided, hist)
+            assert hist.tobytes() == own_history(core, collided).tobytes()
+            mask = np.zeros((*core.pos.shape, 5), dtype=bool)
+            action_mask_into(core, mask)
+            assert np.array_equal(mask, action_mask(core))
+            assert critic_features(core).tobytes() == plain_critic_features(core).tobytes()
+            assert critic_inputs(core, 30)["critic"].tobytes() == plain_critic_features(core).tobytes()
+            core.step(rng.integers(0, 5, size=core.pos.shape))
+
+
+def test_board__int32_positions_give_the_same_messages_and_maps_as_int16() -> None:
+    """The board stores positions as int16 when the layout allows (every shipped layout);
+    the int32 branch of larger layouts receives and encodes alike."""
+    env = EnvConfig.make(n_robots=16, layout="wh20", horizon=40, loss_p=0.4, on_goal="remove")
+    batch = EpisodeBatch(env, 2, batch_rng(0, 0, 2))
+    narrow = AllToAllBoard(batch.core, LossProcess.from_config((2, 16, 16), env, batch_rng(5, 0, 0)), 2)
+    wide = AllToAllBoard(batch.core, LossProcess.from_config((2, 16, 16), env, batch_rng(5, 0, 0)), 2)
+    assert narrow.pos.dtype == np.int16
+    wide.pos = wide.pos.astype(np.int32)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        assert np.array_equal(narrow.receive(), wide.receive())
+        for name in ("pos", "ctl", "age"):
+            assert np.array_equal(getattr(narrow, name), getattr(wide, name))
+        assert narrow.features().tobytes() == wide.features().tobytes()
+        batch.core.step(rng.integers(0, 5, size=(2, 16)))
+
+
+def test_decentralized__buffer_rows_equal_the_plain_observation() -> None:
+    """Observations written into the buffer row equal the plain concatenation of the
+    local view, own history and message maps; masks and critic inputs alike."""
+    env = EnvConfig.make(n_robots=12, layout="wh20", horizon=15, loss_p=0.3)
+    m = DecentralizedMethod(env, {"batch_episodes": 2}, seed=1)
+    batch = EpisodeBatch(env, 2, batch_rng(0, 0, 4), m.layout)
+    choice = ActionChoice.train(m.torch_gen)
+    with torch.no_grad():
+        state = m.begin(batch, choice)
+        while batch.running:
+            core, t = batch.core, state.buffer.t
+            collided = state.collided.copy()
+            dec = m.decide(batch, state, choice)
+            plain = np.concatenate([local_view(core, state.patch), own_history(core, collided),
+                                    state.board.features()], axis=-1)
+            assert state.buffer.data["obs"][t].tobytes() == plain.tobytes()
+            assert np.array_equal(state.buffer.data["mask"][t], action_mask(core))
+            inputs = critic_inputs(core, env.horizon)
+            assert state.buffer.data["critic"][t].tobytes() == inputs["critic"].tobytes()
+            assert state.buffer.data["t_frac"][t].tobytes() == inputs["t_frac"].tobytes()
+            m.observe(batch, state, core.step(dec.actions))
