@@ -77,7 +77,9 @@ class CentralCritic(nn.Module):
 
     def forward(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
         """robots (..., N, 6), t_frac (...) -> V (...)."""
-        pooled = self.phi(robots).mean(dim=-2)
+        # sum / N is torch's CPU mean (sum, then divide), bit for bit; its backward divides
+        # the (..., H) gradient before expanding it over the robots instead of after.
+        pooled = self.phi(robots).sum(dim=-2) / robots.shape[-2]
         done_frac = robots[..., 5].mean(dim=-1, keepdim=True)
         return self.rho(torch.cat([pooled, t_frac[..., None], done_frac], dim=-1)).squeeze(-1)
 

@@ -100,3 +100,49 @@ def test_decentralized__buffer_rows_equal_the_plain_observation() -> None:
             assert state.buffer.data["critic"][t].tobytes() == inputs["critic"].tobytes()
             assert state.buffer.data["t_frac"][t].tobytes() == inputs["t_frac"].tobytes()
             m.observe(batch, state, core.step(dec.actions))
+
+
+def test_decentralized_actor__rollout_path_equals_the_autograd_path_bit_for_bit() -> None:
+    from algorithms.base import masked_logits
+    from algorithms.decentralized import DecentralizedActor
+
+    torch.manual_seed(0)
+    for action_path in (True, False):
+        actor = DecentralizedActor(142, 64, 2, action_path)
+        if action_path:
+            with torch.no_grad():
+                actor.path.weight.normal_()
+        obs = torch.rand(3, 17, 142)
+        mask = torch.rand(3, 17, 5) > 0.3
+        plain = actor.net(obs)
+        if action_path:  # the path as first written: advanced indexing
+            phi = obs[..., actor.path.index].transpose(-1, -2)
+            plain = plain + 10.0 * (phi * actor.path.weight).sum(-1)
+        plain = masked_logits(plain, mask)
+        assert torch.equal(actor(obs, mask), plain)  # grad mode: the plain ops
+        with torch.inference_mode():
+            assert torch.equal(actor(obs, mask), plain.detach())
+
+
+def test_central_critic__sum_over_n_equals_the_mean_with_the_same_gradients() -> None:
+    from algorithms.common.trainer import CentralCritic
+
+    torch.manual_seed(0)
+    critic = CentralCritic(32)
+    robots, t_frac = torch.rand(7, 3, 13, 6), torch.rand(7, 3)
+    weights = torch.randn(7, 3)
+
+    def grads(forward) -> tuple[torch.Tensor, list[torch.Tensor]]:
+        critic.zero_grad()
+        v = forward(robots, t_frac)
+        (v * weights).sum().backward()
+        return v.detach(), [q.grad.clone() for q in critic.parameters()]
+
+    def plain(x, tf):  # the mean as first written
+        pooled = critic.phi(x).mean(dim=-2)
+        done = x[..., 5].mean(dim=-1, keepdim=True)
+        return critic.rho(torch.cat([pooled, tf[..., None], done], dim=-1)).squeeze(-1)
+
+    (v0, g0), (v1, g1) = grads(plain), grads(critic)
+    assert torch.equal(v0, v1)
+    assert all(torch.equal(a, b) for a, b in zip(g0, g1, strict=True))
