@@ -146,3 +146,45 @@ def test_central_critic__sum_over_n_equals_the_mean_with_the_same_gradients() ->
     (v0, g0), (v1, g1) = grads(plain), grads(critic)
     assert torch.equal(v0, v1)
     assert all(torch.equal(a, b) for a, b in zip(g0, g1, strict=True))
+
+
+def test_average_comm__bmm_equals_the_einsum_bit_for_bit() -> None:
+    from algorithms.ic3net import average_comm
+
+    gen = torch.Generator().manual_seed(0)
+    for n in (1, 2, 9, 40):
+        links = torch.rand(3, n, n, generator=gen) < 0.6
+        h = torch.randn(3, n, 16, generator=gen)
+        alive = torch.tensor([n, max(n - 1, 0), 1])
+        denom = torch.where(alive > 1, alive - 1, torch.ones_like(alive)).float()
+        plain = torch.einsum("bji,bjh->bih", links.float(), h) / denom[:, None, None]
+        assert torch.equal(average_comm(h, links, alive), plain)
+        assert torch.equal(average_comm(h, links.float(), alive), plain)
+
+
+def test_ic3net__buffer_rows_equal_the_plain_inputs() -> None:
+    """The rollout writes observations, masks, links and critic inputs into the buffer
+    row; they equal the plain concatenation and link formula of the same step."""
+    from algorithms.ic3net import IC3NetMethod
+
+    env = EnvConfig.make(n_robots=10, layout="wh20", horizon=15, loss_p=0.3)
+    m = IC3NetMethod(env, {"batch_episodes": 2}, seed=1)
+    batch = EpisodeBatch(env, 2, batch_rng(0, 0, 4), m.layout)
+    choice = ActionChoice.train(m.torch_gen)
+    with torch.no_grad():
+        state = m.begin(batch, choice)
+        while batch.running:
+            core, t, buf = batch.core, state.buffer.t, state.buffer
+            collided, gate = state.collided.copy(), state.gate.copy()
+            twin = np.random.Generator(np.random.PCG64())
+            twin.bit_generator.state = state.loss.rng.bit_generator.state
+            delivered = twin.random(state.loss.shape) >= state.loss.p  # this step's draw
+            dec = m.decide(batch, state, choice)
+            talk = gate & ~core.done
+            links = talk[:, :, None] & talk[:, None, :] & delivered & ~np.eye(10, dtype=bool)
+            assert np.array_equal(buf.data["links"][t], links)
+            plain = np.concatenate([local_view(core, state.patch), own_history(core, collided)], axis=-1)
+            assert buf.data["obs"][t].tobytes() == plain.tobytes()
+            assert np.array_equal(buf.data["mask"][t], action_mask(core))
+            assert buf.data["critic"][t].tobytes() == critic_inputs(core, env.horizon)["critic"].tobytes()
+            m.observe(batch, state, core.step(dec.actions))
