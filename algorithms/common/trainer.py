@@ -42,8 +42,8 @@ def critic_features(core: WarehouseCore, out: np.ndarray | None = None) -> np.nd
     scale = np.array([h, w], dtype=np.float32)
     if out is None:
         out = np.empty(core.pos.shape + (CRITIC_FEATURES,), dtype=np.float32)
-    np.divide(core.layout.cells[core.pos].astype(np.float32), scale, out=out[..., 0:2])
-    np.divide(core.layout.cells[core.goal].astype(np.float32), scale, out=out[..., 2:4])
+    np.divide(np.take(core.layout.cells, core.pos, axis=0).astype(np.float32), scale, out=out[..., 0:2])
+    np.divide(np.take(core.layout.cells, core.goal, axis=0).astype(np.float32), scale, out=out[..., 2:4])
     out[..., 4] = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)
     out[..., 5] = core.done
     return out

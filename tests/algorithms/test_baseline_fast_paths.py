@@ -7,6 +7,7 @@ run the optimized path and the plain one on the same inputs. Runtime: about 2 s.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
 from algorithms.common.all_to_all import AllToAllBoard
@@ -188,3 +189,23 @@ def test_ic3net__buffer_rows_equal_the_plain_inputs() -> None:
             assert np.array_equal(buf.data["mask"][t], action_mask(core))
             assert buf.data["critic"][t].tobytes() == critic_inputs(core, env.horizon)["critic"].tobytes()
             m.observe(batch, state, core.step(dec.actions))
+
+
+def test_multinomial_one__equals_torch_multinomial_samples_and_generator_state() -> None:
+    from algorithms.common.execution import multinomial_one, sample_categorical
+
+    logits = torch.randn(500, 5, generator=torch.Generator().manual_seed(3)) * 3
+    logits[::3, 0] = -1e9  # masked actions
+    probs = torch.softmax(logits.double(), dim=-1)
+    a, b = torch.Generator().manual_seed(7), torch.Generator().manual_seed(7)
+    for _ in range(20):
+        assert torch.equal(multinomial_one(probs, a), torch.multinomial(probs, 1, generator=b))
+        assert torch.equal(a.get_state(), b.get_state())
+    for temperature in (1.0, 0.5, 2.0):  # sample_categorical as first written
+        flat = logits.reshape(-1, 5).double()
+        plain = torch.multinomial(torch.softmax(flat / temperature, dim=-1), 1, generator=b).reshape(-1)
+        assert torch.equal(sample_categorical(logits, temperature, a), plain)
+    bad = probs.clone()
+    bad[4, 2] = float("nan")
+    with pytest.raises(RuntimeError):
+        multinomial_one(bad, a)
