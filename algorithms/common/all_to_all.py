@@ -73,7 +73,7 @@ class AllToAllBoard:
         here = np.repeat(self._center[:, None], OFF_FLOOR + 1, axis=1)
         ahead = np.concatenate([self._center[nxt], self._center[:, None]], axis=1)
         here[:, OFF_FLOOR] = ahead[:, OFF_FLOOR] = off
-        self._key_center = np.stack([here.reshape(-1), ahead.reshape(-1)]).astype(np.int32)  # (2, F*6)
+        self._key_center = np.stack([here.reshape(-1), ahead.reshape(-1)], axis=1).astype(np.int32)  # (F*6, 2)
         self._window_ext = np.full(3 * span, -1, dtype=np.int16 if self.side ** 2 < 2 ** 15 else np.int32)
         self._window_ext[: 2 * span - 1] = self._window
 
@@ -113,23 +113,27 @@ class AllToAllBoard:
         p = side * side
         if out is None:
             out = np.empty((b, n, MAP_CHANNELS * p), dtype=np.float32)
-        maps = out.reshape(b, n, MAP_CHANNELS, p)
         key = self._tmp[np.int32]
         np.multiply(self.pos, OFF_FLOOR + 1, out=key, dtype=np.int32)
         key += self.ctl
-        me = (self._center[core.pos] - (self._span - 1)).astype(np.int32)[:, :, None]  # (B, N, 1)
-        size = b * n * p
-        for ch in (0, 1):  # np.take: several times faster than fancy indexing here
-            where = np.take(self._key_center[ch], key)  # (B, N, N) padded index, or OFF
-            where.reshape(b, n * n)[:, :: n + 1] = self._off  # not the robot itself
-            where -= me
-            cell = np.take(self._window_ext, where).reshape(-1)  # window cell or -1
-            hit = np.flatnonzero(cell >= 0)  # (receiver, sender) pairs in C order
-            flat = (hit // n) * p + cell[hit]  # receiver row (b N + i) times P + cell
-            maps[:, :, ch] = np.bincount(flat, minlength=size).reshape(b, n, p)
-            if ch == 0:
-                stale = np.minimum(self.age.reshape(-1)[hit], AGE_CAP).astype(np.float32) * (1.0 / AGE_CAP)
-                maps[:, :, 2] = np.bincount(flat, weights=stale, minlength=size).reshape(b, n, p)
+        me = (self._center[core.pos] - (self._span - 1)).astype(np.int32)[:, :, None, None]
+        # Channels 0 and 1 in one pass (np.take: several times faster than fancy indexing).
+        where = np.take(self._key_center, key, axis=0)  # (B, N, N, 2) padded index, or OFF
+        where.reshape(b, n * n, 2)[:, :: n + 1] = self._off  # not the robot itself
+        where -= me
+        cell = np.take(self._window_ext, where).reshape(-1)  # window cell or -1
+        hit = np.flatnonzero(cell >= 0)  # (receiver, sender, channel) in C order
+        ch = hit & 1
+        pair = hit >> 1  # receiver-sender pair b N N + i N + j
+        flat = ((pair // n) * MAP_CHANNELS + ch) * p + cell[hit]  # into (B, N, 3, P)
+        here = ch == 0
+        stale = np.minimum(self.age.reshape(-1)[pair[here]], AGE_CAP).astype(np.float32) * (1.0 / AGE_CAP)
+        # One bincount: counts of channels 0 and 1 (weight 1, exact), then channel 2's
+        # staleness at the channel-0 hits, summed per cell in the same (C) order as before.
+        sums = np.bincount(np.concatenate([flat, flat[here] + 2 * p]),
+                           weights=np.concatenate([np.ones(flat.size), stale]),
+                           minlength=b * n * MAP_CHANNELS * p)
+        out[...] = sums.reshape(b, n, MAP_CHANNELS * p)
         return out
 
 
