@@ -233,10 +233,15 @@ class DecentralizedMethod(Method):
 
         # Actor: -sum_{t,b} A_t sum_i log pi(u_t^i | o_t^i) / n over the active robot-steps.
         active = buf.data["active"][: buf.t]  # (T, B, N)
-        obs = buf.data["obs"][: buf.t][active]
-        act_mask = buf.data["mask"][: buf.t][active]
-        actions = torch.from_numpy(buf.data["actions"][: buf.t][active])
-        weight = np.broadcast_to(adv.numpy()[..., None], active.shape)[active] / float(n)
+        sel = np.flatnonzero(active)  # the active robot-steps, in C order, found once
+
+        def rows_of(key: str) -> np.ndarray:  # = buf.data[key][: buf.t][active]
+            data = buf.data[key][: buf.t]
+            return np.take(data.reshape(active.size, *data.shape[3:]), sel, axis=0)
+
+        obs, act_mask = rows_of("obs"), rows_of("mask")
+        actions = torch.from_numpy(rows_of("actions"))
+        weight = np.take(np.broadcast_to(adv.numpy()[..., None], active.shape).reshape(-1), sel) / float(n)
         weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32))
         rows = obs.shape[0]
         self.actor_opt.zero_grad()
