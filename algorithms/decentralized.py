@@ -31,6 +31,7 @@ import numpy as np
 import torch
 from pydantic import Field
 from torch import nn
+from torch.nn import functional as F
 
 from algorithms.base import LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
@@ -39,19 +40,19 @@ from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
-    action_mask,
-    local_view,
+    action_mask_into,
+    local_view_into,
     local_view_size,
-    own_history,
+    own_history_into,
     robots_on_target_index,
 )
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
     clip_and_step,
-    critic_inputs,
     critic_shapes,
     critic_update,
+    store_critic_inputs,
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import DELTAS, N_ACTIONS
@@ -98,10 +99,24 @@ class DecentralizedActor(nn.Module):
         self.path = ActionPath(action_feature_index(radius)) if action_path else None
 
     def forward(self, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        if not torch.is_grad_enabled():
+            return self.rollout_logits(obs, mask)
         logits = self.net(obs)
         if self.path is not None:
             logits = self.path(obs, logits)
         return masked_logits(logits, mask)
+
+    def rollout_logits(self, obs: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """``forward`` without autograd: the same ops, ReLU and the mask applied in place on
+        fresh intermediates, no module-call overhead (bit-identical;
+        tests/algorithms/test_baseline_fast_paths.py)."""
+        lin0, _, lin1, _, lin2 = self.net
+        x = F.linear(obs, lin0.weight, lin0.bias).relu_()
+        x = F.linear(x, lin1.weight, lin1.bias).relu_()
+        logits = F.linear(x, lin2.weight, lin2.bias)
+        if self.path is not None:
+            logits = self.path(obs, logits)
+        return logits.masked_fill_(~torch.as_tensor(mask, dtype=torch.bool), -1e9)
 
 
 @dataclass
@@ -151,24 +166,33 @@ class DecentralizedMethod(Method):
                                    np.zeros((b, n), dtype=bool))
         return state
 
-    def observe_robots(self, state: DecentralizedState) -> np.ndarray:
-        """(B, N, F) observations from the core and the received messages."""
+    def observe_robots(self, state: DecentralizedState, out: np.ndarray | None = None) -> np.ndarray:
+        """(B, N, F) observations from the core and the received messages, written into
+        ``out`` (e.g. the rollout buffer's row) when given:
+        [local_view, own_history, message maps]."""
         core = state.board.core
-        return np.concatenate([local_view(core, state.patch), own_history(core, state.collided),
-                               state.board.features()], axis=-1)
+        if out is None:
+            out = np.empty(core.pos.shape + (self.n_obs,), dtype=np.float32)
+        lv = local_view_size(self.params.patch_radius)
+        local_view_into(core, state.patch, out[..., :lv])
+        own_history_into(core, state.collided, out[..., lv:lv + HISTORY_SIZE])
+        state.board.features(out[..., lv + HISTORY_SIZE:])
+        return out
 
     def decide(self, batch: EpisodeBatch, state: DecentralizedState, choice: ActionChoice) -> Decision:
-        core = batch.core
+        core, buf = batch.core, state.buffer
         state.board.receive()
-        obs = self.observe_robots(state)
-        mask = action_mask(core)
-        logits = self.actor(torch.from_numpy(obs), torch.from_numpy(mask))
-        actions = choice(logits).numpy()
+        # Training: observations, masks and critic inputs go straight into the buffer row.
+        obs = self.observe_robots(state, None if buf is None else buf.row("obs"))
+        mask = np.empty(core.pos.shape + (N_ACTIONS,), dtype=bool) if buf is None else buf.row("mask")
+        action_mask_into(core, mask)
+        with torch.inference_mode():  # rollouts never backpropagate (the update recomputes)
+            logits = self.actor(torch.from_numpy(obs), torch.from_numpy(mask))
+            actions = choice(logits).numpy()
         state.running = ~core.ended
-        if state.buffer is not None:
-            state.buffer.add(obs=obs, mask=mask, actions=actions,
-                             active=~core.done & state.running[:, None],
-                             **critic_inputs(core, self.env.horizon))
+        if buf is not None:
+            store_critic_inputs(buf, core, self.env.horizon)
+            buf.add(actions=actions, active=~core.done & state.running[:, None])
         dec = Decision(actions=actions, payload=float(state.board.payload))
         if self.filter is not None:
             self.apply_filter(state.board, logits, dec)
@@ -209,10 +233,15 @@ class DecentralizedMethod(Method):
 
         # Actor: -sum_{t,b} A_t sum_i log pi(u_t^i | o_t^i) / n over the active robot-steps.
         active = buf.data["active"][: buf.t]  # (T, B, N)
-        obs = buf.data["obs"][: buf.t][active]
-        act_mask = buf.data["mask"][: buf.t][active]
-        actions = torch.from_numpy(buf.data["actions"][: buf.t][active])
-        weight = np.broadcast_to(adv.numpy()[..., None], active.shape)[active] / float(n)
+        sel = np.flatnonzero(active)  # the active robot-steps, in C order, found once
+
+        def rows_of(key: str) -> np.ndarray:  # = buf.data[key][: buf.t][active]
+            data = buf.data[key][: buf.t]
+            return np.take(data.reshape(active.size, *data.shape[3:]), sel, axis=0)
+
+        obs, act_mask = rows_of("obs"), rows_of("mask")
+        actions = torch.from_numpy(rows_of("actions"))
+        weight = np.take(np.broadcast_to(adv.numpy()[..., None], active.shape).reshape(-1), sel) / float(n)
         weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32))
         rows = obs.shape[0]
         self.actor_opt.zero_grad()

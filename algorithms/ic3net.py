@@ -45,6 +45,7 @@ sender and receiver both have their gate open and are alive (transmitted, lost o
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -59,20 +60,20 @@ from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
-    action_mask,
-    local_view,
+    action_mask_into,
+    local_view_into,
     local_view_size,
-    own_history,
+    own_history_into,
     robots_on_target_index,
 )
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
     clip_and_step,
-    critic_inputs,
     critic_shapes,
     critic_update,
     mc_returns,
+    store_critic_inputs,
 )
 from algorithms.common.value_norm import ValueNorm
 from envs.actions import N_ACTIONS
@@ -113,7 +114,17 @@ def average_comm(h: torch.Tensor, links: torch.Tensor, alive: torch.Tensor) -> t
     ``comm_mode="avg"``), the plain sum otherwise (then nothing is heard anyway).
     """
     denom = torch.where(alive > 1, alive - 1, torch.ones_like(alive)).to(h.dtype)
-    return torch.einsum("bji,bjh->bih", links.to(h.dtype), h) / denom[:, None, None]
+    # bmm of the transposed links: what einsum("bji,bjh->bih") runs, without its parsing;
+    # float links (the rollout and the replay convert them in numpy) are used as they are.
+    return torch.bmm(links.to(h.dtype).transpose(1, 2), h) / denom[:, None, None]
+
+
+@functools.lru_cache(maxsize=8)
+def _off_diagonal(n: int) -> np.ndarray:
+    """(N, N) bool, False on the diagonal (no self-links); read-only, shared."""
+    out = ~np.eye(n, dtype=bool)
+    out.flags.writeable = False
+    return out
 
 
 class IC3NetPolicy(nn.Module):
@@ -236,14 +247,20 @@ class IC3NetMethod(Method):
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
                            np.zeros((b, n), dtype=bool), ~core.ended)
 
-    def links(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
-        """(B, N_send, N_recv) bool: L_t = g^j g^i a^j a^i A_t[j, i], j != i (see module)."""
+    def links(self, state: IC3NetState, alive: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """(B, N_send, N_recv) bool: L_t = g^j g^i a^j a^i A_t[j, i], j != i (see module);
+        written into ``out`` (e.g. the rollout buffer's row) when given."""
         delivered = state.loss.step()  # drawn every step, so the loss stream never shifts
+        if out is None:
+            out = np.empty_like(delivered)
         if not self.params.communicate:
-            return np.zeros_like(delivered)
+            out[...] = False
+            return out
         talk = state.gate & alive  # (B, N)
-        n = talk.shape[1]
-        return talk[:, :, None] & talk[:, None, :] & delivered & ~np.eye(n, dtype=bool)
+        np.logical_and(talk[:, :, None], talk[:, None, :], out=out)
+        out &= delivered
+        out &= _off_diagonal(talk.shape[1])
+        return out
 
     def payload(self, state: IC3NetState, alive: np.ndarray) -> np.ndarray:
         """(B,) scalars sent: H per pass on each link with both gates open and both alive."""
@@ -253,31 +270,44 @@ class IC3NetMethod(Method):
         return k * (k - 1) * self.params.hidden * self.params.comm_passes
 
     def decide(self, batch: EpisodeBatch, state: IC3NetState, choice: ActionChoice) -> Decision:
-        core, p = batch.core, self.params
+        core, p, buf = batch.core, self.params, state.buffer
+        b, n = core.pos.shape
         alive = ~core.done  # (B, N)
-        links = self.links(state, alive)
+        # Training: inputs are written straight into the buffer's row (no concatenate, no copy).
+        row = (lambda key: buf.row(key)) if buf is not None else (lambda key: None)
+        links = self.links(state, alive, row("links"))
         payload = self.payload(state, alive)
         alive_n = alive.sum(axis=1)
-        obs = np.concatenate([local_view(core, state.patch), own_history(core, state.collided)],
-                             axis=-1)
-        mask = action_mask(core)
-        logits, gate_logits, values, state.hc = self.policy(
-            torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links),
-            torch.from_numpy(alive_n), state.hc)
-        actions = choice(logits).numpy()
-        gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
+        lv = local_view_size(p.patch_radius)
+        obs = row("obs")
+        if obs is None:
+            obs = np.empty((b, n, self.n_obs), dtype=np.float32)
+        local_view_into(core, state.patch, obs[..., :lv])
+        own_history_into(core, state.collided, obs[..., lv:])
+        mask = row("mask")
+        if mask is None:
+            mask = np.empty((b, n, N_ACTIONS), dtype=bool)
+        action_mask_into(core, mask)
+        with torch.inference_mode():  # rollouts never backpropagate (the update replays)
+            logits, gate_logits, values, state.hc = self.policy(
+                torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links.astype(np.float32)),
+                torch.from_numpy(alive_n), state.hc)
+            actions = choice(logits).numpy()
+            gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
         if p.gate != "learned":
             gates = np.full_like(gates, int(p.gate == "open"))
         state.gate = gates.astype(bool)
         state.running = ~core.ended
-        if state.buffer is not None:
+        if buf is not None:
+            baseline = {}
             if self.central:
-                baseline = critic_inputs(core, self.env.horizon)
+                store_critic_inputs(buf, core, self.env.horizon)
             else:  # the reference's V^i, in return units
-                baseline = {"values": (self.policy.value_norm.denormalize(values)
-                                       if p.value_norm else values).numpy()}
-            state.buffer.add(obs=obs, mask=mask, links=links, alive=alive_n, actions=actions,
-                             gates=gates, active=alive & state.running[:, None], **baseline)
+                with torch.inference_mode():
+                    baseline = {"values": (self.policy.value_norm.denormalize(values)
+                                           if p.value_norm else values).numpy()}
+            buf.add(alive=alive_n, actions=actions, gates=gates, active=alive & state.running[:, None],
+                    **baseline)
         return Decision(actions=actions, payload=payload)
 
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
@@ -338,8 +368,9 @@ class IC3NetMethod(Method):
         totals = dict(action_loss=0.0, value_loss=0.0, entropy=0.0)
         for lo in range(0, t_used, p.detach_gap):
             sl = slice(lo, min(lo + p.detach_gap, t_used))
+            links = torch.from_numpy(buf.data["links"][sl].astype(np.float32))  # once per chunk
             logits, gate_logits, values, hc = self.policy.replay(
-                data["obs"][sl], data["mask"][sl], data["links"][sl], data["alive"][sl], hc)
+                data["obs"][sl], data["mask"][sl], links, data["alive"][sl], hc)
             logp_all = torch.log_softmax(logits, dim=-1)
             logp = logp_all.gather(-1, data["actions"][sl][..., None]).squeeze(-1)
             if learn_gate:

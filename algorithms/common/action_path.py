@@ -28,8 +28,11 @@ class ActionPath(nn.Module):
 
     def forward(self, obs: torch.Tensor, logits: torch.Tensor) -> torch.Tensor:
         """obs (..., F), logits (..., 5) -> logits (..., 5)."""
-        phi = obs[..., self.index].transpose(-1, -2)  # (..., 5, K)
-        return logits + ACTION_GAIN * (phi * self.weight).sum(-1)
+        # index_select of the flattened table: the same (..., K, 5) values and layout as
+        # obs[..., index], without advanced indexing's overhead.
+        k, a = self.index.shape
+        phi = obs.index_select(-1, self.index.reshape(-1)).view(*obs.shape[:-1], k, a).transpose(-1, -2)
+        return logits + ACTION_GAIN * (phi * self.weight).sum(-1)  # phi: (..., 5, K)
 
 
 def progress_index() -> np.ndarray:

@@ -104,8 +104,22 @@ def sample_categorical(logits: torch.Tensor, temperature: float | None,
     if temperature is None:
         return logits.argmax(dim=-1)
     flat = logits.reshape(-1, logits.shape[-1]).double()
-    probs = torch.softmax(flat / float(temperature), dim=-1)
-    return torch.multinomial(probs, 1, generator=gen).reshape(logits.shape[:-1])
+    if float(temperature) != 1.0:  # x / 1.0 is x: skipped at T = 1 (training, 'sample')
+        flat = flat / float(temperature)
+    probs = torch.softmax(flat, dim=-1)
+    return multinomial_one(probs, gen).reshape(logits.shape[:-1])
+
+
+def multinomial_one(probs: torch.Tensor, gen: torch.Generator | None) -> torch.Tensor:
+    """``torch.multinomial(probs, 1, generator=gen)`` for (R, K) probabilities, as torch's
+    CPU kernel computes it (argmax of p / q with q ~ Exp(1) drawn by ``exponential_`` from
+    ``gen``): the same samples and the same generator state afterwards, with one finiteness
+    check instead of torch's several validity reductions (tests/algorithms/test_baseline_fast_paths.py)."""
+    q = torch.empty_like(probs).exponential_(1, generator=gen)
+    torch.div(probs, q, out=q)
+    if not bool(torch.isfinite(probs.sum())):
+        raise RuntimeError("probability tensor contains either `inf`, `nan` or element < 0")
+    return q.argmax(dim=-1, keepdim=True)
 
 
 def action_generator(seed: int, chunk: int) -> torch.Generator:

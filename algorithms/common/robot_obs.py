@@ -21,13 +21,45 @@ import numpy as np
 
 from envs.actions import DELTAS, N_ACTIONS
 from envs.core import WarehouseCore
-from envs.observations import PatchExtractor, feature_size, robot_features
+from envs.observations import (
+    STATE_SIZE,
+    PatchExtractor,
+    feature_size,
+    robot_features,
+)
 
 
 def local_view(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
     """(B, N, local_view_size(k)) float32: a robot's own state, the shelves and the
     robots (any group) in its (2k+1)^2 window."""
     return robot_features(core, patch)
+
+
+def state_features_into(core: WarehouseCore, out: np.ndarray) -> None:
+    """``envs.observations.state_features`` written into ``out`` (a (B, N, 11) float32
+    view) with ``np.take`` gathers: the same arithmetic on the same values, without the
+    concatenate (bit-identical; tests/algorithms/test_baseline_fast_paths.py)."""
+    layout = core.layout
+    h, w = layout.shape
+    scale = np.array([h, w], dtype=np.float32)
+    rc = np.take(layout.cells, core.pos, axis=0).astype(np.float32)  # (B, N, 2)
+    grc = np.take(layout.cells, core.goal, axis=0).astype(np.float32)
+    np.divide(rc, scale, out=out[..., 0:2])
+    np.divide(grc - rc, scale, out=out[..., 2:4])
+    out[..., 4] = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)
+    out[..., 5] = core.done
+    d_next = core.distances_to_goal(np.take(layout.next_cell, core.pos, axis=0))  # (B, N, 5)
+    out[..., 6:11] = (core.dist[..., None] - d_next).astype(np.float32)
+
+
+def local_view_into(core: WarehouseCore, patch: PatchExtractor, out: np.ndarray) -> None:
+    """``local_view`` written into ``out`` (a (B, N, local_view_size(k)) float32 view, e.g.
+    a row of a rollout buffer): the three writes of ``robot_features``, without its
+    (B, N, F) allocation and the caller's copy (same numbers; tests/algorithms/test_robot_obs.py)."""
+    p = patch.offsets.size
+    state_features_into(core, out[..., :STATE_SIZE])
+    np.take(patch.shelf_table(), core.pos, axis=0, out=out[..., STATE_SIZE:STATE_SIZE + p], mode="clip")
+    patch.robots_into(out[..., STATE_SIZE + p:STATE_SIZE + 2 * p])
 
 
 def local_view_size(radius: int) -> int:
@@ -51,6 +83,18 @@ def own_history(core: WarehouseCore, collided: np.ndarray) -> np.ndarray:
 
 
 HISTORY_SIZE = N_ACTIONS + 1
+_ONEHOT = np.eye(N_ACTIONS, dtype=np.float32)
+
+
+def own_history_into(core: WarehouseCore, collided: np.ndarray, out: np.ndarray) -> None:
+    """``own_history`` written into ``out`` (a (B, N, 6) float32 view)."""
+    np.take(_ONEHOT, core.prev_actions, axis=0, out=out[..., :N_ACTIONS], mode="clip")
+    out[..., N_ACTIONS] = collided
+
+
+def action_mask_into(core: WarehouseCore, out: np.ndarray) -> None:
+    """``action_mask`` written into ``out`` (a (B, N, 5) bool view)."""
+    np.take(core.layout.move_valid, core.pos, axis=0, out=out, mode="clip")
 
 
 def action_mask(core: WarehouseCore) -> np.ndarray:

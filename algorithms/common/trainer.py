@@ -34,16 +34,19 @@ def mc_returns(rewards: np.ndarray | torch.Tensor) -> torch.Tensor:
     return torch.flip(torch.cumsum(torch.flip(r, dims=[0]), dim=0), dims=[0])
 
 
-def critic_features(core: WarehouseCore) -> np.ndarray:
+def critic_features(core: WarehouseCore, out: np.ndarray | None = None) -> np.ndarray:
     """(B, N, 6) float32 global state X_t per robot (eq:advantage, V_omega(X_t)):
-    [row/H, col/W, goal row/H, goal col/W, min(D(p, g), H W)/(H+W), done]."""
+    [row/H, col/W, goal row/H, goal col/W, min(D(p, g), H W)/(H+W), done];
+    written into ``out`` (a (B, N, 6) float32 view, e.g. a buffer row) when given."""
     h, w = core.layout.shape
     scale = np.array([h, w], dtype=np.float32)
-    rc = core.layout.cells[core.pos].astype(np.float32) / scale
-    grc = core.layout.cells[core.goal].astype(np.float32) / scale
-    dist = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)[..., None]
-    done = core.done.astype(np.float32)[..., None]
-    return np.concatenate([rc, grc, dist, done], axis=-1)
+    if out is None:
+        out = np.empty(core.pos.shape + (CRITIC_FEATURES,), dtype=np.float32)
+    np.divide(np.take(core.layout.cells, core.pos, axis=0).astype(np.float32), scale, out=out[..., 0:2])
+    np.divide(np.take(core.layout.cells, core.goal, axis=0).astype(np.float32), scale, out=out[..., 2:4])
+    out[..., 4] = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)
+    out[..., 5] = core.done
+    return out
 
 
 def critic_shapes(n: int) -> dict[str, tuple[tuple[int, ...], type]]:
@@ -57,6 +60,12 @@ def critic_inputs(core: WarehouseCore, horizon: int) -> dict[str, np.ndarray]:
             "t_frac": np.full(core.batch, core.t / horizon, dtype=np.float32)}
 
 
+def store_critic_inputs(buffer: RolloutBuffer, core: WarehouseCore, horizon: int) -> None:
+    """``critic_inputs`` written straight into the buffer's current row (no copies)."""
+    critic_features(core, buffer.row("critic"))
+    buffer.row("t_frac")[...] = np.float32(core.t / horizon)
+
+
 class CentralCritic(nn.Module):
     """V_omega(X_t): DeepSets over the robots' global features plus time t / T."""
 
@@ -68,7 +77,9 @@ class CentralCritic(nn.Module):
 
     def forward(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
         """robots (..., N, 6), t_frac (...) -> V (...)."""
-        pooled = self.phi(robots).mean(dim=-2)
+        # sum / N is torch's CPU mean (sum, then divide), bit for bit; its backward divides
+        # the (..., H) gradient before expanding it over the robots instead of after.
+        pooled = self.phi(robots).sum(dim=-2) / robots.shape[-2]
         done_frac = robots[..., 5].mean(dim=-1, keepdim=True)
         return self.rho(torch.cat([pooled, t_frac[..., None], done_frac], dim=-1)).squeeze(-1)
 
@@ -85,6 +96,11 @@ class RolloutBuffer:
     def add(self, **fields: np.ndarray) -> None:
         for key, val in fields.items():
             self.data[key][self.t] = val
+
+    def row(self, key: str) -> np.ndarray:
+        """The current step's slot of a field, (B, ...), to be written in place (instead
+        of ``add``) before ``reward`` advances the step."""
+        return self.data[key][self.t]
 
     def reward(self, reward: np.ndarray, running: np.ndarray) -> None:
         self.rewards[self.t] = reward
