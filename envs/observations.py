@@ -79,6 +79,11 @@ class PatchExtractor:
             table = self._scratch[("cell_table", 0)] = table
         return table
 
+    def shelf_table(self) -> np.ndarray:
+        """(F, P) float32 view: the shelf/wall window of every free cell (``cell_table``'s
+        columns 11:11 + P; the baselines' ``local_view_into`` gathers from it)."""
+        return self.cell_table()[:, STATE_SIZE:STATE_SIZE + self.offsets.size]
+
     def robots_into(self, out: np.ndarray, groups: np.ndarray | None = None) -> None:
         """Write the robot channel of ``__call__``, flattened, into ``out`` (B, N, P), by
         the cheaper of two writers with identical output (``use_pairs``)."""
