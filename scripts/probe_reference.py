@@ -1,6 +1,6 @@
 """Probe the reference layer of trained hierarchical cells (issue 18: does r carry information?).
 
-    .venv/bin/python scripts/probe_reference.py reproduction/convergence [CELL_ID ...] [--episodes 10]
+    .venv/bin/python scripts/probe_reference.py reproduction/paper [CELL_ID ...] [--episodes 10]
 
 For every done hierarchical cell of the run (or the cells named) loads its checkpoint and
 prints one JSON line: the cell's N, p, seed, variant parameters, training episodes, and
