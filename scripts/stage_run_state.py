@@ -9,16 +9,22 @@ Stages what a rerun of ``bench run`` needs to resume and what ``bench report`` r
 when present, and the checkpoints of the cells that are not done (a resumed cell restarts
 from them). Checkpoints of done cells stay out of git (``reproduction/.gitignore``) and are
 removed from the index if an earlier commit held them while the cell was running; the files
-on disk are never touched.
+on disk are never touched. A run that is still going (it holds the run folder's lock) is
+refused: its tables change while git reads them (a done cell could be staged without its
+evaluation rows; tests/reproduction catches that).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
+
+from bench.store import RunStore
+from envs.errors import BenchError
 
 DATA = ("cells.parquet", "manifest.json", "train", "eval", "matrix", "report")
 
@@ -43,6 +49,14 @@ def main() -> int:
     if not (run / "cells.parquet").is_file() or not (run / "manifest.json").is_file():
         print(f"stage_run_state: {run} is not a bench run folder (no cells.parquet/manifest.json)", file=sys.stderr)
         return 2
+    try:  # a live run rewrites its tables while git reads them: stage only a stopped run
+        fd = RunStore(run).lock()
+    except BenchError:
+        print(f"stage_run_state: a bench run is still writing {run}; stop it first (Ctrl-C or SIGTERM keeps "
+              "its checkpoints), then stage", file=sys.stderr)
+        return 2
+    if fd is not None:
+        os.close(fd)
     tracked = set(subprocess.run(["git", "ls-files", "--", str(run / "checkpoints")], capture_output=True,
                                  text=True, check=True).stdout.split())
     add, drop = plan(run, tracked)

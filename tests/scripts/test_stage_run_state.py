@@ -27,3 +27,22 @@ def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: 
                    str(run / "checkpoints" / "bbb.pt")]  # no eval/, matrix/ or report/ yet; ccc has none
     assert drop == [str(run / "checkpoints" / "aaa.pt")]  # done: its checkpoint leaves the index only
     assert (run / "checkpoints" / "aaa.pt").exists()
+
+
+def test_main__refuses_a_run_that_is_still_writing(tmp_path: Path, monkeypatch, capsys) -> None:
+    import os
+    import sys
+
+    from bench.store import RunStore
+
+    run = tmp_path / "paper"
+    run.mkdir()
+    pd.DataFrame({"cell_id": ["aaa"], "status": ["running"]}).to_parquet(run / "cells.parquet")
+    (run / "manifest.json").write_text("{}")
+    fd = RunStore(run).lock()  # what a live `bench run` holds
+    try:
+        monkeypatch.setattr(sys, "argv", ["stage_run_state.py", str(run), "--dry-run"])
+        assert stage.main() == 2
+        assert "still writing" in capsys.readouterr().err
+    finally:
+        os.close(fd)
