@@ -76,6 +76,17 @@ class WarehouseCore:
                 f"reset: starts and goals must both be (B, {self.n}), got {starts.shape} and {goals.shape}"
             )
         b, n, f = starts.shape[0], self.n, self.layout.n_free
+        for name, cells in (("starts", starts), ("goals", goals)):
+            if cells.size and (cells.min() < 0 or cells.max() >= f):
+                raise BenchError(f"reset: {name} must be free-cell indices in 0..{f - 1}, "
+                                 f"got {int(cells.min())}..{int(cells.max())}")
+        # Two robots on one cell would never leave the conflict resolution: refuse them.
+        on_floor = ~(self.remove & (starts == goals))  # a robot starting on its goal is off the floor ("remove")
+        keys = np.sort(np.where(on_floor, starts, -1 - np.arange(n)), axis=1)
+        shared = keys[:, 1:] == keys[:, :-1]
+        if shared.any():
+            e, k = (int(v[0]) for v in np.nonzero(shared))
+            raise BenchError(f"reset: episode {e} has two robots starting on free cell {int(keys[e, k])}")
         self.batch = b
         self.pos = starts.copy()  # (B, N) cell index p_t
         self.goal = goals.copy()  # (B, N) cell index g

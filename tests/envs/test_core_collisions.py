@@ -208,6 +208,28 @@ def test_reset_with_mismatched_shapes_is_rejected() -> None:
         core.reset(np.zeros((1, 3), np.int64), np.ones((1, 3), np.int64))
 
 
+def test_reset_refuses_two_robots_on_one_cell_and_cells_off_the_layout() -> None:
+    """Two robots on one cell would never leave the conflict resolution (a hang), so reset
+    refuses them, naming the episode and the cell; a robot that starts on its own goal is
+    off the floor under "remove" and may share its cell."""
+    core = make_core(OPEN_3X4, [(0, 0), (0, 2)], FAR[:2])
+    starts, goals = core.pos.copy(), core.goal.copy()
+    dup = np.concatenate([starts, starts], axis=0)
+    dup[1, 1] = dup[1, 0]
+    with pytest.raises(BenchError, match=rf"episode 1 has two robots starting on free cell {int(dup[1, 0])}"):
+        core.reset(dup, np.concatenate([goals, goals], axis=0))
+    core.reset(np.array([[goals[0, 0], goals[0, 0]]]), goals)  # robot 0 starts on its goal: off the floor
+    assert core.occupying.tolist() == [[False, True]]
+    stay = make_core(OPEN_3X4, [(0, 0), (0, 2)], FAR[:2], on_goal="stay")
+    with pytest.raises(BenchError, match="two robots starting on free cell"):
+        stay.reset(np.array([[goals[0, 0], goals[0, 0]]]), goals)  # "stay": it occupies its goal
+    f = core.layout.n_free
+    with pytest.raises(BenchError, match=rf"starts must be free-cell indices in 0\.\.{f - 1}, got 0\.\.{f}"):
+        core.reset(np.array([[0, f]]), goals)
+    with pytest.raises(BenchError, match=r"goals must be free-cell indices"):
+        core.reset(starts, np.array([[-1, 3]]))
+
+
 def test_too_many_robots_for_the_layout_is_a_clear_error() -> None:
     layout = from_ascii("..@\n.@@", name="closet")
     with pytest.raises(BenchError, match="'closet' has 3 connected free cells, too few for 4 robots"):
