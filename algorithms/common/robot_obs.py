@@ -26,6 +26,7 @@ from envs.observations import (
     PatchExtractor,
     feature_size,
     robot_features,
+    state_features_into,
 )
 
 
@@ -33,23 +34,6 @@ def local_view(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
     """(B, N, local_view_size(k)) float32: a robot's own state, the shelves and the
     robots (any group) in its (2k+1)^2 window."""
     return robot_features(core, patch)
-
-
-def state_features_into(core: WarehouseCore, out: np.ndarray) -> None:
-    """``envs.observations.state_features`` written into ``out`` (a (B, N, 11) float32
-    view) with ``np.take`` gathers: the same arithmetic on the same values, without the
-    concatenate (bit-identical; tests/algorithms/test_baseline_fast_paths.py)."""
-    layout = core.layout
-    h, w = layout.shape
-    scale = np.array([h, w], dtype=np.float32)
-    rc = np.take(layout.cells, core.pos, axis=0).astype(np.float32)  # (B, N, 2)
-    grc = np.take(layout.cells, core.goal, axis=0).astype(np.float32)
-    np.divide(rc, scale, out=out[..., 0:2])
-    np.divide(grc - rc, scale, out=out[..., 2:4])
-    out[..., 4] = (np.minimum(core.dist, h * w) / float(h + w)).astype(np.float32)
-    out[..., 5] = core.done
-    d_next = core.distances_to_goal(np.take(layout.next_cell, core.pos, axis=0))  # (B, N, 5)
-    out[..., 6:11] = (core.dist[..., None] - d_next).astype(np.float32)
 
 
 def local_view_into(core: WarehouseCore, patch: PatchExtractor, out: np.ndarray) -> None:
