@@ -85,11 +85,15 @@ def write_text(path: Path, text: str) -> Path:
 
 def save_figure(fig: Figure, stem: Path, caption: str = "") -> list[Path]:
     """``stem``.png (200 dpi) and ``stem``.pdf; with a caption, also ``stem``.txt holding it
-    and the caption in the files' metadata (PDF Subject, PNG Description)."""
+    and the caption in the files' metadata (PDF Subject, PNG Description); the PDF has no
+    creation date, so rebuilding a report gives the same bytes."""
     keys = {"png": "Description", "pdf": "Subject"}
+    # No creation date in the PDF: a rebuilt report is byte-identical (tests/reproduction).
+    fixed = {"png": {}, "pdf": {"CreationDate": None}}
     out = [_atomic(stem.with_suffix(f".{fmt}"),
-                   lambda tmp, fmt=fmt: fig.savefig(tmp, format=fmt, dpi=DPI,
-                                                    metadata={keys[fmt]: caption} if caption else None))
+                   lambda tmp, fmt=fmt: fig.savefig(
+                       tmp, format=fmt, dpi=DPI,
+                       metadata={**fixed[fmt], **({keys[fmt]: caption} if caption else {})}))
            for fmt in ("png", "pdf")]
     if caption:
         out.append(write_text(stem.with_suffix(".txt"), caption + "\n"))
@@ -150,6 +154,16 @@ def _calibration(out: Path) -> str | None:
 
     write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta")))
     return "calibration.md"
+
+
+def _shown_path(run_dir: Path) -> str:
+    """The run directory as the index shows it: relative to the working directory when
+    inside it (a committed report does not name the machine it was built on), else absolute."""
+    run = run_dir.resolve()
+    try:
+        return str(run.relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(run)
 
 
 def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper") -> Path:
@@ -230,7 +244,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
         if clip.resolve().parent != (out / "replays").resolve():
             _copy(clip, out / "replays" / clip.name)
     replays = sorted(str(p.relative_to(out)) for k in kinds for p in out.glob(f"replays/{k}"))
-    data = IndexData(str(Path(run_dir).resolve()), store.manifest, store.cells, entries, claims,
+    data = IndexData(_shown_path(Path(run_dir)), store.manifest, store.cells, entries, claims,
                      store.problems, replays, studies_note)
     write_text(out / "index.md", index_markdown(data))
     write_text(out / "index.html", index_html(data))

@@ -5,8 +5,9 @@
 today's grid definition (same cell_id: a changed default or setting would silently orphan the
 committed rows), every done cell must have all its rows (training rows, and evaluation rows in
 every execution mode, episode by episode), and a cell that is not done must have its
-checkpoint committed so that a fresh clone resumes it. When the paper grid is complete this
-module also gets the claims-page rebuild check of issue 13.
+checkpoint committed so that a fresh clone resumes it. The committed report/ of each run is
+what ``bench report`` on the current code rebuilds from its tables (the claims page byte for
+byte), so a stale report or one built by other code cannot stay committed.
 """
 from __future__ import annotations
 
@@ -57,3 +58,27 @@ def test_committed_unfinished_cells__can_resume_from_a_committed_checkpoint(run)
     started = cells[(cells["status"] != "done") & (cells["train_episodes_done"] > 0)]
     for cid in started["cell_id"]:
         assert (store.root / "checkpoints" / f"{cid}.pt").is_file(), f"reproduction/{name}: {cid} has no checkpoint"
+
+
+REBUILT_SUFFIXES = {".md", ".csv", ".tex", ".txt", ".json", ".html"}  # text: compared byte for byte
+
+
+def test_committed_report__is_what_the_current_code_rebuilds(run, tmp_path, monkeypatch) -> None:
+    """``bench report --run reproduction/<name>`` on this checkout gives the committed
+    report/: the same files, and every text file (claims page, tables, captions, index)
+    byte for byte. Figures (PNG, PDF) must exist; their pixels are not compared, since
+    font rasterization may differ between machines."""
+    from reports.build import build_report
+
+    name, _, _ = run
+    committed = ROOT / name / "report"
+    assert (committed / "claims.md").is_file(), f"reproduction/{name}/report/claims.md is not committed"
+    monkeypatch.chdir(ROOT.parent)  # the index names the run relative to the repository
+    out = build_report(Path("reproduction") / name, tmp_path / "report")
+    files = {p.relative_to(committed) for p in committed.rglob("*") if p.is_file()}
+    rebuilt = {p.relative_to(out) for p in out.rglob("*") if p.is_file()}
+    assert files == rebuilt, f"reproduction/{name}/report: files differ from a rebuild"
+    changed = [str(f) for f in sorted(files) if f.suffix in REBUILT_SUFFIXES
+               and (committed / f).read_bytes() != (out / f).read_bytes()]
+    assert not changed, (f"reproduction/{name}/report is stale: {changed} differ from `bench report` "
+                         f"on this code; rebuild it with `bench report --run reproduction/{name}`")
