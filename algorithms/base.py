@@ -164,7 +164,7 @@ class Method(ABC):
         choice = self.execution_choice(execution, seed, chunk)
         batch = EpisodeBatch(self.env, size, batch_rng(seed, EVAL_STREAM, chunk), self.layout)
         scenarios = batch.scenario_hashes()
-        with torch.no_grad():
+        with torch.inference_mode():
             _, rows = self.run(batch, choice)
         for k, row in enumerate(rows):
             row["episode"] = chunk * size + k
@@ -179,7 +179,7 @@ class Method(ABC):
         t0 = time.perf_counter()
         rng = batch_rng(self.seed, TRAIN_STREAM, self.iterations)
         batch = EpisodeBatch(self.env, self.params.batch_episodes, rng, self.layout)
-        with torch.no_grad():
+        with torch.inference_mode():
             state, rows = self.run(batch, ActionChoice.train(self.torch_gen))
         losses = self.update(state)
         wall = (time.perf_counter() - t0) / len(rows)

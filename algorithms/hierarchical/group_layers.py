@@ -89,11 +89,31 @@ def masked_mean(x: torch.Tensor, mask: torch.Tensor, dim: int) -> torch.Tensor:
 
     Over the set axis next to the features (dim -2, every caller) the masked sum is one
     batched matrix product (mask row vector @ x) instead of a masked copy of ``x`` and a
-    reduction; equal up to float summation order (tests/algorithms/hierarchical)."""
+    reduction; equal up to float summation order (tests/algorithms/hierarchical). Its
+    backward is the outer product mask x grad, the same numbers as autograd's bmm backward
+    with an inner size of 1, without its one-column matrix products."""
     m = mask.to(x.dtype)
     if dim in (-2, x.dim() - 2):
-        n, d = x.shape[-2], x.shape[-1]
-        total = torch.bmm(m.reshape(-1, 1, n), x.reshape(-1, n, d)).reshape(*x.shape[:-2], d)
-        return total / m.sum(dim=-1, keepdim=True).clamp_min(1.0)
+        return _MaskedSum.apply(x, m) / m.sum(dim=-1, keepdim=True).clamp_min(1.0)
     m = m.unsqueeze(-1)
     return (x * m).sum(dim=dim) / m.sum(dim=dim).clamp_min(1.0)
+
+
+class _MaskedSum(torch.autograd.Function):
+    """sum_i m_i x_i over the set axis -2 as one batched (1 x n) @ (n x d) product per row.
+
+    Autograd's backward of that bmm is a bmm with inner size 1 (slow on CPU for many tiny
+    rows); the gradient here, m_i * g, is each of its entries computed the same way (one
+    product, nothing summed), so it is bit-identical and an order of magnitude faster.
+    The mask gets no gradient."""
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor, m: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
+        n, d = x.shape[-2], x.shape[-1]
+        ctx.save_for_backward(m)
+        return torch.bmm(m.reshape(-1, 1, n), x.reshape(-1, n, d)).reshape(*x.shape[:-2], d)
+
+    @staticmethod
+    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:  # type: ignore[override]
+        (m,) = ctx.saved_tensors
+        return m.unsqueeze(-1) * grad.unsqueeze(-2), None
