@@ -52,7 +52,7 @@ class GroupMLP(nn.Module):
         for k, layer in enumerate(self.layers):
             x = layer(x)
             if k < len(self.layers) - 1 or self.final_activation:
-                x = torch.relu_(x)  # in place: baddbmm's backward does not need its output
+                x = relu(x)
         return x
 
 
@@ -81,6 +81,13 @@ class GroupGRUCell(nn.Module):
         u = torch.sigmoid(i_z + h_z)
         n = torch.tanh(i_n + r * h_n)
         return (1.0 - u) * n + u * h
+
+
+def relu(x: torch.Tensor) -> torch.Tensor:
+    """ReLU in place when no graph is recorded (rollouts), else out of place: an in-place
+    ReLU on a layer's output (a reshaped view of the matmul result) makes autograd clone
+    and scatter the whole tensor in backward (CopySlices). Same values either way."""
+    return torch.relu(x) if torch.is_grad_enabled() else torch.relu_(x)
 
 
 def masked_mean(x: torch.Tensor, mask: torch.Tensor, dim: int) -> torch.Tensor:

@@ -26,7 +26,7 @@ import torch
 from torch import nn
 
 from algorithms.common.action_path import ACTION_GAIN  # shared with the baselines
-from algorithms.hierarchical.group_layers import GroupMLP, masked_mean
+from algorithms.hierarchical.group_layers import GroupMLP, masked_mean, relu
 from algorithms.hierarchical.messages import GroupStructure
 from envs.actions import DELTAS, N_ACTIONS
 from envs.observations import PatchExtractor
@@ -134,7 +134,7 @@ class LocalPolicy(nn.Module):
         per_row = torch.baddbmm(b, ctx, w[:, d:])  # (Z, M, H') context part + bias
         x = torch.bmm(h.reshape(z, m * n, d), w[:, :d]).reshape(z, m, n, -1) + per_row.unsqueeze(2)
         for k, layer in enumerate(self.head.layers[1:]):
-            x = layer(torch.relu_(x) if k == 0 else x)
+            x = layer(relu(x) if k == 0 else x)
             if k < len(self.head.layers) - 2:
-                x = torch.relu_(x)
+                x = relu(x)
         return x
