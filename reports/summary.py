@@ -26,19 +26,31 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
     """(mean, lo, hi, unit) of ``metric`` over evaluation rows of one configuration.
 
     Mean over seeds (cells) of per-seed means with a Student t CI over seeds (calibrated;
-    a seed bootstrap covers 50-75% at 2-3 seeds); with a single seed, the mean and a
+    a seed bootstrap covers 50-75% at 2-3 seeds), cut at ``metric_range``; with a single seed, the mean and a
     bootstrap CI over its evaluation episodes (unit "episodes"). NaNs are ignored.
     """
     per_seed = rows.groupby("cell_id")[metric].mean().dropna()
+    floor, ceil = metric_range(metric)
     if len(per_seed) >= 2:
         mean, lo, hi = mean_ci(per_seed.to_numpy())
-        return mean, lo, hi, "seeds"
+        return mean, float(np.clip(lo, floor, ceil)), float(np.clip(hi, floor, ceil)), "seeds"
     vals = rows[metric].to_numpy(dtype=np.float64)
     vals = vals[np.isfinite(vals)]
     if vals.size == 0:
         return float("nan"), float("nan"), float("nan"), "-"
     lo, hi = bootstrap_ci(vals, seed=seed)
     return float(vals.mean()), lo, hi, "episodes"
+
+
+def metric_range(metric: str) -> tuple[float, float]:
+    """The values ``metric`` can take: [0, 1] for a rate, [0, inf) for counts and payloads,
+    else unbounded. A t interval over a few seeds can reach past them (a success rate's CI
+    below 0%); it is cut at the range, which keeps its coverage (the true mean is inside)."""
+    if metric.endswith("_rate"):
+        return 0.0, 1.0
+    if metric.startswith(("payload", "mean_candidates", "predictor_error")):
+        return 0.0, float("inf")
+    return float("-inf"), float("inf")
 
 
 def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:

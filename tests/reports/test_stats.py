@@ -345,3 +345,21 @@ def test_convergence__significance_is_strictly_below_alpha():
         assert not sup.supported(alpha=at) and sup.supported(alpha=at + 1e-9), k
         con = _contra(*(at if i == k else 1.0 for i in range(3)))
         assert not con.contradicted(alpha=at) and con.contradicted(alpha=at + 1e-9), k
+
+
+def test_metric_estimate__cuts_a_seed_t_interval_at_the_metrics_range() -> None:
+    """Three seeds with success 0.0, 0.1, 0.9: the t interval reaches below 0, the reported
+    one stops at 0% (and at 100% above); the mean is untouched. A return is unbounded."""
+    import pandas as pd
+
+    from reports.summary import metric_estimate
+
+    rows = pd.DataFrame({"cell_id": ["a", "b", "c"], "success_rate": [0.0, 0.1, 0.9],
+                         "team_return": [0.0, 0.1, 0.9], "mean_candidates": [0.0, 0.1, 0.9]})
+    mean, lo, hi, unit = metric_estimate(rows, "success_rate")
+    assert unit == "seeds" and mean == pytest.approx(1 / 3)
+    assert (lo, hi) == (0.0, 1.0)
+    _, lo_r, hi_r, _ = metric_estimate(rows, "team_return")
+    assert lo_r < -0.5 and hi_r > 1.0
+    _, lo_c, hi_c, _ = metric_estimate(rows, "mean_candidates")
+    assert lo_c == 0.0 and hi_c == hi_r
