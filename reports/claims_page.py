@@ -10,7 +10,7 @@ from collections.abc import Sequence
 import pandas as pd
 
 from reports.claims import Claim
-from reports.verdicts import VERDICTS
+from reports.verdicts import NOT_ENOUGH, VERDICTS
 
 CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test"]
 
@@ -86,4 +86,31 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
                   "|---|---|---|---|---|---|"]
         lines += [f"| {k.scope} | {_esc(k.config)} | {_esc(k.execution)} | {k.verdict} | "
                   f"{_esc(k.numbers)} | {_esc(k.test)} |" for k in c.checks]
+    return "\n".join(lines) + "\n"
+
+
+def claims_table_markdown(claims: Sequence[Claim]) -> str:
+    """The compact claims table the README's Reproduction section embeds
+    (``claims_table.md``): one row per checked configuration and execution mode at the
+    paper's configurations (claim, the paper's statement, configuration, mode, our numbers
+    with their 95% CI, verdict), the claim's name and statement on its first row only;
+    configurations without enough seeds are counted under the table instead of listed."""
+    lines = ["| claim | paper | configuration | execution | our numbers (95% CI) | verdict |",
+             "|---|---|---|---|---|---|"]
+    missing: dict[str, int] = {}
+    for c in claims:
+        first = True
+        for k in c.checks:
+            if k.scope != "paper":
+                continue
+            if k.verdict == NOT_ENOUGH:
+                missing[c.key] = missing.get(c.key, 0) + 1
+                continue
+            who = f"**{_esc(c.name)}** | {_esc(c.statement)}" if first else " | "  # once per claim
+            lines.append(f"| {who} | {_esc(k.config)} | {_esc(k.execution)} | {_esc(k.numbers)} | "
+                         f"**{k.verdict}** |")
+            first = False
+    if missing:
+        lines += ["", "Not enough seeds yet (checks per claim): "
+                  + ", ".join(f"`{key}` {n}" for key, n in missing.items()) + "."]
     return "\n".join(lines) + "\n"

@@ -21,7 +21,13 @@ from reports.claims import (
     per_cell,
     with_execution,
 )
-from reports.claims_page import calibration_markdown, claims_frame, claims_markdown, claims_summary
+from reports.claims_page import (
+    calibration_markdown,
+    claims_frame,
+    claims_markdown,
+    claims_summary,
+    claims_table_markdown,
+)
 from reports.stats import t_test
 from reports.verdicts import (
     BY_CONSTRUCTION,
@@ -328,3 +334,20 @@ def test_smoke_store__every_statistical_claim_lacks_seeds():
     for c in all_claims(joined(cells, train), joined(cells, evals), at="run", cells=cells):
         if c.key in STATISTICAL:
             assert {k.verdict for k in c.checks} == {NOT_ENOUGH}, c.key
+
+
+def test_claims_table__lists_checked_configurations_and_counts_the_rest():
+    """The README's table: a row per paper-scope check with data, the claim's name and
+    statement once, run-scope checks left out, not-enough-seeds checks counted."""
+    from reports.claims import Check, Claim
+
+    c = Claim("k", "Name", "Statement.", "crit", [
+        Check("N = 20", "supported", "x 1 [0, 2]", "t", "argmax"),
+        Check("N = 40", "contradicted", "x 3 [2, 4]", "t", "sample"),
+        Check("N = 60", NOT_ENOUGH, "1 vs 0 seeds", "-", "argmax"),
+        Check("N = 8", "supported", "run only", "t", "argmax", scope="run")])
+    lines = claims_table_markdown([c]).splitlines()
+    assert lines[2] == "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |"
+    assert lines[3] == "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"
+    assert len([x for x in lines if x.startswith("|")]) == 4
+    assert lines[-1] == "Not enough seeds yet (checks per claim): `k` 1."

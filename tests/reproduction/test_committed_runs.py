@@ -82,3 +82,17 @@ def test_committed_report__is_what_the_current_code_rebuilds(run, tmp_path, monk
                and (committed / f).read_bytes() != (out / f).read_bytes()]
     assert not changed, (f"reproduction/{name}/report is stale: {changed} differ from `bench report` "
                          f"on this code; rebuild it with `bench report --run reproduction/{name}`")
+
+
+def test_readme__claims_table_is_the_committed_reports() -> None:
+    """The README's Reproduction section shows the committed report's claims table
+    verbatim (``scripts/sync_readme_claims.py`` copies it), so its verdicts cannot drift."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("sync", ROOT.parent / "scripts" / "sync_readme_claims.py")
+    sync = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sync)  # type: ignore[union-attr]
+    block = sync.readme_block((ROOT.parent / "README.md").read_text(encoding="utf-8"))
+    table = (ROOT / "paper" / "report" / "claims_table.md").read_text(encoding="utf-8")
+    assert block == table, "README's claims table differs from reproduction/paper/report/claims_table.md; " \
+                           "run scripts/sync_readme_claims.py"
