@@ -29,7 +29,12 @@ from bench.completeness import incomplete_cells
 from bench.store import DiskFull, RunStore, file_mode, is_disk_full
 from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
 from reports.claims import all_claims
-from reports.claims_page import calibration_markdown, claims_frame, claims_markdown, claims_table_markdown
+from reports.claims_page import (
+    calibration_markdown,
+    claims_frame,
+    claims_markdown,
+    claims_table_markdown,
+)
 from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
