@@ -32,8 +32,9 @@ from algorithms.registry import method_class
 from envs.config import EnvConfig
 method, n, layout = sys.argv[2], int(sys.argv[3]), sys.argv[4]
 warmup, iterations, horizon, batch, warm_fields = (int(v) for v in sys.argv[5:10])
+extra = json.loads(sys.argv[10])
 env = EnvConfig.make(n_robots=n, layout=layout, horizon=horizon, loss_p=0.2, groups=min(4, n))
-m = method_class(method)(env, {"batch_episodes": batch}, seed=0)
+m = method_class(method)(env, {"batch_episodes": batch, **extra}, seed=0)
 if warm_fields:  # steady state: every goal's distance field already known (both checkouts)
     import numpy as np
     from envs.distances import distance_cache
@@ -52,7 +53,7 @@ print(json.dumps({"steps": steps, "wall_s": wall, "cpu_s": cpu}))
 def measure(tree: Path, method: str, n: int, layout: str, args: argparse.Namespace) -> dict:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "PYTHONPATH": str(tree)}
     cmd = [sys.executable, "-c", SNIPPET, str(tree), method, str(n), layout, str(args.warmup),
-           str(args.iterations), str(args.horizon), str(args.batch), str(int(not args.cold_fields))]
+           str(args.iterations), str(args.horizon), str(args.batch), str(int(not args.cold_fields)), args.params]
     out = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -72,6 +73,9 @@ def main() -> None:
     ap.add_argument("--cold-fields", action="store_true",
                     help="do not precompute every goal's distance field first (default: steady state, "
                          "as after the first few dozen updates of a cell)")
+    ap.add_argument("--params", default="{}",
+                    help='method parameters for both checkouts (JSON), e.g. \'{"hidden": 64}\' to compare '
+                         'the same network when the defaults differ between them')
     ap.add_argument("--json", type=Path, default=None, help="also write every measurement here")
     args = ap.parse_args()
     trees = {"base": args.base.resolve(), "new": args.new.resolve()}
