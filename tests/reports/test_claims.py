@@ -338,16 +338,21 @@ def test_smoke_store__every_statistical_claim_lacks_seeds():
 
 def test_claims_table__lists_checked_configurations_and_counts_the_rest():
     """The README's table: a row per paper-scope check with data, the claim's name and
-    statement once, run-scope checks left out, not-enough-seeds checks counted."""
+    statement once, run-scope checks left out, not-enough-seeds checks counted per claim,
+    wherever they come in the list."""
     from reports.claims import Check, Claim
 
     c = Claim("k", "Name", "Statement.", "crit", [
-        Check("N = 20", "supported", "x 1 [0, 2]", "t", "argmax"),
-        Check("N = 40", "contradicted", "x 3 [2, 4]", "t", "sample"),
         Check("N = 60", NOT_ENOUGH, "1 vs 0 seeds", "-", "argmax"),
-        Check("N = 8", "supported", "run only", "t", "argmax", scope="run")])
-    lines = claims_table_markdown([c]).splitlines()
-    assert lines[2] == "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |"
-    assert lines[3] == "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"
-    assert len([x for x in lines if x.startswith("|")]) == 4
-    assert lines[-1] == "Not enough seeds yet (checks per claim): `k` 1."
+        Check("N = 8", "supported", "run only", "t", "argmax", scope="run"),
+        Check("N = 20", "supported", "x 1 [0, 2]", "t", "argmax"),
+        Check("N = 80", NOT_ENOUGH, "0 seeds", "-", "argmax"),
+        Check("N = 40", "contradicted", "x 3 [2, 4]", "t", "sample")])
+    other = Claim("j", "Other", "More.", "crit", [Check("N = 90", NOT_ENOUGH, "0 seeds", "-", "argmax")])
+    lines = claims_table_markdown([c, other]).splitlines()
+    assert lines[:4] == [
+        "| claim | paper | configuration | execution | our numbers (95% CI) | verdict |",
+        "|---|---|---|---|---|---|",
+        "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |",
+        "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"]
+    assert lines[4:] == ["", "Not enough seeds yet (checks per claim): `k` 2, `j` 1."]

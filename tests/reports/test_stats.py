@@ -363,3 +363,20 @@ def test_metric_estimate__cuts_a_seed_t_interval_at_the_metrics_range() -> None:
     assert lo_r < -0.5 and hi_r > 1.0
     _, lo_c, hi_c, _ = metric_estimate(rows, "mean_candidates")
     assert lo_c == 0.0 and hi_c == hi_r
+
+
+def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -> None:
+    """Two seeds are enough for the seed t interval (cut at the range: a payload is never
+    negative); one seed falls back to a bootstrap over its episodes, inside their range."""
+    import pandas as pd
+
+    from reports.summary import metric_estimate
+
+    two = pd.DataFrame({"cell_id": ["a", "b"], "payload_scalars_per_step": [0.0, 10.0],
+                        "predictor_error": [0.0, 10.0]})
+    for metric in ("payload_scalars_per_step", "predictor_error"):
+        mean, lo, hi, unit = metric_estimate(two, metric)
+        assert (mean, lo, unit) == (5.0, 0.0, "seeds") and hi > 10.0
+    one = pd.DataFrame({"cell_id": ["a"] * 4, "success_rate": [0.0, 1.0, 1.0, float("nan")]})
+    mean, lo, hi, unit = metric_estimate(one, "success_rate")
+    assert unit == "episodes" and mean == pytest.approx(2 / 3) and 0.0 <= lo <= mean <= hi <= 1.0
