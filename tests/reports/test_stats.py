@@ -380,3 +380,19 @@ def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -
     one = pd.DataFrame({"cell_id": ["a"] * 4, "success_rate": [0.0, 1.0, 1.0, float("nan")]})
     mean, lo, hi, unit = metric_estimate(one, "success_rate")
     assert unit == "episodes" and mean == pytest.approx(2 / 3) and 0.0 <= lo <= mean <= hi <= 1.0
+
+
+def test_metric_estimate__no_finite_value_gives_nan_and_the_bootstrap_is_seeded() -> None:
+    import math
+
+    import pandas as pd
+
+    from reports.summary import metric_estimate
+
+    empty = pd.DataFrame({"cell_id": ["a", "a"], "success_rate": [float("nan")] * 2})
+    got = metric_estimate(empty, "success_rate")
+    assert all(math.isnan(v) for v in got[:3]) and got[3] == "-"
+    single = pd.DataFrame({"cell_id": ["a"] * 2, "success_rate": [0.5, float("nan")]})
+    assert metric_estimate(single, "success_rate")[:3] == (0.5, 0.5, 0.5)  # one finite value
+    one = pd.DataFrame({"cell_id": ["a"] * 6, "success_rate": [0.0, 0.2, 0.3, 0.9, 1.0, 0.4]})
+    assert metric_estimate(one, "success_rate") == metric_estimate(one, "success_rate")
