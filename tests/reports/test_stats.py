@@ -394,5 +394,5 @@ def test_metric_estimate__no_finite_value_gives_nan_and_the_bootstrap_is_seeded(
     assert all(math.isnan(v) for v in got[:3]) and got[3] == "-"
     single = pd.DataFrame({"cell_id": ["a"] * 2, "success_rate": [0.5, float("nan")]})
     assert metric_estimate(single, "success_rate")[:3] == (0.5, 0.5, 0.5)  # one finite value
-    one = pd.DataFrame({"cell_id": ["a"] * 6, "success_rate": [0.0, 0.2, 0.3, 0.9, 1.0, 0.4]})
+    one = pd.DataFrame({"cell_id": ["a"] * 40, "success_rate": np.random.default_rng(3).random(40)})
     assert metric_estimate(one, "success_rate") == metric_estimate(one, "success_rate")
