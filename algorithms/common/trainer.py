@@ -9,8 +9,8 @@
   every actor, optionally divided by its batch RMS (the same normalization for every
   method); ``policy_gradient_losses``: the actor loss -A log pi and the critic loss
   (V - G)^2 (eq:losses) built on it.
-* ``critic_loss``, ``clip_and_step``, ``critic_update``: the one critic update of every
-  learned method (masked squared return error, global gradient-norm clip, Adam step;
+* ``critic_loss``, ``clip_and_step``, ``critic_step`` / ``critic_update``: the one critic
+  update of every learned method (masked squared return error, global gradient-norm clip, Adam step;
   Algorithm 2 line "Update centralized critic V_omega"). The actors use ``clip_and_step``
   too, so every learned method clips its gradients alike (``max_grad_norm``).
 * ``critic_inputs`` / ``critic_shapes``: what a rollout stores for the critic, X_t and t/T.
@@ -182,9 +182,11 @@ def clip_and_step(optimizer: torch.optim.Optimizer, max_grad_norm: float) -> flo
 
 @dataclass
 class CriticStep:
-    """What ``critic_update`` gives the actor update: the detached team advantage adv and
-    returns G (T, B), the running mask (T, B), n running steps, the critic loss."""
+    """What ``critic_step`` gives the actor update: the detached values V(X_t) before the
+    step, team advantage adv and returns G (T, B), the running mask (T, B), n running
+    steps, the critic loss."""
 
+    values: torch.Tensor
     adv: torch.Tensor
     returns: torch.Tensor
     mask: torch.Tensor
@@ -192,22 +194,33 @@ class CriticStep:
     loss: float
 
 
-def critic_update(
-    critic: CentralCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
-    normalize: bool, max_grad_norm: float,
+def critic_step(
+    critic: CentralCritic, optimizer: torch.optim.Optimizer, states: torch.Tensor, t_frac: torch.Tensor,
+    rewards: np.ndarray, running: np.ndarray, normalize: bool, max_grad_norm: float,
 ) -> CriticStep:
     """One step of V_omega on a finished batch, and the team advantage for the actors.
 
-    Reads ``critic`` (T, B, N, 6) and ``t_frac`` (T, B) from ``buf`` (stored with
-    ``critic_inputs``). A_t = G_t - V(X_t) is computed with the values before the step
-    (eq:advantage; detached, so the actor loss never trains the critic), then
+    states (T, B, N, 6) X_t, t_frac (T, B), rewards and running (T, B). One forward over
+    the whole batch: A_t = G_t - V(X_t) is computed with these values, before the step
+    (eq:advantage; detached, so the actor loss never trains the critic), and
     L_V = sum (V - G)^2 / n over running steps (eq:losses) is minimized by one clipped
-    optimizer step (Algorithm 2: "Update centralized critic V_omega").
+    optimizer step (Algorithm 2: "Update centralized critic V_omega"). Every learned
+    method's critic is stepped here.
     """
-    values = critic(buf.tensor("critic"), buf.tensor("t_frac"))  # (T, B)
-    adv, g, mask, n = team_advantage(values, buf.rewards[: buf.t], buf.running[: buf.t], normalize)
+    values = critic(states, t_frac)  # (T, B)
+    adv, g, mask, n = team_advantage(values, rewards, running, normalize)
     loss = critic_loss(values, g, mask, n)
     optimizer.zero_grad()
     loss.backward()
     clip_and_step(optimizer, max_grad_norm)
-    return CriticStep(adv, g, mask, n, float(loss.detach()))
+    return CriticStep(values.detach(), adv, g, mask, n, float(loss.detach()))
+
+
+def critic_update(
+    critic: CentralCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
+    normalize: bool, max_grad_norm: float,
+) -> CriticStep:
+    """``critic_step`` on a rollout buffer that stored ``critic`` (T, B, N, 6) and
+    ``t_frac`` (T, B) with ``critic_inputs``."""
+    return critic_step(critic, optimizer, buf.tensor("critic"), buf.tensor("t_frac"),
+                       buf.rewards[: buf.t], buf.running[: buf.t], normalize, max_grad_norm)

@@ -55,8 +55,8 @@ def neighbor_patches(patch: PatchExtractor, gs: GroupStructure, cells: np.ndarra
     grid[cells_hit] = counts
     core = patch.core
     row = (np.arange(b)[:, None] * z + gs.groups[None, :]) * size  # (B, N)
-    idx = (row + patch.center[core.pos])[..., None] + patch.offsets  # (B, N, P)
-    out = grid[np.concatenate([idx, idx + plane], axis=-1)]
+    windows = np.concatenate([patch.offsets, patch.offsets + plane])  # both channels, (2P,)
+    out = np.take(grid, (row + patch.center[core.pos])[..., None] + windows)  # (B, N, 2P)
     grid[cells_hit] = 0
     return np.minimum(out, 255).astype(np.uint8)
 
@@ -117,7 +117,10 @@ class LocalPolicy(nn.Module):
         table = self.ref_embed.expand(z, -1, -1) if self.ref_embed.shape[0] != z else self.ref_embed
         e = torch.gather(table, 1, ref.reshape(z, m, 1).expand(z, m, table.shape[-1]))  # (Z, M, H)
         logits = self._head(h, torch.cat([pooled, e], dim=-1))
-        phi = robots[..., self.action_idx].transpose(-1, -2)  # (Z, M, n, 5, 2)
+        # index_select of the flattened table: robots[..., action_idx] without advanced
+        # indexing's overhead (the same values and layout, as in ``ActionPath``).
+        k, a = self.action_idx.shape
+        phi = robots.index_select(-1, self.action_idx.reshape(-1)).view(z, m, n, k, a).transpose(-1, -2)
         logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
         return torch.log_softmax(logits.masked_fill(~action_mask, -1e9), dim=-1)
 

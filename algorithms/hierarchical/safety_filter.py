@@ -216,25 +216,27 @@ class SafetyFilter:
 
     @staticmethod
     def _level2(sel, m, ctl, p, new, u_alt, conf, c1, bad, bad_total, deg, pairs_total, p0, delta):
-        """Deviation 2, dense over (i, j, a, b) with i < j: (U', K) ok, score, exists."""
+        """Deviation 2 over the robot pairs i < j (lexicographic) and their controls (a, b):
+        (U', K) ok, score, exists with K = C(m, 2) x 16, in the level's order."""
         s = sel.size
-        nw, ua, cf, c = new[sel, :m], u_alt[sel, :m], conf[sel, :m, :, :m], c1[sel, :m]
+        iu, ju = _pairs(m)  # (P,) each
+        nw, ua, c = new[sel, :m], u_alt[sel, :m], c1[sel, :m]
         # Robot pair (i, j): the rest of the proposal is clean once i and j change.
-        base = ((bad_total[sel, None, None] - bad[sel, :m, None] - bad[sel, None, :m]) == 0) & (
-            (pairs_total[sel, None, None] - deg[sel, :m, None] - deg[sel, None, :m] + p0[sel, :m, :m]) == 0)
-        # (i, a) is clean against every unchanged robot but j: (U', i, a, j).
-        clean = (c[..., None] - cf) == 0
-        clean_i = clean.transpose(0, 1, 3, 2)[:, :, :, :, None]  # (U', i, j, a, 1)
-        clean_j = clean.transpose(0, 3, 1, 2)[:, :, :, None, :]  # (U', i, j, 1, b)
-        ni, nj = nw[:, :, None, :, None], nw[:, None, :, None, :]
-        clash = (ni == nj) | ((ni == p[sel, None, :m, None, None]) & (nj == p[sel, :m, None, None, None]))
+        base = ((bad_total[sel, None] - bad[sel][:, iu] - bad[sel][:, ju]) == 0) & (
+            (pairs_total[sel, None] - deg[sel][:, iu] - deg[sel][:, ju] + p0[sel][:, iu, ju]) == 0)  # (U', P)
+        # (i, a) is clean against every unchanged robot but j: clean[u, i, j, a].
+        clean = ((c[..., None] - conf[sel, :m, :, :m]) == 0).transpose(0, 1, 3, 2)
+        clean_i = clean[:, iu, ju][..., :, None]  # (U', P, a, 1)
+        clean_j = clean[:, ju, iu][..., None, :]  # (U', P, 1, b)
+        ni, nj = nw[:, iu][..., :, None], nw[:, ju][..., None, :]
+        ps = p[sel]
+        clash = (ni == nj) | ((ni == ps[:, ju, None, None]) & (nj == ps[:, iu, None, None]))
         ok = (base[..., None, None] & clean_i & clean_j & ~clash
-              & ua[:, :, None, :, None] & ua[:, None, :, None, :])
-        exists = (ctl[sel, :m, None] & ctl[sel, None, :m] & np.triu(np.ones((m, m), bool), 1))
-        exists = np.broadcast_to(exists[..., None, None], ok.shape)
-        score = delta[sel, :m, None, :, None] + delta[sel, None, :m, None, :]
-        rob, alt = _level_tables_dense2(m)
-        k = m * m * 16
+              & ua[:, iu][..., :, None] & ua[:, ju][..., None, :])
+        exists = np.broadcast_to((ctl[sel][:, iu] & ctl[sel][:, ju])[..., None, None], ok.shape)
+        score = delta[sel][:, iu][..., :, None] + delta[sel][:, ju][..., None, :]
+        rob, alt = _level_tables(m, 2)  # the same (i < j, a, b) order
+        k = iu.size * 16
         return (ok & exists).reshape(s, k), score.reshape(s, k), exists.reshape(s, k), rob, alt
 
     @staticmethod
@@ -272,8 +274,7 @@ def _level_tables_dense1(m: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @lru_cache(maxsize=64)
-def _level_tables_dense2(m: int) -> tuple[np.ndarray, np.ndarray]:
-    """(16 m^2, 2) slots and alternatives of the dense (i, j, a, b) layout of deviation 2."""
-    i, j, a, b = np.meshgrid(np.arange(m), np.arange(m), np.arange(4), np.arange(4), indexing="ij")
-    return (np.stack([i.reshape(-1), j.reshape(-1)], axis=1),
-            np.stack([a.reshape(-1), b.reshape(-1)], axis=1))
+def _pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Robot slot pairs i < j over the first m slots, lexicographic: (P,) i and (P,) j."""
+    return np.triu_indices(m, 1)
+

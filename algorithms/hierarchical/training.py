@@ -1,8 +1,8 @@
 """The updates of the hierarchical method from one finished rollout batch.
 
 * ``policy_update`` (eq:training_return, eq:advantage, eq:losses): the centralized critic
-  V_omega(X_t) gives the team advantage A_t = G_t - V(X_t) (shared trainer,
-  ``team_advantage``); the same A_t weighs log mu(r_t^z | o_t^z) + log pi(U~_t^z | w_t^z)
+  V_omega(X_t) is stepped and gives the team advantage A_t = G_t - V(X_t) (shared trainer,
+  ``critic_step``, as every learned method); the same A_t weighs log mu(r_t^z | o_t^z) + log pi(U~_t^z | w_t^z)
   of every group (the policy gradient is on the sampled policy outputs, the filter is part
   of the transition). Rows are the running (t, b) steps, processed in time chunks, each
   with its own backward pass (the losses are sums, so the gradient is the full-batch one).
@@ -10,7 +10,9 @@
 * ``predictor_update`` (eq:gru_pred_loss): the GRU predictors are unrolled over the whole
   episode from the stored true messages and availabilities; the squared error of the
   predicted messages on lost links only is minimized with its own Adam optimizer.
-  Memory stays bounded with activation checkpointing over time chunks.
+  The encoder and the decoder run in time chunks; no activation checkpointing: the
+  recomputation made the update 1.7x slower and did not lower the process's peak memory,
+  which the policy update sets (measured at N = 100, horizon 500; docs/decisions.md).
 """
 from __future__ import annotations
 
@@ -18,15 +20,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
-from torch.utils.checkpoint import checkpoint
 
-from algorithms.common.trainer import (
-    RolloutBuffer,
-    clip_and_step,
-    critic_loss,
-    mc_returns,
-    team_advantage,
-)
+from algorithms.common.trainer import RolloutBuffer, clip_and_step, critic_step, mc_returns
 from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
@@ -46,10 +41,11 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
     running, rewards = buf.running[:t_used], buf.rewards[:t_used]
     t_frac = torch.from_numpy(
         np.broadcast_to((np.arange(t_used, dtype=np.float32) / method.env.horizon)[:, None], running.shape).copy())
-    crit = torch.from_numpy(d["critic"])
-    with torch.no_grad():
-        values = method.critic(crit, t_frac)
-    adv, ret, _, n = team_advantage(values, rewards, running, p.normalize_advantage)
+    # The critic first (its own parameters and optimizer): one step on the whole batch,
+    # and the team advantage from its values before the step.
+    crit = critic_step(method.critic, method.opt_critic, torch.from_numpy(d["critic"]), t_frac,
+                       rewards, running, p.normalize_advantage, p.max_grad_norm)
+    values, adv, ret, n = crit.values, crit.adv, crit.returns, crit.n
     tt, bb = np.nonzero(running)
     groups_on = method.group_major(d["controlled"][tt, bb], False).any(-1).numpy() & d["ref_new"][tt, bb].T
     n_group = torch.tensor(float(max(1, groups_on.sum())))  # group-steps where mu drew r
@@ -60,8 +56,7 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
         adv_r = group_advantage(method, values, d["group_reward"], running, p.normalize_advantage)
 
     method.opt_policy.zero_grad(set_to_none=True)
-    method.opt_critic.zero_grad(set_to_none=True)
-    sums = {"actor_loss": 0.0, "critic_loss": 0.0, "entropy_ref": 0.0, "entropy_local": 0.0}
+    sums = {"actor_loss": 0.0, "critic_loss": crit.loss, "entropy_ref": 0.0, "entropy_local": 0.0}
     rows = p.update_chunk * running.shape[1]
     for s in range(0, len(tt), rows):
         r_t, r_b = tt[s : s + rows], bb[s : s + rows]
@@ -79,13 +74,10 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
                   + (adv_r[r_t, r_b].T * lp_r).sum()) / n
         ent_r = (_entropy(ref_logp) * decided).sum() / n_group
         ent_u = (_entropy(logp) * mask).sum() / n_robot
-        v = method.critic(crit[r_t, r_b], t_frac[r_t, r_b])
-        critic = critic_loss(v, ret[r_t, r_b], 1.0, n)  # eq:losses (L_V), running rows only
-        (actor - ref_coef * ent_r - p.entropy_coef * ent_u + critic).backward()
-        for key, val in zip(sums, (actor, critic, ent_r, ent_u), strict=True):
+        (actor - ref_coef * ent_r - p.entropy_coef * ent_u).backward()
+        for key, val in (("actor_loss", actor), ("entropy_ref", ent_r), ("entropy_local", ent_u)):
             sums[key] += float(val.detach())
     clip_and_step(method.opt_policy, p.max_grad_norm)
-    clip_and_step(method.opt_critic, p.max_grad_norm)
     sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
     return sums
 
@@ -133,7 +125,8 @@ def predictor_targets(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[st
 
 def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chunk: int) -> torch.Tensor:
     """L_c (eq:gru_pred_loss) of ``model`` on ``predictor_targets`` data, unrolled from the
-    episode start (h = 0); differentiable, memory bounded by ``chunk`` time steps."""
+    episode start (h = 0); differentiable. The encoder and decoder run over ``chunk`` time
+    steps (resp. ``chunk`` x B x K lost links) at a time, the loss summed over the chunks."""
     z, t_used, b, k = data["avail"].shape
     avail_f = data["avail"].unsqueeze(-1).unsqueeze(-1).to(torch.float32)
     def rows(a: torch.Tensor, sl: slice) -> torch.Tensor:  # (Z, T, B, ...) -> (Z, t*B, ...)
@@ -142,8 +135,8 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     xs = []
     for s in range(0, t_used, chunk):
         sl = slice(s, s + chunk)
-        x = checkpoint(model.encode, rows(data["link"] * avail_f, sl), rows(data["avail"], sl),
-                       rows(data["age"], sl), rows(data["own"], sl), use_reentrant=False)
+        x = model.encode(rows(data["link"] * avail_f, sl), rows(data["avail"], sl),
+                         rows(data["age"], sl), rows(data["own"], sl))
         xs.append(x.reshape(z, -1, b, k, x.shape[-1]))
     x = torch.cat(xs, dim=1)
     h = torch.zeros(z, b, k, model.hidden)
@@ -176,12 +169,8 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     for s in range(0, width, rows):
         sl = slice(s, s + rows)
 
-        def chunk_loss(h_c, mem_c, age_c, tgt_c, valid_c, slots_c):
-            pred = model.decode(h_c, mem_c, age_c)
-            return predictor_loss(pred, tgt_c, valid_c, slots_c, data["n_group_steps"])
-
-        total = total + checkpoint(chunk_loss, h_sel[:, sl], mem[:, sl], age[:, sl], target[:, sl],
-                                   valid[:, sl], slots[:, sl], use_reentrant=False)
+        pred = model.decode(h_sel[:, sl], mem[:, sl], age[:, sl])
+        total = total + predictor_loss(pred, target[:, sl], valid[:, sl], slots[:, sl], data["n_group_steps"])
     return total
 
 
