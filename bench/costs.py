@@ -28,10 +28,12 @@ if TYPE_CHECKING:
 # `scripts/perf_compare.py --sizes 20 40 100 --rounds 2 --iterations 2` (MovingAI map,
 # batch 8, horizon 200, process CPU time, medians; the box was shared, load average
 # 12-19, so its absolute rates are low and only the ratios are used): hierarchical 1.37x
-# (N=20) / 1.24x (N=100), decentralized 0.99x / 1.41x, IC3Net 1.34x / 1.15x. Re-measure on
+# (N=20) / 1.24x (N=100), decentralized 0.99x / 1.41x, IC3Net 1.34x / 1.15x; hierarchical
+# training then times the 1.11x (N=40, used for N=20) / 1.34x (N=100) of commit 8bdc317 over
+# 60770c5 measured the same way on 2026-12-02 (quiet box, 2 rounds). Re-measure on
 # your machine with `bench perf --suite train` (env-steps/s per cell, wall and CPU).
 AGENT_STEPS_PER_S: dict[str, dict[str, dict[int, float]]] = {
-    "hierarchical": {"train": {20: 38_000.0, 100: 76_000.0}, "eval": {20: 49_000.0, 100: 116_000.0}},
+    "hierarchical": {"train": {20: 42_000.0, 100: 102_000.0}, "eval": {20: 49_000.0, 100: 116_000.0}},
     "decentralized": {"train": {20: 108_000.0, 100: 113_000.0}, "eval": {20: 160_000.0, 100: 163_000.0}},
     "ic3net": {"train": {20: 82_000.0, 100: 115_000.0}, "eval": {20: 180_000.0, 100: 254_000.0}},
     "pibt": {"train": {20: float("inf"), 100: float("inf")}, "eval": {20: 330_000.0, 100: 330_000.0}},
