@@ -214,6 +214,17 @@ def test_safety__collisions_and_corrections():
     assert check_corrections(np.array([0.03, 0.03]))[0] == NOT_ENOUGH
 
 
+def test_correction_claim__shows_its_interval_cut_at_the_rates_range() -> None:
+    """A t interval over three spread seeds reaches past 0% and 100%; the page shows it cut
+    at [0, 1] (the reading the README once showed as "[-11.22%, 105.29%]"), while the
+    verdict still comes from the uncut test."""
+    verdict, nums, _ = check_corrections(np.array([0.02, 0.60, 0.99]))
+    assert "[95% CI 0.00%, 100.00%]" in nums
+    assert verdict == INCONCLUSIVE
+    verdict, nums, _ = check_corrections(np.array([0.02, 0.03, 0.30]))
+    assert "[95% CI 0.00%, " in nums and "100.00%" not in nums
+
+
 def test_safety__per_execution_mode_with_the_measured_collision_rate():
     rng = np.random.default_rng(2)
     ok = np.zeros((3, 10))
