@@ -53,6 +53,29 @@ def test_committed_done_cells__have_every_row_in_every_mode(run) -> None:
         assert per_mode == want, f"reproduction/{name}: {row.cell_id} ({row.method}) eval rows per mode"
 
 
+def missing_cells(name: str, cells: pd.DataFrame) -> list[str]:
+    """Cells of the ``name`` grid (its default seeds, at least 3) not committed as done."""
+    grid = BUILTIN[name](seeds=max(3, DEFAULT_SEEDS[name]))
+    done = set(cells.loc[cells["status"] == "done", "cell_id"])
+    return sorted(f"{c.method} N={c.n_robots} p={c.loss_p} seed={c.seed}" for c in grid.cells
+                  if c.cell_id not in done)
+
+
+def test_committed_ablation__is_complete() -> None:
+    cells = RunStore(ROOT / "ablation").read_cells()
+    assert missing_cells("ablation", cells) == []
+
+
+@pytest.mark.xfail(strict=True, reason="issue 13: the paper grid is still running across sessions; "
+                   "remove this marker when the run is complete (strict: the test fails once it passes)")
+def test_committed_paper__is_complete_for_three_seeds() -> None:
+    """Issue 13's done criterion: every cell of the paper grid done for >= 3 seeds (each
+    done cell's rows in every mode are checked above)."""
+    cells = RunStore(ROOT / "paper").read_cells()
+    missing = missing_cells("paper", cells)
+    assert missing == [], f"reproduction/paper: {len(missing)} cells not done, e.g. {missing[:3]}"
+
+
 def test_committed_unfinished_cells__can_resume_from_a_committed_checkpoint(run) -> None:
     name, store, cells = run
     started = cells[(cells["status"] != "done") & (cells["train_episodes_done"] > 0)]
