@@ -20,6 +20,7 @@ from algorithms.common.trainer import (
     critic_update,
     mc_returns,
     policy_gradient_losses,
+    store_critic_inputs,
     team_advantage,
 )
 from algorithms.registry import method_class
@@ -140,6 +141,10 @@ def test_critic_features__hand_example():
     buf = RolloutBuffer(8, 1, critic_shapes(2))
     buf.add(**inputs)
     assert buf.data["critic"].shape == (8, 1, 2, 6) and buf.data["t_frac"].shape == (8, 1)
+    # The in-place writer used by the rollouts stores the same X_t and t / T in the current row.
+    buf.reward(np.zeros(1, np.float32), np.ones(1, bool))
+    store_critic_inputs(buf, core, horizon=8)
+    assert np.array_equal(buf.data["critic"][1], f) and buf.data["t_frac"][1].tolist() == [1 / 8]
 
 
 def test_central_critic__reads_time_and_the_done_fraction():
@@ -205,6 +210,7 @@ def test_critic_update__advantage_before_one_clipped_adam_step():
     values = twin(buf.tensor("critic"), buf.tensor("t_frac"))
     adv, g, mask, n = team_advantage(values, buf.rewards[:3], buf.running[:3], True)
     assert torch.equal(step.adv, adv) and torch.equal(step.returns, g) and torch.equal(step.mask, mask)
+    assert torch.equal(step.values, values.detach()) and not step.values.requires_grad  # before the step
     unnormalized, *_ = team_advantage(values, buf.rewards[:3], buf.running[:3], False)
     assert torch.equal(raw.adv, unnormalized) and not torch.allclose(raw.adv, adv)
     assert step.n.item() == 5.0
