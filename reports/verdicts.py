@@ -180,7 +180,8 @@ def check_collisions(rates: list[np.ndarray]) -> tuple[str, str, str]:
     if n == 0:
         return NOT_ENOUGH, "no collision data", "-"
     per_seed = np.array([np.nanmean(r) for r in rates])
-    nums = (f"collision rate {per_seed.mean():.3%} of robot-steps (seed means {_g(per_seed.min())}.."
+    # Three significant digits: a rate of 3e-6 must not read as "0.000%" beside a contradiction.
+    nums = (f"collision rate {_g(100 * per_seed.mean())}% of robot-steps (seed means {_g(per_seed.min())}.."
             f"{_g(per_seed.max())}); episodes with a collision: {k}/{n}")
     if k == 0:
         nums += f"; per-episode collision probability < {zero_events_bound(n):.2%} (95%)"

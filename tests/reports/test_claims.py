@@ -206,7 +206,10 @@ def test_safety__collisions_and_corrections():
     assert v == SUPPORTED and "< 4.87% (95%)" in nums  # 1 - 0.05^(1/60)
     one = [np.zeros(20), np.r_[np.zeros(19), 0.002], np.zeros(20)]
     v, nums, _ = check_collisions(one)
-    assert v == CONTRADICTED and "1/60" in nums and "0.003%" in nums
+    assert v == CONTRADICTED and "1/60" in nums and "collision rate 0.00333%" in nums
+    tiny = [np.zeros(20), np.r_[np.zeros(19), 1e-4], np.zeros(20)]  # 1.7e-6 of robot-steps
+    v, nums, _ = check_collisions(tiny)  # three significant digits, never "0.000%"
+    assert v == CONTRADICTED and "collision rate 0.000167%" in nums
     assert check_collisions(z[:2])[0] == NOT_ENOUGH
     assert check_corrections(np.array([0.03, 0.031, 0.029]))[0] == SUPPORTED
     assert check_corrections(np.array([0.12, 0.11, 0.13]))[0] == CONTRADICTED
@@ -235,7 +238,7 @@ def test_safety__per_execution_mode_with_the_measured_collision_rate():
                     _ev("hierarchical", ok + 0.5, mode="sample", collision_rate=ok, correction_rate=corr)])
     c = claim_no_collisions(ev, configs=[(40, 0.2)])
     assert [(k.execution, k.verdict) for k in c.checks] == [("argmax", CONTRADICTED), ("sample", SUPPORTED)]
-    assert "collision rate 0.033%" in c.checks[0].numbers
+    assert "collision rate 0.0333%" in c.checks[0].numbers
     assert c.verdict == CONTRADICTED
     assert c.verdict_by_mode() == {"argmax": CONTRADICTED, "sample": SUPPORTED}
     assert claims_summary([c])["by_mode"].item() == "argmax: contradicted; sample: supported"
