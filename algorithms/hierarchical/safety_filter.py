@@ -219,24 +219,24 @@ class SafetyFilter:
         """Deviation 2 over the robot pairs i < j (lexicographic) and their controls (a, b):
         (U', K) ok, score, exists with K = C(m, 2) x 16, in the level's order."""
         s = sel.size
-        iu, ju = _pairs(m)  # (P,) each
+        rob, alt = _level_tables(m, 2)  # (i < j, a, b) in the level's order, 16 rows per pair
+        iu, ju = rob[::16, 0], rob[::16, 1]  # (P,) each
         nw, ua, c = new[sel, :m], u_alt[sel, :m], c1[sel, :m]
+        ps, cs, ds, bs, dl = p[sel], ctl[sel], deg[sel], bad[sel], delta[sel]  # gathered once
         # Robot pair (i, j): the rest of the proposal is clean once i and j change.
-        base = ((bad_total[sel, None] - bad[sel][:, iu] - bad[sel][:, ju]) == 0) & (
-            (pairs_total[sel, None] - deg[sel][:, iu] - deg[sel][:, ju] + p0[sel][:, iu, ju]) == 0)  # (U', P)
+        base = ((bad_total[sel, None] - bs[:, iu] - bs[:, ju]) == 0) & (
+            (pairs_total[sel, None] - ds[:, iu] - ds[:, ju] + p0[sel][:, iu, ju]) == 0)  # (U', P)
         # (i, a) is clean against every unchanged robot but j: clean[u, i, j, a].
         clean = ((c[..., None] - conf[sel, :m, :, :m]) == 0).transpose(0, 1, 3, 2)
         clean_i = clean[:, iu, ju][..., :, None]  # (U', P, a, 1)
         clean_j = clean[:, ju, iu][..., None, :]  # (U', P, 1, b)
         ni, nj = nw[:, iu][..., :, None], nw[:, ju][..., None, :]
-        ps = p[sel]
         clash = (ni == nj) | ((ni == ps[:, ju, None, None]) & (nj == ps[:, iu, None, None]))
         ok = (base[..., None, None] & clean_i & clean_j & ~clash
               & ua[:, iu][..., :, None] & ua[:, ju][..., None, :])
-        exists = np.broadcast_to((ctl[sel][:, iu] & ctl[sel][:, ju])[..., None, None], ok.shape)
-        score = delta[sel][:, iu][..., :, None] + delta[sel][:, ju][..., None, :]
-        rob, alt = _level_tables(m, 2)  # the same (i < j, a, b) order
-        k = iu.size * 16
+        exists = np.broadcast_to((cs[:, iu] & cs[:, ju])[..., None, None], ok.shape)
+        score = dl[:, iu][..., :, None] + dl[:, ju][..., None, :]
+        k = rob.shape[0]
         return (ok & exists).reshape(s, k), score.reshape(s, k), exists.reshape(s, k), rob, alt
 
     @staticmethod
@@ -271,10 +271,4 @@ class SafetyFilter:
 def _level_tables_dense1(m: int) -> tuple[np.ndarray, np.ndarray]:
     """(4m, 1) slots and alternatives of deviation-1 candidates, (i, a) order."""
     return np.repeat(np.arange(m), 4)[:, None], np.tile(np.arange(4), m)[:, None]
-
-
-@lru_cache(maxsize=64)
-def _pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Robot slot pairs i < j over the first m slots, lexicographic: (P,) i and (P,) j."""
-    return np.triu_indices(m, 1)
 
