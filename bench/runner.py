@@ -148,7 +148,6 @@ class _Run:
         self.t0 = time.monotonic()
         self.start_progress = sum(s.progress() * s.weight for s in states)
         self.total_weight = sum(s.weight for s in states) or 1.0
-        self.last_event = ""
         self.last_error = ""
 
     # ------------------------------------------------------------------ setup
@@ -400,9 +399,7 @@ class _Run:
 
     # --------------------------------------------------------------- progress
     def _emit(self, kind: str, st: CellState | None) -> None:
-        if st is not None and kind in ("started", "done", "failed", "retry"):
-            detail = {"failed": f": {st.error}", "retry": f" after {self.last_error[:80]}"}.get(kind, "")
-            self.last_event = f"{kind} {st.label()}{detail}"
+        message = event_message(kind, st, self.last_error) if st is not None else ""
         if self.on_event is not None and st is not None:
             self.on_event(kind, st)
         done_w = sum(s.progress() * s.weight for s in self.states)
@@ -412,9 +409,30 @@ class _Run:
             total=len(self.states), done=sum(s.phase == "done" for s in self.states),
             running=sum(s.phase in ("training", "evaluating") for s in self.states),
             failed=sum(s.phase == "failed" for s in self.states), fraction=min(max(frac, 0.0), 1.0),
-            elapsed_s=time.monotonic() - self.t0, message=self.last_event if kind != "tick" else "",
+            elapsed_s=time.monotonic() - self.t0, message=message,
         )
         self.progress.update(snap)
+
+
+def event_message(kind: str, st: CellState, last_error: str = "") -> str:
+    """The progress line's news for one event of cell ``st`` (printed once, with the event).
+
+    A resumed cell says where it resumes; a training chunk says how far the cell is and
+    that its checkpoint is written; an evaluation unit how many of the cell's units are in."""
+    label = st.label()
+    if kind == "started":
+        if st.trained:
+            return f"started {label}: evaluation"
+        return f"started {label}" + (f" from episode {st.episodes_done}" if st.episodes_done else "")
+    if kind == "train_chunk":
+        return f"trained {label}: {st.episodes_done}/{st.cell.episodes} episodes, checkpoint written"
+    if kind == "eval_chunk":
+        return f"evaluated {label}: {len(st.eval_rows)}/{len(st.eval_units())} units"
+    if kind == "failed":
+        return f"failed {label}: {st.error}"
+    if kind == "retry":
+        return f"retry {label} after {last_error[:80]}"
+    return f"{kind} {label}"
 
 
 def _nanmax(a: float, b: float) -> float:

@@ -41,3 +41,31 @@ def test_make_progress__plain_lines_on_ci_or_without_terminal(monkeypatch: pytes
     assert isinstance(bar, RichProgress)
     bar.update(Snapshot(2, 1, 1, 0, 0.5, 1.0, message="failed x"))
     bar.close()
+
+
+def test_event_message__says_where_a_cell_is_and_is_not_repeated_by_later_events(tmp_path) -> None:
+    """A resumed cell names its episode, a training chunk its progress, an evaluation unit
+    its count; the runner prints each with its own event only (a checkpoint used to repeat
+    the last 'started' line, which read as a restart)."""
+    from bench.cells import Cell
+    from bench.grids import Grid
+    from bench.plan import plan_run
+    from bench.runner import event_message
+    from bench.store import RunStore
+
+    grid = Grid("g", "test", (Cell.make(method="pibt", n_robots=4, loss_p=0.2, layout="tiny", episodes=0,
+                                        horizon=10, eval_episodes=3, params={"eval_chunk": 2}),))
+    st = plan_run(RunStore(tmp_path / "run"), grid, fresh=True)[0][0]
+    label = st.label()
+    assert event_message("started", st) == f"started {label}"
+    st.episodes_done = 40
+    assert event_message("started", st) == f"started {label} from episode 40"
+    assert event_message("train_chunk", st) == f"trained {label}: 40/0 episodes, checkpoint written"
+    st.trained = True
+    assert event_message("started", st) == f"started {label}: evaluation"
+    st.eval_rows[("planner", 0)] = []
+    assert event_message("eval_chunk", st) == f"evaluated {label}: 1/2 units"
+    st.error = "boom"
+    assert event_message("failed", st) == f"failed {label}: boom"
+    assert event_message("retry", st, "worker died " + "x" * 200) == f"retry {label} after worker died " + "x" * 68
+    assert event_message("done", st) == f"done {label}"
