@@ -101,7 +101,10 @@ def masked_mean(x: torch.Tensor, mask: torch.Tensor, dim: int) -> torch.Tensor:
     with an inner size of 1, without its one-column matrix products."""
     m = mask.to(x.dtype)
     if dim in (-2, x.dim() - 2):
-        return _MaskedSum.apply(x, m) / m.sum(dim=-1, keepdim=True).clamp_min(1.0)
+        # Without a graph (rollouts) the product itself: Function.apply's bookkeeping costs
+        # more than the bmm at rollout sizes; the same kernel, the same numbers.
+        total = _MaskedSum.apply(x, m) if torch.is_grad_enabled() else _masked_sum(x, m)
+        return total / m.sum(dim=-1, keepdim=True).clamp_min(1.0)
     m = m.unsqueeze(-1)
     return (x * m).sum(dim=dim) / m.sum(dim=dim).clamp_min(1.0)
 
@@ -116,11 +119,16 @@ class _MaskedSum(torch.autograd.Function):
 
     @staticmethod
     def forward(ctx, x: torch.Tensor, m: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
-        n, d = x.shape[-2], x.shape[-1]
         ctx.save_for_backward(m)
-        return torch.bmm(m.reshape(-1, 1, n), x.reshape(-1, n, d)).reshape(*x.shape[:-2], d)
+        return _masked_sum(x, m)
 
     @staticmethod
     def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:  # type: ignore[override]
         (m,) = ctx.saved_tensors
         return m.unsqueeze(-1) * grad.unsqueeze(-2), None
+
+
+def _masked_sum(x: torch.Tensor, m: torch.Tensor) -> torch.Tensor:
+    """sum_i m_i x_i over axis -2: x (..., n, d), m (..., n) -> (..., d), one bmm."""
+    n, d = x.shape[-2], x.shape[-1]
+    return torch.bmm(m.reshape(-1, 1, n), x.reshape(-1, n, d)).reshape(*x.shape[:-2], d)

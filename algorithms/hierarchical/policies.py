@@ -136,8 +136,7 @@ class LocalPolicy(nn.Module):
             w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
         per_row = torch.baddbmm(b, ctx, w[:, d:])  # (Z, M, H') context part + bias
         x = torch.bmm(h.reshape(z, m * n, d), w[:, :d]).reshape(z, m, n, -1) + per_row.unsqueeze(2)
-        for k, layer in enumerate(self.head.layers[1:]):
-            x = layer(relu(x) if k == 0 else x)
-            if k < len(self.head.layers) - 2:
-                x = relu(x)
+        layers = self.head.layers
+        for k in range(1, len(layers)):  # indexed: a slice of a ModuleList builds a new one per call
+            x = layers[k](relu(x))
         return x

@@ -43,6 +43,22 @@ def test_masked_mean__equals_the_masked_sum_including_empty_sets() -> None:
                                plain_masked_mean(x, mask, dim=2))
 
 
+def test_masked_mean__without_a_graph_is_the_same_numbers_as_with_one() -> None:
+    """Rollouts (no graph) skip the autograd Function; the pooled values are bit for bit
+    the training pass's, and the empty set still pools to zeros."""
+    torch.manual_seed(2)
+    x = torch.randn(4, 6, 5, 11, 8)
+    mask = torch.rand(4, 6, 5, 11) < 0.5
+    mask[1, 2, 3] = False
+    with_graph = masked_mean(x.clone().requires_grad_(True), mask, dim=-2)
+    assert with_graph.grad_fn is not None
+    for ctx in (torch.no_grad, torch.inference_mode):
+        with ctx():
+            got = masked_mean(x, mask, dim=-2)
+        assert got.grad_fn is None and torch.equal(got, with_graph.detach())
+    assert torch.equal(got[1, 2, 3], torch.zeros(8))
+
+
 def test_masked_mean__gradient_is_bit_identical_to_autograds_bmm_backward() -> None:
     """The custom backward (mask x grad outer product) gives the very numbers autograd's
     backward of the forward's batched product gives, so training is unchanged bit for bit."""
