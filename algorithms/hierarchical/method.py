@@ -197,7 +197,9 @@ class HierarchicalMethod(Method):
         sq_err, n_lost = self._prediction_error(cells, link_msgs, lost, sender_slots)
 
         # Policies: r ~ mu(. | Enc_r(X, G, S-hat)), U~ ~ pi(. | Enc_u(X, G, r)).
-        own = robot_features(core, state.patch, gs.groups).astype(np.float16)
+        # float16 rounding by torch: the same IEEE round-to-nearest-even values as numpy's
+        # astype (tests/algorithms/hierarchical/test_hot_paths.py), 15x faster at rollout sizes.
+        own = torch.from_numpy(robot_features(core, state.patch, gs.groups)).to(torch.float16).numpy()
         nbr = neighbor_patches(state.patch, gs, cells, present, heading)
         controlled = ~core.done & state.running[:, None]
         action_mask = self.layout.move_valid[core.pos]
