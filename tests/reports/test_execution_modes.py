@@ -73,3 +73,21 @@ def test_fig2__panels_per_mode_and_team_size(store) -> None:
     # the argmax and sample panels draw different curves (each from its own mode's rows)
     ax0, ax_s = built.fig.axes[0], built.fig.axes[2 * 3]
     assert not np.allclose(ax0.lines[0].get_ydata(), ax_s.lines[0].get_ydata())
+
+
+def test_table1__a_tiny_collision_rate_is_not_printed_as_the_papers_zero(store) -> None:
+    """N = 80 argmax of the reproduction read "0.00%" beside the paper's 0.00% while 35 of
+    300 episodes collided: collision rates get three significant digits, zero stays 0.00."""
+    _, ev = store
+    ev = ev.copy()
+    hier = (ev["method"] == "hierarchical") & np.isclose(ev["loss_p"], 0.2) & (ev["execution"] == "argmax")
+    ev.loc[hier, "collision_rate"] = 0.0
+    ev.loc[hier & (ev["n_robots"] == 40), "collision_rate"] = 7.61e-6
+    t1, _ = table1_frame(ev)
+    md = table1_markdown(t1, [])
+    rows = {line.split(" | ")[0]: line.split(" | ") for line in md.split("## Execution: sample")[0].splitlines()
+            if line.startswith("| 40 |") or line.startswith("| 60 |")}
+    assert rows["| 40"][1:3] == ["0.000761% [0.000761, 0.000761]", "0.00%"]
+    assert rows["| 60"][1] == "0.00% [0.00, 0.00]"
+    tex_rows = [line for line in table1_latex(t1).splitlines() if line.startswith("40 & ours")]
+    assert tex_rows[0].split(" & ")[2] == "0.000761" and tex_rows[1].split(" & ")[2] == "0.00"
