@@ -24,7 +24,7 @@ import pandas as pd
 from algorithms.registry import METHODS, method_class
 from bench.grids import ABLATION_VARIANTS, Variant
 from reports.stats import t_test
-from reports.store import execution_order
+from reports.store import execution_order, fmt_pct
 from reports.summary import metric_estimate
 
 METRICS = ("success_rate", "collision_rate", "correction_rate", "fallback_rate", "payload_scalars_per_step")
@@ -126,7 +126,7 @@ def component_values(evals: pd.DataFrame, cells: pd.DataFrame) -> list[dict[str,
 def _cell(v: float, lo: float, hi: float, pct: bool) -> str:
     if not np.isfinite(v):
         return "—"
-    f = (lambda x: f"{100 * x:.1f}%") if pct else (lambda x: f"{x:.4g}")
+    f = (lambda x: fmt_pct(x, 1) + "%") if pct else (lambda x: f"{x:.4g}")
     return f"{f(v)} [{f(lo)}, {f(hi)}]" if np.isfinite(lo) else f(v)
 
 

@@ -150,3 +150,13 @@ def select(df: pd.DataFrame, method: str | None = None, n_robots: int | None = N
 def fmt_p(p: float) -> str:
     """Loss probability as written in the paper (0.2, 0.4, ...)."""
     return f"{float(p):g}"
+
+
+def fmt_pct(fraction: float, decimals: int, always_sig: bool = False) -> str:
+    """A fraction in percent (without the % sign) with ``decimals`` decimals, or with three
+    significant digits when it is nonzero and the decimals would show it as zero (always,
+    with ``always_sig``): a collision rate of 0.0008% must never print as 0.00%."""
+    pct = 100 * float(fraction)
+    if pct != 0 and np.isfinite(pct) and (always_sig or abs(pct) < 0.5 * 10.0 ** -decimals):
+        return np.format_float_positional(pct, precision=3, fractional=False, trim="-")
+    return f"{pct:.{decimals}f}"

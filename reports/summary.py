@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from reports.stats import bootstrap_ci, iqm, mean_ci
-from reports.store import execution_order
+from reports.store import execution_order, fmt_pct
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
@@ -95,7 +95,7 @@ def fmt_ci(v: float, lo: float, hi: float, kind: str) -> str:
     decimal with thousands separators, the same everywhere) or "num" (3 significant digits)."""
     if not np.isfinite(v):
         return "—"
-    f = {"pct": lambda x: f"{100 * x:.1f}%", "payload": lambda x: f"{x:,.1f}",
+    f = {"pct": lambda x: fmt_pct(x, 1) + "%", "payload": lambda x: f"{x:,.1f}",
          "num": lambda x: f"{x:.3g}"}[kind]
     return f"{f(v)} [{f(lo)}, {f(hi)}]" if np.isfinite(lo) else f(v)
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from reports.store import execution_order, fmt_p, select
+from reports.store import execution_order, fmt_p, fmt_pct, select
 from reports.summary import metric_estimate
 
 PAPER_P = 0.2
@@ -81,16 +81,9 @@ def _has_filter(rec: pd.Series) -> bool:
 
 def _num(m: str, v: float, unit: str) -> str:
     """A rate in percent (with ``unit`` after it), anything else with two decimals.
-
-    Collision rates get three significant digits (the paper reports 0.00%: a rate of
-    0.0008% must not print as 0.00% beside it), as does any other nonzero rate that two
-    decimals would show as 0.00; zero is 0.00."""
-    if m not in RATES:
-        return f"{v:.2f}"
-    pct = 100 * v
-    if pct != 0 and (m == "collision_rate" or abs(pct) < 0.005):
-        return np.format_float_positional(pct, precision=3, fractional=False, trim="-") + unit
-    return f"{pct:.2f}{unit}"
+    Collision rates get three significant digits (the paper reports 0.00%: 0.0008% must
+    not print as 0.00% beside it), as does any other rate two decimals would hide."""
+    return fmt_pct(v, 2, always_sig=m == "collision_rate") + unit if m in RATES else f"{v:.2f}"
 
 
 def _value(rec: pd.Series, m: str, v: float, unit: str = "%") -> str:

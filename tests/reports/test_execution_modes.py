@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from reports.fig2_success import fig2_success
-from reports.store import execution_order
+from reports.store import execution_order, fmt_pct
+from reports.summary import fmt_ci
 from reports.summary import summary_frame, summary_markdown
 from reports.table1_safety import table1_frame, table1_latex, table1_markdown
 from tests.reports.synthetic import frames, joined
@@ -91,3 +92,12 @@ def test_table1__a_tiny_collision_rate_is_not_printed_as_the_papers_zero(store) 
     assert rows["| 60"][1] == "0.00% [0.00, 0.00]"
     tex_rows = [line for line in table1_latex(t1).splitlines() if line.startswith("40 & ours")]
     assert tex_rows[0].split(" & ")[2] == "0.000761" and tex_rows[1].split(" & ")[2] == "0.00"
+
+
+def test_fmt_pct__a_nonzero_rate_never_prints_as_zero() -> None:
+    """The summary and the ablation table show rates with one decimal and Table I with two;
+    a nonzero rate those decimals would hide gets three significant digits instead."""
+    assert [fmt_pct(x, 1) for x in (0.0, 0.843, 0.105, 1.0)] == ["0.0", "84.3", "10.5", "100.0"]
+    assert [fmt_pct(x, 1) for x in (4.15e-5, 4e-4, 1.23e-9)] == ["0.00415", "0.04", "0.000000123"]
+    assert fmt_pct(0.0345, 2, always_sig=True) == "3.45" and fmt_pct(0.0, 2, always_sig=True) == "0.00"
+    assert fmt_ci(4.15e-5, 0.0, 1.8e-4, "pct") == "0.00415% [0.0%, 0.018%]"
