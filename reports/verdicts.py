@@ -67,11 +67,17 @@ def decide(t: TTest, alpha: float = ALPHA) -> str:
 
 
 def _g(x: float) -> str:
-    return f"{x:.3g}" if np.isfinite(x) else "nan"
+    """Three significant digits ("nan", "inf" as they are)."""
+    return f"{x:.3g}"
 
 
 def _too_few(*counts: int) -> bool:
     return min(counts) < MIN_SEEDS
+
+
+def _seed_means(xs: Sequence[np.ndarray]) -> np.ndarray:
+    """Mean of each seed's finite values; NaN (without a warning) for a seed with none."""
+    return np.array([x[np.isfinite(x)].mean() if np.isfinite(x).any() else np.nan for x in xs])
 
 
 def seeds_msg(*counts: int) -> str:
@@ -112,8 +118,7 @@ def check_curves(h: list[np.ndarray], i: list[np.ndarray]) -> tuple[str, str, st
     upper bound below -``BAND_TOL`` somewhere."""
     if _too_few(len(h), len(i)):
         return NOT_ENOUGH, seeds_msg(len(h), len(i)), "-"
-    ma = np.array([np.nanmean(x) for x in h])
-    mb = np.array([np.nanmean(x) for x in i])
+    ma, mb = _seed_means(h), _seed_means(i)
     t = t_test([ma, mb], [1.0, -1.0])
     diff, lo, hi = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
                                      np.stack([quantile_curve(x, BAND_PCT) for x in i]))
@@ -179,10 +184,10 @@ def check_collisions(rates: list[np.ndarray]) -> tuple[str, str, str]:
     k, n = int((allr > 0).sum()), int(allr.size)
     if n == 0:
         return NOT_ENOUGH, "no collision data", "-"
-    per_seed = np.array([np.nanmean(r) for r in rates])
+    per_seed = _seed_means(rates)
     # Three significant digits: a rate of 3e-6 must not read as "0.000%" beside a contradiction.
-    nums = (f"collision rate {_g(100 * per_seed.mean())}% of robot-steps (seed means {_g(per_seed.min())}.."
-            f"{_g(per_seed.max())}); episodes with a collision: {k}/{n}")
+    nums = (f"collision rate {_g(100 * per_seed.mean())}% of robot-steps (seed means "
+            f"{_g(100 * per_seed.min())}%..{_g(100 * per_seed.max())}%); episodes with a collision: {k}/{n}")
     if k == 0:
         nums += f"; per-episode collision probability < {zero_events_bound(n):.2%} (95%)"
     return (SUPPORTED if k == 0 else CONTRADICTED), nums, (

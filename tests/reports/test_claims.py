@@ -28,16 +28,19 @@ from reports.claims_page import (
     claims_summary,
     claims_table_markdown,
 )
-from reports.stats import t_test
+from reports.stats import TTest, curve_shape, quantile_curve, simultaneous_band, t_test
 from reports.verdicts import (
+    BAND_PCT,
     BY_CONSTRUCTION,
     CONTRADICTED,
     INCONCLUSIVE,
     NOT_ENOUGH,
     SUPPORTED,
     check_collisions,
+    check_convergence,
     check_corrections,
     check_curves,
+    check_gap,
     check_greater,
     combine,
     decide,
@@ -370,3 +373,87 @@ def test_claims_table__lists_checked_configurations_and_counts_the_rest():
         "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |",
         "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"]
     assert lines[4:] == ["", "Not enough seeds yet (checks per claim): `k` 2, `j` 1."]
+
+
+# ------------------------------------------------ kernels: edges and the numbers shown
+def test_decide__a_p_value_equal_to_alpha_is_not_significant() -> None:
+    at = dict(estimate=1.0, se=1.0, df=4.0, lo=-1.0, hi=3.0)
+    assert decide(TTest(**at, p_greater=0.05, p_less=0.95)) == INCONCLUSIVE
+    assert decide(TTest(**at, p_greater=0.95, p_less=0.05)) == INCONCLUSIVE
+    assert decide(TTest(**at, p_greater=0.0499, p_less=0.9501)) == SUPPORTED
+
+
+def test_kernels__fewer_than_three_seeds_on_any_side_is_not_enough_and_says_so() -> None:
+    three, two = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.0])
+    for a, b, msg in ((three, two, "3 vs 2"), (two, three, "2 vs 3")):
+        assert check_greater(a, b, "x") == (NOT_ENOUGH, f"{msg} seeds (need >= 3 per side)", "-")
+    assert check_gap([three, three, two, three], 60, 20) == (
+        NOT_ENOUGH, "3 vs 3 vs 2 vs 3 seeds (need >= 3 per side)", "-")
+    ok, short = [np.full(10, 0.5)] * 3, [np.full(10, 0.5)] * 2
+    assert check_curves(ok, short) == (NOT_ENOUGH, "3 vs 2 seeds (need >= 3 per side)", "-")
+    assert check_curves(short, ok) == (NOT_ENOUGH, "2 vs 3 seeds (need >= 3 per side)", "-")
+    assert check_convergence([np.arange(50.0)] * 2) == (NOT_ENOUGH, "2 seeds (need >= 3 per side)", "-")
+    assert check_corrections(two) == (NOT_ENOUGH, "2 seeds (need >= 3 per side)", "-")
+    assert check_collisions([np.zeros(5)] * 2) == (NOT_ENOUGH, "2 seeds (need >= 3 per side)", "-")
+    assert check_collisions([np.full(5, np.nan)] * 3) == (NOT_ENOUGH, "no collision data", "-")
+
+
+def test_check_gap__shows_both_gaps_and_the_contrast() -> None:
+    rng = np.random.default_rng(3)
+    gs = [10 + rng.normal(0, 1, 3), 4 + rng.normal(0, 1, 4), 6 + rng.normal(0, 1, 3), 5 + rng.normal(0, 1, 3)]
+    verdict, nums, test = check_gap(gs, 60, 20)
+    t = t_test(gs, [1.0, -1.0, -1.0, 1.0])
+    g_large, g_small = gs[0].mean() - gs[1].mean(), gs[2].mean() - gs[3].mean()
+    assert nums == (f"Gap(60) = {g_large:.3g}, Gap(20) = {g_small:.3g}; difference {t.estimate:.3g} "
+                    f"[95% CI {t.lo:.3g}, {t.hi:.3g}], one-sided p = {t.p_greater:.3g}")
+    assert t.estimate == pytest.approx(g_large - g_small) and verdict == decide(t)
+    assert test == "Welch t on a contrast of four per-seed means"
+
+
+def test_check_curves__within_the_tolerance_band_is_supported_and_the_worst_percentile_named() -> None:
+    """Hierarchical 2 points above IC3Net at every percentile (significant), its lower
+    band between -0.05 and 0 somewhere: supported ("nowhere more than 0.05 below"); the
+    numbers name the percentile of the lowest simultaneous bound."""
+    rng = np.random.default_rng(7)
+    base = np.linspace(0.2, 0.9, 200)
+    ic3 = [np.clip(base + rng.normal(0, 0.004, 200), 0, 1) for _ in range(3)]
+    noise = np.zeros(200)
+    noise[150:] = 1.0  # the upper percentiles vary most between hierarchical seeds
+    hier = [np.clip(base + 0.02 + noise * d, 0, 1) for d in (-0.015, 0.0, 0.015)]
+    verdict, nums, test = check_curves(hier, ic3)
+    diff, lo, _ = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in hier]),
+                                    np.stack([quantile_curve(x, BAND_PCT) for x in ic3]))
+    k = int(np.argmin(lo))
+    assert -0.05 < lo.min() < 0 and k > 0  # inside the tolerance, not at the first percentile
+    assert verdict == SUPPORTED
+    assert f"lowest simultaneous bound {lo[k]:.3g} at the {BAND_PCT[k]:.0f}th percentile (tolerance -0.05)" in nums
+    assert f"quantile difference min {diff.min():.3g}" in nums
+    assert test == ("Welch t + one-sided simultaneous band (Bonferroni over percentiles 10..90) over "
+                    "per-seed curves (3 vs 3 seeds)")
+
+
+def test_check_curves__a_seed_without_finite_success_rates_is_not_enough() -> None:
+    ok = [np.linspace(0.3, 0.8, 20) + d for d in (0.0, 0.01, 0.02)]
+    assert check_curves([*ok, np.full(20, np.nan)], ok) == (NOT_ENOUGH, "no finite success rates", "-")
+
+
+def test_check_convergence__a_noisy_gain_is_inconclusive_and_the_numbers_are_the_seeds() -> None:
+    e = np.arange(100.0)
+    curves = [s * np.minimum(e / 50, 1.0) for s in (8.0, -3.0, 1.0)]  # gains of both signs
+    verdict, nums, test = check_convergence(curves)
+    shapes = [curve_shape(c, 0.2) for c in curves]
+    gain = np.mean([sh.gain for sh in shapes])
+    drift = np.mean([sh.drift for sh in shapes])
+    assert verdict == INCONCLUSIVE
+    assert nums.startswith(f"gain {gain:.3g} [95% CI ")
+    assert f"drift over the last window {drift:.3g} vs tolerance +-{0.2 * gain:.3g};" in nums
+    assert test == "one-sample t over 3 seeds: gain > 0 and equivalence |drift| < 0.2 gain (windows of 20 episodes)"
+
+
+def test_check_collisions__numbers_in_percent_throughout() -> None:
+    z = [np.zeros(20)] * 3
+    assert check_collisions(z)[1] == ("collision rate 0% of robot-steps (seed means 0%..0%); episodes with a "
+                                      "collision: 0/60; per-episode collision probability < 4.87% (95%)")
+    one = [np.zeros(20), np.r_[np.zeros(19), 3e-4], np.zeros(20)]  # seed means 0, 1.5e-5, 0
+    assert check_collisions(one)[1] == ("collision rate 0.0005% of robot-steps (seed means 0%..0.0015%); "
+                                        "episodes with a collision: 1/60")
