@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from reports.claims import (
+    Check,
     all_claims,
     claim_above_ic3net,
     claim_convergence,
@@ -20,6 +21,7 @@ from reports.claims import (
     claim_no_collisions,
     claim_payload_ratio,
     final_means,
+    mode_pairs,
     per_cell,
     with_execution,
 )
@@ -277,6 +279,37 @@ def test_payload_ratio__verified_by_construction_or_contradicted():
     assert claim_payload_ratio(_payload_rows(1.0).iloc[0:0]).verdict == NOT_ENOUGH
 
 
+def test_payload_ratio__one_episode_above_the_bound_contradicts_and_the_numbers_are_exact():
+    """The mean ratio within 1% of (Z-1)/(N-1) is not enough: no episode may exceed the
+    bound (C_hier <= N(Z-1)d_m holds per step); the check names its configuration, counts
+    and ratios; N = 1 or no rows have no ratio."""
+    ok = _payload_rows(40 * 3 * 3.0)
+    c = claim_payload_ratio(ok).checks[0]
+    assert (c.config, c.verdict, c.test) == ("N = 40, Z = 4", BY_CONSTRUCTION, "exact count over 5 episodes")
+    assert c.numbers == ("C_hier = 360, C_dec = 4.68e+03 (reference); ratio 0.0769 vs bound 0.0769 "
+                         "(relative difference 0.00%); largest episode ratio 0.0769")
+    spike = ok.copy()
+    spike.loc[0, "payload_scalars_per_step"] *= 1.04  # one episode 4% above, the mean 0.8%
+    c = claim_payload_ratio(spike).checks[0]
+    assert c.verdict == CONTRADICTED and "largest episode ratio 0.0800" in c.numbers
+    assert "(relative difference 0.80%)" in c.numbers
+    one = _payload_rows(0.0, n=1, z=1)
+    assert claim_payload_ratio(one).checks == [Check("N = 1, Z = 1", NOT_ENOUGH, "ratio undefined", "-")]
+    assert claim_payload_ratio(ok.iloc[0:0]).checks == [
+        Check("any N", NOT_ENOUGH, "no hierarchical evaluation rows", "-")]
+
+
+def test_mode_pairs__shared_modes_in_order_else_the_single_pair_else_none():
+    def rows(*modes):
+        return pd.DataFrame({"execution": list(modes), "v": range(len(modes))})
+    pairs = mode_pairs(rows("sample@0.5", "sample", "argmax"), rows("argmax", "sample@0.5", "sample"))
+    assert [m for m, _, _ in pairs] == ["argmax", "sample", "sample@0.5"]  # the paper's order first
+    assert [m for m, _, _ in mode_pairs(rows("zeta", "argmax"), rows("argmax", "zeta"))] == ["argmax", "zeta"]
+    assert [m for m, _, _ in mode_pairs(rows("argmax"), rows("sample"))] == ["argmax vs sample"]
+    assert mode_pairs(rows("argmax", "sample@0.5"), rows("sample")) == []
+    assert mode_pairs(rows("argmax"), rows("sample", "planner")) == []
+
+
 def test_claims__missing_configurations_are_not_enough_seeds(holding):
     train, evals = holding
     no_dec60 = train[~((train["method"] == "decentralized") & (train["n_robots"] == 60))]
@@ -315,7 +348,15 @@ def test_claims_at_run__checks_the_runs_own_configurations():
     assert by["no_collisions"].verdict_at("run") == SUPPORTED
     assert [k.config for k in by["lemma1_budget"].checks if k.scope == "run"] == [
         "N = 4, Z = 4, L = 2, C_max = 500", "N = 8, Z = 4, L = 2, C_max = 500"]
-    with pytest.raises(ValueError):
+    for key in ("convergence", "no_collisions", "few_corrections"):  # the hierarchical method's own N
+        assert {k.config for k in by[key].checks if k.scope == "run"} == {"N = 4, p = 0.2", "N = 8, p = 0.2"}, key
+    # Lemma 1 at the run's hierarchical cells with a filter only (not the baselines' settings)
+    odd = cells.copy()
+    odd.loc[odd["method"] == "decentralized", ["n_robots", "safety_filter"]] = [12, True]
+    odd.loc[(odd["method"] == "hierarchical") & (odd["n_robots"] == 8), "safety_filter"] = False
+    lemma = {c.key: c for c in all_claims(tr, ev, at="run", cells=odd)}["lemma1_budget"]
+    assert [k.config for k in lemma.checks if k.scope == "run"] == ["N = 4, Z = 4, L = 2, C_max = 500"]
+    with pytest.raises(ValueError, match="claims at 'everywhere': expected 'paper' or 'run'"):
         all_claims(tr, ev, at="everywhere")
 
 
