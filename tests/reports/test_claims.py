@@ -507,3 +507,51 @@ def test_check_collisions__numbers_in_percent_throughout() -> None:
     some = [np.r_[np.zeros(19), 2e-4], np.r_[np.zeros(19), 3e-4], np.r_[np.zeros(18), 2e-4, 2e-4]]
     assert check_collisions(some)[1] == ("collision rate 0.0015% of robot-steps (seed means 0.001%..0.002%); "
                                          "episodes with a collision: 4/60")
+
+
+def _train_rows(method: str, n: int, p: float, finals: list[float]) -> pd.DataFrame:
+    """One cell per seed, 50 episodes, flat at its final value (a per-seed number)."""
+    return pd.concat([pd.DataFrame({"cell_id": f"{method}{n}{p}{s}", "episode": np.arange(50),
+                                    "team_return": np.full(50, f), "method": method, "n_robots": n,
+                                    "loss_p": p}) for s, f in enumerate(finals)], ignore_index=True)
+
+
+def test_claims__each_check_reads_its_own_method_team_size_and_loss():
+    """The test on the wrong rows is the bug to fear: every configuration here has its own
+    outcome, and a check that pooled another N, p or method would change its verdict."""
+    up, down = [10.0, 11.0, 12.0], [1.0, 2.0, 3.0]
+    tr = pd.concat([
+        _train_rows("hierarchical", 20, 0.2, up), _train_rows("decentralized", 20, 0.2, down),
+        _train_rows("hierarchical", 40, 0.2, down), _train_rows("decentralized", 40, 0.2, up),
+        _train_rows("hierarchical", 20, 0.4, [-50.0, -51.0, -52.0]), _train_rows("decentralized", 20, 0.4, up),
+        _train_rows("hierarchical", 60, 0.2, [20.0, 21.0, 22.0]), _train_rows("decentralized", 60, 0.2, down),
+    ], ignore_index=True)
+    above = claim_hier_above_dec(tr, configs=[(20, 0.2), (40, 0.2)])
+    assert [(k.config, k.verdict) for k in above.checks] == [
+        ("N = 20, p = 0.2", SUPPORTED), ("N = 40, p = 0.2", CONTRADICTED)]
+    assert above.checks[0].numbers.startswith("final reward: 11 vs 2;")
+    gap = claim_gap_widens(tr, configs=[(60, 20, 0.2), (60, 40, 0.2)])
+    assert [k.config for k in gap.checks] == ["Gap(60) vs Gap(20), p = 0.2", "Gap(60) vs Gap(40), p = 0.2"]
+    assert gap.checks[0].numbers.startswith("Gap(60) = 19, Gap(20) = 9;")
+    assert gap.checks[1].numbers.startswith("Gap(60) = 19, Gap(40) = -9;")
+    assert [k.verdict for k in gap.checks] == [SUPPORTED, SUPPORTED]
+
+
+def test_safety_claims__read_the_hierarchical_rows_with_the_filter_on_only():
+    rng = np.random.default_rng(0)
+    clean = _ev("hierarchical", np.full((3, 10), 0.9), n=40, mode="argmax",
+                collision_rate=np.zeros((3, 10)), correction_rate=rng.uniform(0.01, 0.02, (3, 10)))
+    dirty = _ev("decentralized", np.full((3, 10), 0.9), n=40, mode="argmax",
+                collision_rate=np.full((3, 10), 0.01), correction_rate=np.full((3, 10), 0.5))
+    off = _ev("hierarchical", np.full((3, 10), 0.9), n=40, mode="argmax",
+              collision_rate=np.full((3, 10), 0.01), correction_rate=np.full((3, 10), 0.5))
+    off["cell_id"] = off["cell_id"] + "off"
+    off["safety_filter"] = False
+    other_p = clean.assign(loss_p=0.4, collision_rate=0.01, correction_rate=0.5,
+                           cell_id=clean["cell_id"] + "p4")
+    ev = pd.concat([clean, dirty, off, other_p], ignore_index=True)
+    for claim in (claim_no_collisions(ev, configs=[(40, 0.2)]), claim_few_corrections(ev, configs=[(40, 0.2)])):
+        assert [(k.config, k.execution, k.verdict) for k in claim.checks] == [("N = 40, p = 0.2", "argmax", SUPPORTED)]
+    missing = claim_no_collisions(ev, configs=[(60, 0.2)]).checks
+    assert [(k.config, k.verdict, k.numbers) for k in missing] == [
+        ("N = 60, p = 0.2", NOT_ENOUGH, "configuration missing (or filter off)")]
