@@ -295,6 +295,9 @@ def test_payload_ratio__one_episode_above_the_bound_contradicts_and_the_numbers_
     assert "(relative difference 0.80%)" in c.numbers
     one = _payload_rows(0.0, n=1, z=1)
     assert claim_payload_ratio(one).checks == [Check("N = 1, Z = 1", NOT_ENOUGH, "ratio undefined", "-")]
+    no_reference = ok.assign(payload_dec_per_step=0.0)  # N = 40 but C_dec = 0: no ratio either
+    assert claim_payload_ratio(no_reference).checks == [Check("N = 40, Z = 4", NOT_ENOUGH, "ratio undefined", "-")]
+    assert claim_payload_ratio(_payload_rows(2 * 1 * 3.0, n=2, z=2)).checks[0].verdict == BY_CONSTRUCTION  # ratio 1
     assert claim_payload_ratio(ok.iloc[0:0]).checks == [
         Check("any N", NOT_ENOUGH, "no hierarchical evaluation rows", "-")]
 
@@ -305,6 +308,8 @@ def test_mode_pairs__shared_modes_in_order_else_the_single_pair_else_none():
     pairs = mode_pairs(rows("sample@0.5", "sample", "argmax"), rows("argmax", "sample@0.5", "sample"))
     assert [m for m, _, _ in pairs] == ["argmax", "sample", "sample@0.5"]  # the paper's order first
     assert [m for m, _, _ in mode_pairs(rows("zeta", "argmax"), rows("argmax", "zeta"))] == ["argmax", "zeta"]
+    both = rows("sample@0.25", "sample@0.5")  # the paper's modes first, not alphabetical
+    assert [m for m, _, _ in mode_pairs(both, both)] == ["sample@0.5", "sample@0.25"]
     assert [m for m, _, _ in mode_pairs(rows("argmax"), rows("sample"))] == ["argmax vs sample"]
     assert mode_pairs(rows("argmax", "sample@0.5"), rows("sample")) == []
     assert mode_pairs(rows("argmax"), rows("sample", "planner")) == []
@@ -543,6 +548,7 @@ def test_safety_claims__read_the_hierarchical_rows_with_the_filter_on_only():
                 collision_rate=np.zeros((3, 10)), correction_rate=rng.uniform(0.01, 0.02, (3, 10)))
     dirty = _ev("decentralized", np.full((3, 10), 0.9), n=40, mode="argmax",
                 collision_rate=np.full((3, 10), 0.01), correction_rate=np.full((3, 10), 0.5))
+    dirty["safety_filter"] = True  # another method with a filter is still not the hierarchical method
     off = _ev("hierarchical", np.full((3, 10), 0.9), n=40, mode="argmax",
               collision_rate=np.full((3, 10), 0.01), correction_rate=np.full((3, 10), 0.5))
     off["cell_id"] = off["cell_id"] + "off"
