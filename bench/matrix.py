@@ -58,6 +58,7 @@ MATRIX_CHUNK = 10  # episodes per evaluation chunk of every unit (pairing across
 MATRIX_DIR = "matrix"
 OK, UNSUPPORTED = "ok", "unsupported"
 MAX_RETRIES = 3  # worker deaths tolerated per unit
+MAX_UNAVAILABLE = 60  # calls refused by a restarting worker per unit (about 2 min of restarts)
 RETRY_AFTER_S = 2.0  # a worker whose call failed gets no work for this long
 
 MATRIX_SCHEMA = pa.schema(
@@ -186,6 +187,7 @@ class Unit:
     todo: list[tuple[str, int]] = field(default_factory=list)
     rows: dict[tuple[str, int], list[dict[str, Any]]] = field(default_factory=dict)
     retries: int = 0
+    unavailable: int = 0  # calls refused while Ray restarted the worker (not deaths)
     error: str = ""
 
     def chunks(self) -> list[tuple[str, int]]:
@@ -438,11 +440,17 @@ def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[U
                         if isinstance(exc, ray.exceptions.ActorDiedError):  # restarts exhausted: replace
                             ray.kill(slot.actor, no_restart=True)
                             slot.actor = remote.remote()
-                        unit.retries += 1
-                        if unit.retries <= MAX_RETRIES:
+                        # A worker Ray is still restarting refuses the call (the chunk did not
+                        # fail; on a loaded machine a restart outlasts RETRY_AFTER_S): not a death.
+                        restarting = isinstance(exc, ray.exceptions.ActorUnavailableError)
+                        unit.unavailable += restarting
+                        unit.retries += not restarting
+                        if unit.retries <= MAX_RETRIES and unit.unavailable <= MAX_UNAVAILABLE:
                             queue.insert(0, (unit, work))
                             continue
-                        unit.error = unit.error or f"worker died {unit.retries} times: {type(exc).__name__}"
+                        unit.error = unit.error or (
+                            f"worker died {unit.retries} times: {type(exc).__name__}" if unit.retries > MAX_RETRIES
+                            else f"worker unavailable {unit.unavailable} times (restarting)")
                     if unit.error:  # drop its queued chunks: nothing of a failed unit is written
                         dropped = [q for q in queue if q[0] is unit]
                         queue = [q for q in queue if q[0] is not unit]
