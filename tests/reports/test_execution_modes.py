@@ -9,8 +9,7 @@ import pytest
 
 from reports.fig2_success import fig2_success
 from reports.store import execution_order, fmt_pct
-from reports.summary import fmt_ci
-from reports.summary import summary_frame, summary_markdown
+from reports.summary import fmt_ci, summary_frame, summary_markdown
 from reports.table1_safety import table1_frame, table1_latex, table1_markdown
 from tests.reports.synthetic import frames, joined
 
