@@ -43,6 +43,7 @@ from reports.verdicts import (
     check_greater,
     combine,
     lemma1_bound,
+    per_seed_means,
     seeds_msg,
 )
 
@@ -128,7 +129,7 @@ def final_means(train: pd.DataFrame, frac: float = FINAL_FRAC, metric: str = "te
 
 def seed_means(rows: pd.DataFrame, metric: str) -> np.ndarray:
     """(S,) per-seed (per-cell) mean of an evaluation metric."""
-    return np.array([np.nanmean(v) for v in per_cell(rows, metric)], dtype=np.float64)
+    return per_seed_means(per_cell(rows, metric)).astype(np.float64)
 
 
 def with_execution(evals: pd.DataFrame) -> pd.DataFrame:

@@ -75,7 +75,7 @@ def _too_few(*counts: int) -> bool:
     return min(counts) < MIN_SEEDS
 
 
-def _seed_means(xs: Sequence[np.ndarray]) -> np.ndarray:
+def per_seed_means(xs: Sequence[np.ndarray]) -> np.ndarray:
     """Mean of each seed's finite values; NaN (without a warning) for a seed with none."""
     return np.array([x[np.isfinite(x)].mean() if np.isfinite(x).any() else np.nan for x in xs])
 
@@ -118,7 +118,7 @@ def check_curves(h: list[np.ndarray], i: list[np.ndarray]) -> tuple[str, str, st
     upper bound below -``BAND_TOL`` somewhere."""
     if _too_few(len(h), len(i)):
         return NOT_ENOUGH, seeds_msg(len(h), len(i)), "-"
-    ma, mb = _seed_means(h), _seed_means(i)
+    ma, mb = per_seed_means(h), per_seed_means(i)
     t = t_test([ma, mb], [1.0, -1.0])
     diff, lo, hi = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
                                      np.stack([quantile_curve(x, BAND_PCT) for x in i]))
@@ -184,7 +184,7 @@ def check_collisions(rates: list[np.ndarray]) -> tuple[str, str, str]:
     k, n = int((allr > 0).sum()), int(allr.size)
     if n == 0:
         return NOT_ENOUGH, "no collision data", "-"
-    per_seed = _seed_means(rates)
+    per_seed = per_seed_means(rates)
     # Three significant digits: a rate of 3e-6 must not read as "0.000%" beside a contradiction.
     nums = (f"collision rate {_g(100 * per_seed.mean())}% of robot-steps (seed means "
             f"{_g(100 * per_seed.min())}%..{_g(100 * per_seed.max())}%); episodes with a collision: {k}/{n}")
