@@ -17,7 +17,12 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
 * (h_t^i, c_t^i) = LSTMCell(e_t^i + C c_t^i, (h_{t-1}^i, c_{t-1}^i)), repeated
   ``comm_passes`` times (each pass communicates the newest hidden states);
 * heads on h_t^i: action log-softmax (5, masked like every method's), gate log-softmax
-  (2: silent / talk; nobody talks at t = 0), and with ``baseline="per_robot"`` a value V^i.
+  (2: silent / talk; nobody talks at t = 0), and with ``baseline="per_robot"`` a value V^i;
+* the action logits get the linear action-aligned path every learned method has
+  (``ActionPath``: each action's shortest-path progress and the robots in view on its
+  target cell, v = 0 at init; ``action_path=True``, the default). Not in IC3Net's
+  reference architecture: an equal-footing departure, measured in docs/decisions.md
+  ("IC3Net action path"); ``action_path=False`` is the reference's head.
 
 Training, REINFORCE with a baseline on the Monte-Carlo team return G_t (eq:training_return,
 gamma = 1), loss = -sum A (log pi(u) + log pi(g)) over alive robot-steps / environment
@@ -33,8 +38,9 @@ steps - entropy_coef * mean entropy per alive robot-step:
 * ``optimizer="adam"`` (default, the paper's) or ``"rmsprop"`` (the reference's, with
   ``rms_alpha``, ``rms_eps``); either is clipped at ``max_grad_norm`` (``clip_and_step``).
 
-The reference setting is ``baseline="per_robot", optimizer="rmsprop", entropy_coef=0``
-with a very large ``max_grad_norm`` (the reference does not clip) and ``hidden=64``.
+The reference setting is ``baseline="per_robot", optimizer="rmsprop", entropy_coef=0,
+action_path=False`` with a very large ``max_grad_norm`` (the reference does not clip) and
+``hidden=64``.
 
 Rollouts run under no_grad and store inputs, link masks and samples in a
 ``RolloutBuffer``; the update replays the episode with gradients, batched over episodes
@@ -101,7 +107,8 @@ class IC3NetParams(LearnedParams):
     gate: Literal["learned", "open", "closed"] = Field(
         "learned", description="learned talk/silent action (IC3Net), always talk (CommNet), never")
     action_path: bool = Field(
-        False, description="add the linear action-aligned path (progress, robots in view) of the other methods (not IC3Net's)")
+        True, description="the linear action-aligned path (progress, robots in view) every learned method has "
+        "(False: IC3Net's reference action head)")
     communicate: bool = Field(True, description="False: no communication at all (reference comm_mask_zero)")
 
 

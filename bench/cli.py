@@ -73,6 +73,7 @@ def run(
     fresh: bool = typer.Option(False, "--fresh", help="Delete the files the bench wrote in this run directory and start over (asks first; other files stay; a folder without manifest.json is refused)."),
     yes: bool = typer.Option(False, "--yes", "-y", help="Do not ask before --fresh deletes results."),
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
+    rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -103,13 +104,14 @@ def run(
     try:
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
-                               checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv)
+                               checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv,
+                               rerun_changed=rerun_changed)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
         raise
     for cid, why in summary.rerun.items():
-        typer.echo(f"bench: warning: cell {cid} was done but {why}", err=True)
+        typer.echo(f"bench: warning: cell {cid} {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "
                f"{summary.wall_s:.1f} s -> {summary.out}")
     for cid, err in summary.failures.items():

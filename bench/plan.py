@@ -9,6 +9,13 @@ its checkpoint (if any) says how far training got; train parts beyond it are sta
 are discarded by the runner before the cell continues. Every file consulted is
 validated here, before anything is written, so a corrupt or foreign store is refused
 with a BenchError and left untouched.
+
+A cell id hashes the cell's own fields and parameter *overrides*, not the method's
+defaults; cells.parquet keeps the resolved parameters (``params_json``). When the code now
+resolves other parameters for a cell that has stored results (a default changed since),
+resuming would mix two configurations under one id: the run is refused, naming the cells
+and fields, unless ``rerun_changed``, which trains those cells again from the start after
+the runner moves their old files to ``superseded/`` (``RunStore.supersede``).
 """
 from __future__ import annotations
 
@@ -63,7 +70,8 @@ class CellState:
     attempts: int = 0
     retries: int = 0  # worker deaths in this run
     error: str = ""
-    rerun: str = ""  # why a cell stored as done runs again (its rows were incomplete)
+    rerun: str = ""  # why a stored cell runs again (rows incomplete, or its parameters changed)
+    superseded: dict[str, Any] | None = None  # stored row of a cell run with other parameters
     versions_json: str = "{}"
     weight: float = 1.0  # estimated cost, for the ETA
 
@@ -112,7 +120,29 @@ class CellState:
         return f"{self.cell_id} ({c.method} N={c.n_robots} p={c.loss_p} seed={c.seed})"
 
 
-def plan_run(store: RunStore, grid: Grid, fresh: bool) -> tuple[list[CellState], list[dict[str, Any]]]:
+def resolved_params_json(cell: Cell) -> str:
+    """The cell's resolved method parameters as stored in cells.parquet's ``params_json``."""
+    return json.dumps(cell.method_params().model_dump(mode="json"), sort_keys=True)
+
+
+def params_changes(stored_json: str, cell: Cell) -> list[str]:
+    """'field: stored -> now' for every resolved parameter that differs between a stored
+    ``params_json`` and what this code resolves for ``cell`` (empty: unchanged or unknown)."""
+    if not stored_json:
+        return []
+    try:
+        old = json.loads(stored_json)
+    except json.JSONDecodeError:
+        return []
+    new = json.loads(resolved_params_json(cell))
+    missing = object()
+    return [f"{k}: {json.dumps(old.get(k)) if k in old else '(absent)'} -> "
+            f"{json.dumps(new.get(k)) if k in new else '(absent)'}"
+            for k in sorted(set(old) | set(new)) if old.get(k, missing) != new.get(k, missing)]
+
+
+def plan_run(store: RunStore, grid: Grid, fresh: bool, rerun_changed: bool = False,
+             ) -> tuple[list[CellState], list[dict[str, Any]]]:
     """(states of the grid's cells, rows of other cells already in cells.parquet)."""
     old: dict[str, dict[str, Any]] = {}
     if not fresh and store.exists():
@@ -120,7 +150,7 @@ def plan_run(store: RunStore, grid: Grid, fresh: bool) -> tuple[list[CellState],
         df = store.read_cells()
         if df is not None:
             old = {str(r["cell_id"]): r for r in df.to_dict("records")}
-    states = []
+    states, changed = [], []
     for cell in grid.cells:
         params = cell.method_params()
         st = CellState(cell=cell, spec=cell_spec(cell), config=cell.config_columns(),
@@ -131,9 +161,22 @@ def plan_run(store: RunStore, grid: Grid, fresh: bool) -> tuple[list[CellState],
             st.attempts = int(prev.get("attempts") or 0)
             st.versions_json = str(prev.get("versions_json") or "{}")
             st.wall_s = float(prev.get("wall_s") or 0.0)
-        if not fresh:
+        diff = params_changes(str(prev.get("params_json") or ""), cell) if prev is not None else []
+        if diff and not fresh and store.has_results(cell.cell_id):
+            changed.append(f"{st.label()}: {', '.join(diff)}")
+            st.superseded = prev
+            st.rerun = (f"was stored with other method parameters ({'; '.join(diff)}); its files moved "
+                        "to superseded/, training it again from the start")
+        elif not fresh:
             _resume_state(store, st)
         states.append(st)
+    if changed and not rerun_changed:
+        shown = "; ".join(changed[:5]) + (f"; and {len(changed) - 5} more" if len(changed) > 5 else "")
+        raise BenchError(
+            f"{store.root}: {len(changed)} stored cell(s) were run with other method parameters than "
+            f"this code resolves for them (a default changed since): {shown}. Resuming would mix "
+            "both under one cell id. Pass --rerun-changed to train them again (their old files move "
+            "to superseded/), or set the old values in a grid file's params (a new cell id)")
     ids = {s.cell_id for s in states}
     others = [r for cid, r in old.items() if cid not in ids]
     return states, others
@@ -159,9 +202,9 @@ def _resume_state(store: RunStore, st: CellState) -> None:
             return
         gap = gap or "evaluation rows of the wrong modes or episodes"
         if stored.train == expected.train and ckpt is not None and ckpt.get("finished"):
-            st.rerun = f"{gap} stored; evaluating it again from its final checkpoint"
+            st.rerun = f"was done but {gap} stored; evaluating it again from its final checkpoint"
         else:
-            st.rerun = f"{gap} stored; training it again from the start"
+            st.rerun = f"was done but {gap} stored; training it again from the start"
             return  # no checkpoint use: the missing rows come from episodes before it
     if ckpt is not None:
         st.has_checkpoint = True

@@ -99,7 +99,8 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
-             on_event: EventHook | None = None, command: list[str] | None = None) -> RunSummary:
+             on_event: EventHook | None = None, command: list[str] | None = None,
+             rerun_changed: bool = False) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
 
     Raises BenchError before writing anything when the store, the grid or the address is bad.
@@ -110,7 +111,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
         store.check_fresh()
     lock = store.lock()
     try:
-        states, others = plan_run(store, grid, fresh)
+        states, others = plan_run(store, grid, fresh, rerun_changed)
         if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
             ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
         else:
@@ -156,7 +157,10 @@ class _Run:
         if self.fresh:
             store.wipe()
         store.remove_temp_files()
+        stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
         for st in self.states:
+            if st.superseded is not None:  # run with other parameters: keep its files aside
+                store.supersede(st.cell_id, st.superseded, stamp)
             if st.phase != "done":
                 store.discard_parts_from(st.cell_id, st.episodes_done if st.has_checkpoint else 0)
         now = datetime.now(timezone.utc).isoformat(timespec="seconds")

@@ -302,6 +302,32 @@ class RunStore:
         path = self.ckpt_path(cell_id)
         return load_checkpoint(path) if path.exists() else None
 
+    # ----------------------------------------------------------- superseded
+    def has_results(self, cell_id: str) -> bool:
+        """Whether the cell has stored train parts, an eval file, a checkpoint or matrix rows."""
+        return bool(self.train_parts(cell_id) or self.eval_path(cell_id).exists()
+                    or self.ckpt_path(cell_id).exists() or (self.root / "matrix" / cell_id).is_dir())
+
+    def supersede(self, cell_id: str, row: Mapping[str, Any], stamp: str) -> Path:
+        """Move every stored file of a cell (train parts, eval file, checkpoint, matrix rows)
+        to superseded/<cell_id>-<stamp>/ with its former cells.parquet row (cells_row.json);
+        nothing is deleted, and readers of the run (report, matrix) no longer see them."""
+        dest = self.root / "superseded" / f"{cell_id}-{stamp}"
+        dest.mkdir(parents=True, exist_ok=False)
+        moves = [(p, dest / "train" / p.name) for _, p in self.train_parts(cell_id)]
+        moves += [(self.eval_path(cell_id), dest / "eval.parquet"), (self.ckpt_path(cell_id), dest / "checkpoint.pt")]
+        matrix = self.root / "matrix" / cell_id
+        if matrix.is_dir():
+            moves += [(p, dest / "matrix" / p.name) for p in sorted(matrix.iterdir()) if p.is_file()]
+        for src, dst in moves:
+            if src.exists():
+                dst.parent.mkdir(parents=True, exist_ok=True)
+                os.replace(src, dst)
+        for d in (self.train_dir / cell_id, matrix):
+            _rmdir_if_empty(d)
+        (dest / "cells_row.json").write_text(json.dumps(dict(row), sort_keys=True, default=str, indent=1) + "\n")
+        return dest
+
     # ------------------------------------------------------------- cleanup
     def remove_temp_files(self) -> int:
         """Delete leftovers of interrupted atomic writes of bench files ('.<name>.*.tmp')."""

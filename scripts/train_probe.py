@@ -1,8 +1,8 @@
 """Short training probe: one learned method on the MovingAI map, K updates, one seed.
 
 Prints one JSON line every ``--every`` updates (mean training success and team return
-over that window) and a final line (optionally with a sampled/argmax evaluation in the
-method's default execution mode). Used for the shared-defaults measurement and the
+over that window) and a final line (optionally with an evaluation in each ``--execution``
+mode, on the same scenarios). Used for the shared-defaults measurement and the
 IC3Net N = 40 before/after numbers in docs/decisions.md ("Baselines"), e.g.
 
     nice -n 10 python scripts/train_probe.py --method ic3net --n 30 --horizon 200 \\
@@ -33,6 +33,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--params", default="{}", help="method parameter overrides (JSON)")
     ap.add_argument("--eval-chunks", type=int, default=2, help="evaluation chunks of 10 episodes at the end")
+    ap.add_argument("--execution", nargs="+", default=["argmax"],
+                    help="evaluation modes (argmax, sample, sample@T), each on the same chunks")
     ap.add_argument("--every", type=int, default=10)
     ap.add_argument("--tag", default="")
     a = ap.parse_args()
@@ -50,11 +52,11 @@ def main() -> None:
                               "wall": round(time.time() - t0)}), flush=True)
     final = {"tag": a.tag, "final": True, "updates": a.updates,
              "last10_train_success": float(np.mean(succ[-10:])), "last10_return": float(np.mean(rets[-10:]))}
-    if a.eval_chunks:
-        ev = [r for c in range(a.eval_chunks) for r in m.evaluate(c)]
-        final.update(eval_success=float(np.mean([r["success_rate"] for r in ev])),
-                     eval_return=float(np.mean([r["team_return"] for r in ev])),
-                     eval_collision=float(np.mean([r["collision_rate"] for r in ev])))
+    for mode in a.execution if a.eval_chunks else ():
+        ev = [r for c in range(a.eval_chunks) for r in m.evaluate(c, execution=mode)]
+        final.update({f"{key}[{mode}]": float(np.mean([r[col] for r in ev])) for key, col in (
+            ("eval_success", "success_rate"), ("eval_return", "team_return"),
+            ("eval_collision", "collision_rate"))})
     final["wall"] = round(time.time() - t0)
     print(json.dumps(final), flush=True)
 

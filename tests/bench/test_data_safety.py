@@ -282,7 +282,7 @@ def test_completeness__a_done_cell_missing_training_rows_is_trained_again(finish
     states, _ = plan_run(store, grid, fresh=False)
     st = {s.cell_id: s for s in states}
     assert st[cell.cell_id].phase == "pending" and not st[cell.cell_id].has_checkpoint
-    assert st[cell.cell_id].rerun == "4 of 8 training rows stored; training it again from the start"
+    assert st[cell.cell_id].rerun == "was done but 4 of 8 training rows stored; training it again from the start"
     assert st[grid.cells[1].cell_id].phase == "done" and st[grid.cells[1].cell_id].rerun == ""
 
 
@@ -297,7 +297,7 @@ def test_completeness__a_done_cell_missing_eval_rows_is_evaluated_again_from_its
     assert stored_rows(store, cid).eval == 3
     st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
     assert (st.phase, st.trained, st.has_checkpoint) == ("pending", True, True)
-    assert st.rerun == "3 of 15 evaluation rows stored; evaluating it again from its final checkpoint"
+    assert st.rerun == "was done but 3 of 15 evaluation rows stored; evaluating it again from its final checkpoint"
 
 
 def test_completeness__report_warns_naming_the_incomplete_cell(
@@ -403,3 +403,77 @@ def test_map__without_enough_free_cells_is_a_clear_error_for_run_and_eval(
 def test_manifest_json_is_plain_json(finished: tuple[Path, Path]) -> None:
     _, out = finished
     assert json.loads((out / "manifest.json").read_text())["grid"] == "toygrid"
+
+
+# ------------------------------------------------- a default changed since
+def _stored_with(out: Path, cid: str, **old: object) -> None:
+    """Rewrite cells.parquet as if cell ``cid`` had been run when some defaults differed."""
+    store = RunStore(out)
+    cells = store.read_cells()
+    i = cells.index[cells["cell_id"] == cid][0]
+    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), **old}, sort_keys=True)
+    store.write_cells(cells.to_dict("records"))
+
+
+def test_changed_default__a_resume_is_refused_naming_cell_and_field_and_nothing_changes(
+        capsys: pytest.CaptureFixture[str], finished: tuple[Path, Path]) -> None:
+    grid_file, out = finished
+    cid = load_grid_file(grid_file).cells[1].cell_id
+    _stored_with(out, cid, lr=0.01)
+    before = snapshot(out)
+    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
+    assert code == 2
+    _one_line(err, "1 stored cell(s)", cid, "lr: 0.01 -> 0.05", "--rerun-changed", "superseded/")
+    assert snapshot(out) == before
+
+
+def test_changed_default__rerun_changed_plans_only_that_cell_again_from_the_start(finished: tuple[Path, Path]) -> None:
+    grid_file, out = finished
+    grid = load_grid_file(grid_file)
+    _stored_with(out, grid.cells[0].cell_id, lr=0.01, removed_field=3)
+    states = {s.cell_id: s for s in plan_run(RunStore(out), grid, fresh=False, rerun_changed=True)[0]}
+    st, other = states[grid.cells[0].cell_id], states[grid.cells[1].cell_id]
+    assert (st.phase, st.trained, st.has_checkpoint, st.episodes_done) == ("pending", False, False, 0)
+    assert st.superseded is not None and json.loads(st.superseded["params_json"])["lr"] == 0.01
+    assert "lr: 0.01 -> 0.05; removed_field: 3 -> (absent)" in st.rerun
+    assert other.phase == "done" and other.superseded is None and other.rerun == ""
+
+
+def test_changed_default__a_cell_without_stored_results_is_not_a_conflict(finished: tuple[Path, Path]) -> None:
+    grid_file, out = finished
+    grid = load_grid_file(grid_file)
+    cid = grid.cells[0].cell_id
+    store = RunStore(out)
+    for _, part in store.train_parts(cid):
+        part.unlink()
+    store.eval_path(cid).unlink()
+    store.ckpt_path(cid).unlink()
+    _stored_with(out, cid, lr=0.01)  # e.g. a pending row written by an earlier run
+    st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
+    assert st.phase == "pending" and st.superseded is None and st.rerun == ""
+
+
+def test_supersede__moves_every_file_of_the_cell_and_keeps_its_row(finished: tuple[Path, Path]) -> None:
+    grid_file, out = finished
+    grid = load_grid_file(grid_file)
+    cid, keep = grid.cells[0].cell_id, grid.cells[1].cell_id
+    store = RunStore(out)
+    (out / "matrix" / cid).mkdir(parents=True)
+    (out / "matrix" / cid / "n4-p0.2.parquet").write_bytes(b"rows")
+    before = snapshot(out)
+    row = store.read_cells().set_index("cell_id").loc[cid].to_dict()
+    dest = store.supersede(cid, {"cell_id": cid, **row}, "20261202T000000Z")
+    assert dest == out / "superseded" / f"{cid}-20261202T000000Z"
+    moved = {k: v for k, v in before.items() if cid in k}
+    after = snapshot(out)
+    assert not any(cid in k and not k.startswith("superseded/") for k in after)  # nothing of it left in place
+    assert {k for k in after if k.startswith("superseded/")} == {
+        f"superseded/{dest.name}/{name}" for name in (
+            *(f"train/{Path(k).name}" for k in moved if k.startswith("train/")),
+            "eval.parquet", "checkpoint.pt", "matrix/n4-p0.2.parquet", "cells_row.json")}
+    assert sorted(after[f"superseded/{dest.name}/train/{Path(k).name}"] for k in moved if k.startswith("train/")) == \
+        sorted(v for k, v in moved.items() if k.startswith("train/"))  # moved, byte for byte
+    assert json.loads(after[f"superseded/{dest.name}/cells_row.json"])["cell_id"] == cid
+    assert {k: v for k, v in after.items() if keep in k} == {k: v for k, v in before.items() if keep in k}
+    assert not store.has_results(cid) and store.has_results(keep)
+    assert cid not in set(store.read_train()["cell_id"]) and cid not in set(store.read_eval()["cell_id"])

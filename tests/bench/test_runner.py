@@ -179,3 +179,31 @@ def test_run__interrupted_between_execution_modes_then_resumed_has_every_mode_on
     assert (ca["status"] == "done").all()
     assert len(ea) == 2 * 5 * 3 and not ea.duplicated(["cell_id", "execution", "episode"]).any()
     pd.testing.assert_frame_equal(ea, eb)
+
+
+def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_its_old_files(
+        toy: str, tmp_path: Path) -> None:
+    import json
+
+    grid = _grid(toy_spec(seed=5), toy_spec(seed=6))
+    out = tmp_path / "run"
+    run_grid(grid, out, workers=1, checkpoint_every=2)
+    _, train0, eval0 = _frames(out)
+    store = RunStore(out)
+    cid = grid.cells[0].cell_id
+    cells = store.read_cells()
+    i = cells.index[cells["cell_id"] == cid][0]
+    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), "lr": 0.5}, sort_keys=True)
+    store.write_cells(cells.to_dict("records"))
+    old_eval = store.eval_path(cid).read_bytes()
+    with pytest.raises(Exception, match="--rerun-changed"):
+        run_grid(grid, out, workers=1, checkpoint_every=2)
+    summary = run_grid(grid, out, workers=1, checkpoint_every=2, rerun_changed=True)
+    assert summary.done == 2 and list(summary.rerun) == [cid] and "lr: 0.5 -> 0.05" in summary.rerun[cid]
+    (archive,) = (out / "superseded").iterdir()
+    assert archive.name.startswith(cid) and (archive / "eval.parquet").read_bytes() == old_eval
+    cells, train1, eval1 = _frames(out)
+    assert json.loads(cells.loc[cid, "params_json"])["lr"] == 0.05  # the row now says what ran
+    pd.testing.assert_frame_equal(train0, train1)  # the same seeds and parameters: the same rows
+    pd.testing.assert_frame_equal(eval0, eval1)
+    assert run_grid(grid, out, workers=1, checkpoint_every=2).rerun == {}
