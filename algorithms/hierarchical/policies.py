@@ -25,10 +25,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from algorithms.common.action_path import ACTION_GAIN  # shared with the baselines
+from algorithms.common.action_path import ACTION_GAIN, progress_index  # shared with the baselines
+from algorithms.common.robot_obs import robots_on_target_index
 from algorithms.hierarchical.group_layers import GroupMLP, masked_mean, relu
 from algorithms.hierarchical.messages import GroupStructure
-from envs.actions import DELTAS, N_ACTIONS
+from envs.actions import N_ACTIONS
 from envs.observations import PatchExtractor
 
 
@@ -82,10 +83,7 @@ def action_feature_index(obs_radius: int) -> np.ndarray:
     """(2, 5) column indices into ``robot_features`` of the action-aligned features:
     shortest-path progress of each action, and the same-group robot channel of the patch
     at the cell each action leads to (0 for Wait: the robot itself is blanked)."""
-    side = 2 * obs_radius + 1
-    robots = 11 + side * side  # start of the robot channel of the patch
-    cells = [(obs_radius + dr) * side + (obs_radius + dc) for dr, dc in DELTAS.tolist()]
-    return np.array([list(range(6, 6 + N_ACTIONS)), [robots + c for c in cells]])
+    return np.concatenate([progress_index(), robots_on_target_index(obs_radius)])
 
 
 class LocalPolicy(nn.Module):
