@@ -336,7 +336,7 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
     """Lemma 1 at the given (N, Z, L, C_max): largest group n_z = ceil(N / Z) (robot i in
     group i mod Z, envs/channel.py)."""
     claim = Claim(
-        "lemma1_budget", "Lemma 1's candidate budget at the paper's settings",
+        "lemma1_budget", "Lemma 1's guarantee applies at the paper's settings (C_max covers the candidates)",
         "Lemma 1 (lemma:safety_bound): if C_max >= sum_{d<=L} C(n_z, d)(m-1)^d the filter examines "
         "every candidate within radius L. The paper uses Z = 4, L = 2, C_max = 500, m = 5.",
         "Arithmetic on the settings with the largest group n_z = ceil(N/Z): verified when the bound is "

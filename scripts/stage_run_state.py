@@ -6,7 +6,8 @@ any fresh clone).
 
 Stages what a rerun of ``bench run`` needs to resume and what ``bench report`` reads:
 ``cells.parquet``, ``manifest.json``, ``train/``, ``eval/``, ``matrix/`` and ``report/``
-when present, and the checkpoints of the cells that are not done (a resumed cell restarts
+when present, the rows of ``superseded/`` cells (trained with other parameters; not their
+checkpoints), and the checkpoints of the cells that are not done (a resumed cell restarts
 from them). Checkpoints of done cells stay out of git (``reproduction/.gitignore``) and are
 removed from the index if an earlier commit held them while the cell was running; the files
 on disk are never touched. A run that is still going (it holds the run folder's lock) is
@@ -36,6 +37,9 @@ def plan(run: Path, tracked: set[str]) -> tuple[list[str], list[str]]:
     add = [str(run / name) for name in DATA if (run / name).exists()]
     ckpts = sorted((run / "checkpoints").glob("*.pt")) if (run / "checkpoints").exists() else []
     add += [str(p) for p in ckpts if p.stem in unfinished]
+    old = run / "superseded"
+    add += [str(p) for p in sorted(old.rglob("*")) if p.is_file() and p.suffix in (".parquet", ".json")] \
+        if old.is_dir() else []
     drop = sorted(t for t in tracked if Path(t).parent == run / "checkpoints" and Path(t).stem not in unfinished)
     return add, drop
 

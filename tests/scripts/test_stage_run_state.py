@@ -29,6 +29,19 @@ def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: 
     assert (run / "checkpoints" / "aaa.pt").exists()
 
 
+def test_plan__superseded_rows_are_added_without_their_checkpoints(tmp_path: Path) -> None:
+    run = tmp_path / "paper"
+    old = run / "superseded" / "aaa-20261202T103152Z"
+    (old / "train").mkdir(parents=True)
+    pd.DataFrame({"cell_id": ["aaa"], "status": ["running"]}).to_parquet(run / "cells.parquet")
+    (run / "manifest.json").write_text("{}")
+    for name in ("train/part-000000000.parquet", "eval.parquet", "cells_row.json", "checkpoint.pt"):
+        (old / name).write_bytes(b"x")
+    add, _ = stage.plan(run, set())
+    assert add == [str(run / "cells.parquet"), str(run / "manifest.json"), str(old / "cells_row.json"),
+                   str(old / "eval.parquet"), str(old / "train" / "part-000000000.parquet")]
+
+
 def test_main__refuses_a_run_that_is_still_writing(tmp_path: Path, monkeypatch, capsys) -> None:
     import os
     import sys
