@@ -102,7 +102,7 @@ class Claim:
 
 
 def _g(x: float) -> str:
-    return f"{x:.3g}" if np.isfinite(x) else "nan"
+    return f"{x:.3g}"  # nan and inf print as themselves
 
 
 def _cfg(n: int, p: float) -> str:
@@ -129,7 +129,7 @@ def final_means(train: pd.DataFrame, frac: float = FINAL_FRAC, metric: str = "te
 
 def seed_means(rows: pd.DataFrame, metric: str) -> np.ndarray:
     """(S,) per-seed (per-cell) mean of an evaluation metric."""
-    return per_seed_means(per_cell(rows, metric)).astype(np.float64)
+    return per_seed_means(per_cell(rows, metric))
 
 
 def with_execution(evals: pd.DataFrame) -> pd.DataFrame:
@@ -361,7 +361,7 @@ def all_claims(train: pd.DataFrame, evals: pd.DataFrame, at: str = "paper",
         raise ValueError(f"claims at {at!r}: expected 'paper' or 'run'")
     r = at == "run"
     fig1 = run_configs(train, ("hierarchical", "decentralized")) if r else []
-    gaps = [(big, n, p) for (big, pb) in fig1 for (n, p) in fig1 if pb == p and n < big] if r else []
+    gaps = [(big, n, p) for (big, pb) in fig1 for (n, p) in fig1 if pb == p and n < big]
     hier_t = run_configs(train, ("hierarchical",)) if r else []
     fig2 = run_configs(evals, ("hierarchical", "ic3net")) if r else []
     hier_e = run_configs(evals, ("hierarchical",)) if r else []

@@ -266,6 +266,14 @@ def test_lemma1__bound_per_n_at_the_papers_settings():
     assert claim_lemma1(configs=[], run=[(8, 2, 1, 500)]).checks[0].verdict == BY_CONSTRUCTION
 
 
+def test_lemma1__a_budget_equal_to_the_bound_is_enough_and_the_row_says_so():
+    at, below = claim_lemma1(configs=[(20, 4, 2, 181), (20, 4, 2, 180)]).checks
+    assert (at.config, at.execution, at.verdict, at.numbers, at.test) == (
+        "N = 20, Z = 4, L = 2, C_max = 181", "-", BY_CONSTRUCTION, "n_z = 5: bound 181 <= C_max = 181",
+        "arithmetic (no data)")
+    assert (below.verdict, below.numbers) == (CONTRADICTED, "n_z = 5: bound 181 > C_max = 180")
+
+
 def _payload_rows(c_hier: float, n: int = 40, z: int = 4) -> pd.DataFrame:
     return pd.DataFrame({"cell_id": "h", "episode": np.arange(5), "payload_scalars_per_step": c_hier,
                          "payload_dec_per_step": n * (n - 1) * 3.0, "method": "hierarchical",
@@ -300,6 +308,9 @@ def test_payload_ratio__one_episode_above_the_bound_contradicts_and_the_numbers_
     assert claim_payload_ratio(_payload_rows(2 * 1 * 3.0, n=2, z=2)).checks[0].verdict == BY_CONSTRUCTION  # ratio 1
     assert claim_payload_ratio(ok.iloc[0:0]).checks == [
         Check("any N", NOT_ENOUGH, "no hierarchical evaluation rows", "-")]
+    after_undefined = pd.concat([one, ok.assign(cell_id="h40")])  # an undefined N does not end the checks
+    assert [(c.config, c.verdict) for c in claim_payload_ratio(after_undefined).checks] == [
+        ("N = 1, Z = 1", NOT_ENOUGH), ("N = 40, Z = 4", BY_CONSTRUCTION)]
 
 
 def test_mode_pairs__shared_modes_in_order_else_the_single_pair_else_none():
@@ -313,6 +324,18 @@ def test_mode_pairs__shared_modes_in_order_else_the_single_pair_else_none():
     assert [m for m, _, _ in mode_pairs(rows("argmax"), rows("sample"))] == ["argmax vs sample"]
     assert mode_pairs(rows("argmax", "sample@0.5"), rows("sample")) == []
     assert mode_pairs(rows("argmax"), rows("sample", "planner")) == []
+
+
+def test_safety_claims__rows_per_mode_in_the_papers_order_and_a_missing_configuration_has_no_mode():
+    e = 5
+    modes = ("sample@0.25", "sample@0.5", "argmax")  # neither alphabetical nor as stored
+    rows = pd.concat([_ev("hierarchical", np.zeros((3, e)), mode=m, collision_rate=np.zeros((3, e)),
+                          correction_rate=np.zeros((3, e))) for m in modes])
+    for claim in (claim_no_collisions, claim_few_corrections):
+        got = claim(rows, configs=[(40, 0.2), (60, 0.2)]).checks
+        assert [c.execution for c in got[:3]] == ["argmax", "sample@0.5", "sample@0.25"]
+        assert (got[3].config, got[3].execution, got[3].verdict, got[3].test) == (
+            "N = 60, p = 0.2", "-", NOT_ENOUGH, "-")
 
 
 def test_claims__missing_configurations_are_not_enough_seeds(holding):
