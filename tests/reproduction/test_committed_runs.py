@@ -18,6 +18,7 @@ import pytest
 
 from bench.completeness import incomplete_cells
 from bench.grids import BUILTIN, DEFAULT_SEEDS
+from bench.plan import params_changes
 from bench.store import RunStore
 
 ROOT = Path(__file__).resolve().parents[2] / "reproduction"
@@ -39,6 +40,17 @@ def test_committed_cells__are_cells_of_todays_grid(run) -> None:
     grid = BUILTIN[name](seeds=DEFAULT_SEEDS[name])
     unknown = set(cells["cell_id"]) - {c.cell_id for c in grid.cells}
     assert not unknown, f"reproduction/{name}: cells no longer in the {name} grid: {sorted(unknown)}"
+
+
+def test_committed_cells__ran_with_the_parameters_todays_code_resolves(run) -> None:
+    """A cell id hashes overrides, not defaults: a default changed since a committed cell
+    was trained leaves its id unchanged, so the rows would claim parameters they did not
+    run with (IC3Net's action path, 2026-12-02). `bench run --rerun-changed` retrains them."""
+    name, store, cells = run
+    grid = {c.cell_id: c for c in BUILTIN[name](seeds=DEFAULT_SEEDS[name]).cells}
+    stale = {row.cell_id: diff for row in cells.itertuples() if row.cell_id in grid and store.has_results(row.cell_id)
+             and (diff := params_changes(str(row.params_json), grid[row.cell_id]))}
+    assert not stale, f"reproduction/{name}: cells trained with other parameters than today's: {stale}"
 
 
 def test_committed_done_cells__have_every_row_in_every_mode(run) -> None:
