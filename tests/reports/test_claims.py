@@ -565,6 +565,22 @@ def test_claims__each_check_reads_its_own_method_team_size_and_loss():
     assert [k.verdict for k in gap.checks] == [SUPPORTED, SUPPORTED]
 
 
+def test_above_ic3net__each_check_reads_both_methods_at_its_own_team_size_and_loss():
+    """Fig. 2's checks per (N, p): hierarchical above IC3Net at (40, 0.2), below at (60, 0.2)
+    and at (40, 0.4); pooling another N or p on either side would change a verdict."""
+    rng = np.random.default_rng(2)
+    hi, lo = (lambda: rng.uniform(0.8, 1.0, (3, 10))), (lambda: rng.uniform(0.0, 0.2, (3, 10)))
+    parts = [_ev("hierarchical", hi(), 40, 0.2, "argmax"), _ev("ic3net", lo(), 40, 0.2, "argmax"),
+             _ev("hierarchical", lo(), 60, 0.2, "argmax"), _ev("ic3net", hi(), 60, 0.2, "argmax"),
+             _ev("hierarchical", lo(), 40, 0.4, "argmax"), _ev("ic3net", hi(), 40, 0.4, "argmax"),
+             _ev("hierarchical", hi(), 60, 0.4, "argmax")]  # (60, 0.4): no IC3Net rows
+    c = claim_above_ic3net(pd.concat(parts), configs=[(40, 0.2), (60, 0.2), (40, 0.4), (60, 0.4)])
+    assert [(k.config, k.execution, k.verdict) for k in c.checks] == [
+        ("N = 40, p = 0.2", "argmax", SUPPORTED), ("N = 60, p = 0.2", "argmax", CONTRADICTED),
+        ("N = 40, p = 0.4", "argmax", CONTRADICTED), ("N = 60, p = 0.4", "-", NOT_ENOUGH)]
+    assert c.checks[3].numbers == "3 vs 0 seeds (need >= 3 per side)"
+
+
 def test_safety_claims__read_the_hierarchical_rows_with_the_filter_on_only():
     rng = np.random.default_rng(0)
     clean = _ev("hierarchical", np.full((3, 10), 0.9), n=40, mode="argmax",
