@@ -42,7 +42,7 @@ import pyarrow.parquet as pq
 
 from bench.cells import Cell
 from bench.completeness import expected_rows
-from bench.plan import cell_spec
+from bench.plan import cell_spec, params_changes
 from bench.schema import METRIC_FIELDS, rows_to_table
 from bench.store import RunStore, read_meta, read_table, write_table
 from bench.worker import CellWorker, build_method
@@ -243,6 +243,12 @@ def done_cells(store: RunStore) -> list[Cell]:
         raise BenchError(f"{str(store.root)!r} has no cells.parquet; run `bench run` first")
     done = cells[cells["status"] == "done"]
     out = [Cell.from_json(str(js)) for js in done["config_json"]]
+    stale = [f"{c.cell_id} ({c.method}): {', '.join(d)}" for c, js in zip(out, done["params_json"], strict=True)
+             if (d := params_changes(str(js), c))]
+    if stale:  # the checkpoint would be loaded into the method built with today's defaults
+        raise BenchError(f"{str(store.root)!r}: {len(stale)} done cell(s) were trained with other method "
+                         f"parameters than this code resolves for them (a default changed since): "
+                         f"{'; '.join(stale[:5])}; run `bench run --rerun-changed` on this run first")
     out = [c for c in out if store.ckpt_path(c.cell_id).exists()]
     if not out:
         raise BenchError(f"{str(store.root)!r} has no trained checkpoints of done cells "

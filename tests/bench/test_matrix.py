@@ -159,6 +159,25 @@ def test_matrix__a_run_without_checkpoints_is_refused(toy: str, tiny_run: Path, 
         run_matrix(tmp_path / "nowhere", use_ray=False)
 
 
+def test_matrix__cells_trained_under_other_defaults_are_refused(toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    import json
+    import shutil
+
+    from bench.store import RunStore
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    store = RunStore(run)
+    cells = store.read_cells()
+    i = cells.index[cells["method"] == "toy"][0]
+    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), "lr": 0.5}, sort_keys=True)
+    store.write_cells(cells.to_dict("records"))
+    before = snapshot(run)
+    with pytest.raises(BenchError, match=r"1 done cell\(s\) .* lr: 0.5 -> 0.05; run `bench run --rerun-changed`"):
+        run_matrix(run, use_ray=False)
+    assert snapshot(run) == before
+
+
 def test_cli__bad_p_is_one_line_and_exit_2(tiny_run: Path) -> None:
     proc = subprocess.run(cli_argv("matrix", "--run", str(tiny_run), "--p", "1.5"), cwd=REPO,
                           capture_output=True, text=True, timeout=120)
