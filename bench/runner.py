@@ -206,6 +206,9 @@ class _Run:
             self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
             slots = [Slot(actor) for actor in take_workers(self.remote, self.n_workers)]
         self._emit("start", None)
+        for st in self.states:  # said at once: an interrupted run never reaches the summary
+            if st.rerun:
+                self._emit("rerun", st)
         stalled_since: float | None = None
         try:
             while not all(s.finished for s in self.states):
@@ -436,6 +439,8 @@ def event_message(kind: str, st: CellState, last_error: str = "") -> str:
         return f"failed {label}: {st.error}"
     if kind == "retry":
         return f"retry {label} after {last_error[:80]}"
+    if kind == "rerun":
+        return f"{label} {st.rerun}"
     return f"{kind} {label}"
 
 

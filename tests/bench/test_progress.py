@@ -69,3 +69,5 @@ def test_event_message__says_where_a_cell_is_and_is_not_repeated_by_later_events
     assert event_message("failed", st) == f"failed {label}: boom"
     assert event_message("retry", st, "worker died " + "x" * 200) == f"retry {label} after worker died " + "x" * 68
     assert event_message("done", st) == f"done {label}"
+    st.rerun = "was done but 1 of 3 evaluation rows stored; evaluating it again from its final checkpoint"
+    assert event_message("rerun", st) == f"{label} {st.rerun}"
