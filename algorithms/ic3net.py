@@ -137,8 +137,8 @@ def _off_diagonal(n: int) -> np.ndarray:
 class IC3NetPolicy(nn.Module):
     """Encoder, C per pass, LSTM cell and the action / gate / value heads."""
 
-    def __init__(self, n_in: int, hidden: int, comm_passes: int, action_path: bool = False,
-                 radius: int = 2, value_head: bool = False) -> None:
+    def __init__(self, n_in: int, hidden: int, comm_passes: int, action_path: bool,
+                 radius: int, value_head: bool) -> None:
         super().__init__()
         self.hidden = hidden
         self.encoder = nn.Linear(n_in, hidden)
