@@ -120,11 +120,6 @@ class CellState:
         return f"{self.cell_id} ({c.method} N={c.n_robots} p={c.loss_p} seed={c.seed})"
 
 
-def resolved_params_json(cell: Cell) -> str:
-    """The cell's resolved method parameters as stored in cells.parquet's ``params_json``."""
-    return json.dumps(cell.method_params().model_dump(mode="json"), sort_keys=True)
-
-
 def params_changes(stored_json: str, cell: Cell) -> list[str]:
     """'field: stored -> now' for every resolved parameter that differs between a stored
     ``params_json`` and what this code resolves for ``cell`` (empty: unchanged or unknown)."""
@@ -134,7 +129,7 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
         old = json.loads(stored_json)
     except json.JSONDecodeError:
         return []
-    new = json.loads(resolved_params_json(cell))
+    new = cell.method_params().model_dump(mode="json")  # what cells.parquet stores as params_json
     missing = object()
     return [f"{k}: {json.dumps(old.get(k)) if k in old else '(absent)'} -> "
             f"{json.dumps(new.get(k)) if k in new else '(absent)'}"

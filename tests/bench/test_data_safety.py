@@ -419,11 +419,12 @@ def test_changed_default__a_resume_is_refused_naming_cell_and_field_and_nothing_
         capsys: pytest.CaptureFixture[str], finished: tuple[Path, Path]) -> None:
     grid_file, out = finished
     cid = load_grid_file(grid_file).cells[1].cell_id
-    _stored_with(out, cid, lr=0.01)
+    _stored_with(out, cid, lr=0.01, gone=None)
     before = snapshot(out)
     code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
-    _one_line(err, "1 stored cell(s)", cid, "lr: 0.01 -> 0.05", "--rerun-changed", "superseded/")
+    _one_line(err, "1 stored cell(s)", f"{cid} (toy N=4 p=0.2 seed=1): gone: null -> (absent), lr: 0.01 -> 0.05. ",
+              "--rerun-changed", "superseded/")
     assert snapshot(out) == before
 
 
@@ -435,7 +436,8 @@ def test_changed_default__rerun_changed_plans_only_that_cell_again_from_the_star
     st, other = states[grid.cells[0].cell_id], states[grid.cells[1].cell_id]
     assert (st.phase, st.trained, st.has_checkpoint, st.episodes_done) == ("pending", False, False, 0)
     assert st.superseded is not None and json.loads(st.superseded["params_json"])["lr"] == 0.01
-    assert "lr: 0.01 -> 0.05; removed_field: 3 -> (absent)" in st.rerun
+    assert st.rerun == ("was stored with other method parameters (lr: 0.01 -> 0.05; removed_field: 3 -> "
+                        "(absent)); its files moved to superseded/, training it again from the start")
     assert other.phase == "done" and other.superseded is None and other.rerun == ""
 
 
@@ -477,3 +479,21 @@ def test_supersede__moves_every_file_of_the_cell_and_keeps_its_row(finished: tup
     assert {k: v for k, v in after.items() if keep in k} == {k: v for k, v in before.items() if keep in k}
     assert not store.has_results(cid) and store.has_results(keep)
     assert cid not in set(store.read_train()["cell_id"]) and cid not in set(store.read_eval()["cell_id"])
+
+
+def test_changed_default__a_field_the_stored_row_lacks_and_many_cells_in_one_message(toy: str, tmp_path: Path) -> None:
+    grid_file = write_grid_file(tmp_path / "seven.toml", toy_spec(episodes=2, eval_episodes=1),
+                                {"seed": list(range(7))})
+    grid = load_grid_file(grid_file)
+    out = tmp_path / "run"
+    write_finished_store(out, grid)
+    store = RunStore(out)
+    cells = store.read_cells()
+    cells["params_json"] = [json.dumps({k: v for k, v in json.loads(js).items() if k != "marker"}, sort_keys=True)
+                            for js in cells["params_json"]]  # written before the field existed
+    store.write_cells(cells.to_dict("records"))
+    with pytest.raises(BenchError) as exc:
+        plan_run(store, grid, fresh=False)
+    msg = str(exc.value)
+    assert msg.startswith(f"{out}: 7 stored cell(s) were run with other method parameters")
+    assert msg.count('marker: (absent) -> ""') == 5 and "; and 2 more. Resuming" in msg
