@@ -129,7 +129,12 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
         old = json.loads(stored_json)
     except json.JSONDecodeError:
         return []
-    new = cell.method_params().model_dump(mode="json")  # what cells.parquet stores as params_json
+    return dict_changes(old, cell.method_params().model_dump(mode="json"))  # as stored in params_json
+
+
+def dict_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+    """'key: old -> new' (JSON values, '(absent)' for a missing key) for every key whose
+    value differs, in key order."""
     missing = object()
     return [f"{k}: {json.dumps(old.get(k)) if k in old else '(absent)'} -> "
             f"{json.dumps(new.get(k)) if k in new else '(absent)'}"

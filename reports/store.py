@@ -12,6 +12,7 @@ A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from bench.plan import dict_changes
 from bench.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from bench.store import RunStore, read_table
 from envs.errors import BenchError
@@ -131,7 +133,31 @@ def load_store(run_dir: Path | str) -> Store:
     for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
         problems.append(f"cell {cid} is done but has no evaluation rows")
     problems += incomplete_evals(done, evals)
+    problems += superseded_notes(run, cells)
     return Store(run, cells.reset_index(drop=True), train, evals, manifest, problems)
+
+
+def superseded_notes(run: Path, cells: pd.DataFrame) -> list[str]:
+    """One line per folder of ``superseded/`` (a cell trained again because its method
+    parameters changed, ``bench run --rerun-changed``): which cell, what changed. Its
+    former rows stay there and are not shown."""
+    root = run / "superseded"
+    if not root.is_dir():
+        return []
+    now = dict(zip(cells["cell_id"].astype(str), cells["params_json"].astype(str), strict=True))
+    out = []
+    for d in sorted(p for p in root.iterdir() if p.is_dir()):
+        try:
+            row = json.loads((d / "cells_row.json").read_text())
+            changed = dict_changes(json.loads(row.get("params_json") or "{}"),
+                                   json.loads(now.get(str(row.get("cell_id")), "{}")))
+        except (OSError, ValueError, AttributeError):
+            out.append(f"superseded/{d.name}: unreadable cells_row.json")
+            continue
+        out.append(f"superseded/{d.name}: {row.get('method')} N={row.get('n_robots')} p={row.get('loss_p')} "
+                   f"seed={row.get('seed')} was trained again with other parameters "
+                   f"({'; '.join(changed) or 'unchanged'}); its former rows are kept there, not shown")
+    return out
 
 
 def select(df: pd.DataFrame, method: str | None = None, n_robots: int | None = None,

@@ -23,6 +23,7 @@ from bench.grid_files import load_grid_file
 from bench.plan import plan_run
 from bench.store import DiskFull, RunStore, atomic_file, load_checkpoint, write_table
 from envs.errors import BenchError
+from reports.store import load_store
 from tests.bench.conftest import snapshot, toy_spec, write_finished_store, write_grid_file
 
 
@@ -464,6 +465,7 @@ def test_supersede__moves_every_file_of_the_cell_and_keeps_its_row(finished: tup
     (out / "matrix" / cid / "n4-p0.2.parquet").write_bytes(b"rows")
     before = snapshot(out)
     row = store.read_cells().set_index("cell_id").loc[cid].to_dict()
+    row["params_json"] = json.dumps({**json.loads(row["params_json"]), "lr": 0.01})  # as run before
     dest = store.supersede(cid, {"cell_id": cid, **row}, "20261202T000000Z")
     assert dest == out / "superseded" / f"{cid}-20261202T000000Z"
     moved = {k: v for k, v in before.items() if cid in k}
@@ -479,6 +481,9 @@ def test_supersede__moves_every_file_of_the_cell_and_keeps_its_row(finished: tup
     assert {k: v for k, v in after.items() if keep in k} == {k: v for k, v in before.items() if keep in k}
     assert not store.has_results(cid) and store.has_results(keep)
     assert cid not in set(store.read_train()["cell_id"]) and cid not in set(store.read_eval()["cell_id"])
+    notes = [p for p in load_store(out).problems if "superseded" in p]  # the report says what was redone
+    assert notes == [f"superseded/{dest.name}: toy N=4 p=0.2 seed=0 was trained again with other parameters "
+                     "(lr: 0.01 -> 0.05); its former rows are kept there, not shown"]
 
 
 def test_changed_default__a_field_the_stored_row_lacks_and_many_cells_in_one_message(toy: str, tmp_path: Path) -> None:
