@@ -129,6 +129,8 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
         old = json.loads(stored_json)
     except json.JSONDecodeError:
         return []
+    if not isinstance(old, dict):  # e.g. "nan" from a row written without parameters
+        return []
     return dict_changes(old, cell.method_params().model_dump(mode="json"))  # as stored in params_json
 
 

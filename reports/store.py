@@ -151,7 +151,7 @@ def superseded_notes(run: Path, cells: pd.DataFrame) -> list[str]:
             row = json.loads((d / "cells_row.json").read_text())
             changed = dict_changes(json.loads(row.get("params_json") or "{}"),
                                    json.loads(now.get(str(row.get("cell_id")), "{}")))
-        except (OSError, ValueError, AttributeError):
+        except (OSError, ValueError, AttributeError, TypeError):
             out.append(f"superseded/{d.name}: unreadable cells_row.json")
             continue
         out.append(f"superseded/{d.name}: {row.get('method')} N={row.get('n_robots')} p={row.get('loss_p')} "

@@ -20,7 +20,7 @@ from bench.cells import MAX_HORIZON, Cell
 from bench.cli import main
 from bench.completeness import expected_for_cell, incomplete_cells, stored_rows
 from bench.grid_files import load_grid_file
-from bench.plan import plan_run
+from bench.plan import params_changes, plan_run
 from bench.store import DiskFull, RunStore, atomic_file, load_checkpoint, write_table
 from envs.errors import BenchError
 from reports.store import load_store
@@ -454,6 +454,7 @@ def test_changed_default__a_cell_without_stored_results_is_not_a_conflict(finish
     _stored_with(out, cid, lr=0.01)  # e.g. a pending row written by an earlier run
     st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
     assert st.phase == "pending" and st.superseded is None and st.rerun == ""
+    assert params_changes("nan", grid.cells[0]) == params_changes("", grid.cells[0]) == []  # no parameters stored
 
 
 def test_supersede__moves_every_file_of_the_cell_and_keeps_its_row(finished: tuple[Path, Path]) -> None:
