@@ -41,6 +41,7 @@ from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.matrix import matrix_entries
 from reports.plotting import DPI
+from reports.progress import progress_markdown
 from reports.store import load_store
 from reports.summary import (
     SUMMARY_CAPTION,
@@ -207,11 +208,12 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                          tables=tuple((f"Table I ({m}). " + table1_caption(table, m), table1_display(table, m))
                                       for m in modes)))
 
+    write_text(out / "progress.md", progress_markdown(store.cells))  # the README's status table
     summary = summary_frame(evals, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
-                         ("summary.md", "summary.csv"),
+                         ("summary.md", "summary.csv", "progress.md"),
                          tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
 
     ablation = ablation_frame(evals, store.cells)

@@ -120,14 +120,16 @@ def test_committed_report__is_what_the_current_code_rebuilds(run, tmp_path, monk
 
 
 def test_readme__claims_table_is_the_committed_reports() -> None:
-    """The README's Reproduction section shows the committed report's claims table
-    verbatim (``scripts/sync_readme_claims.py`` copies it), so its verdicts cannot drift."""
+    """The README's Reproduction section shows the committed report's claims table and
+    status table verbatim (``scripts/sync_readme_claims.py`` copies them), so its verdicts
+    and its account of what is done cannot drift."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("sync", ROOT.parent / "scripts" / "sync_readme_claims.py")
     sync = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(sync)  # type: ignore[union-attr]
-    block = sync.readme_block((ROOT.parent / "README.md").read_text(encoding="utf-8"))
-    table = (ROOT / "paper" / "report" / "claims_table.md").read_text(encoding="utf-8")
-    assert block == table, "README's claims table differs from reproduction/paper/report/claims_table.md; " \
-                           "run scripts/sync_readme_claims.py"
+    readme = (ROOT.parent / "README.md").read_text(encoding="utf-8")
+    for name, file in sync.BLOCKS.items():  # the claims table and the status table
+        table = (ROOT / "paper" / "report" / file).read_text(encoding="utf-8")
+        assert sync.readme_block(readme, name) == table, \
+            f"README's {name} block differs from reproduction/paper/report/{file}; run scripts/sync_readme_claims.py"
