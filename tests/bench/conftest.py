@@ -106,3 +106,17 @@ def write_finished_store(out: Path, grid: Any) -> None:
                          {"wall_s": 0.0, "attempts": 1, "train_episodes_done": first})
         st.phase, st.attempts, st.episodes_done = "done", 1, first
     store.write_cells([st.row(grid.name) for st in states])
+
+
+def store_with_params(out: Path, cid: str, **old: Any) -> None:
+    """Rewrite cells.parquet as if cell ``cid`` had been run when some method parameters
+    (defaults) differed: ``old`` replaces or adds those fields of its ``params_json``."""
+    import json
+
+    from bench.store import RunStore
+
+    store = RunStore(out)
+    cells = store.read_cells()
+    i = cells.index[cells["cell_id"] == cid][0]
+    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), **old}, sort_keys=True)
+    store.write_cells(cells.to_dict("records"))

@@ -24,7 +24,13 @@ from bench.plan import params_changes, plan_run
 from bench.store import DiskFull, RunStore, atomic_file, load_checkpoint, write_table
 from envs.errors import BenchError
 from reports.store import load_store
-from tests.bench.conftest import snapshot, toy_spec, write_finished_store, write_grid_file
+from tests.bench.conftest import (
+    snapshot,
+    store_with_params,
+    toy_spec,
+    write_finished_store,
+    write_grid_file,
+)
 
 
 def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
@@ -407,20 +413,11 @@ def test_manifest_json_is_plain_json(finished: tuple[Path, Path]) -> None:
 
 
 # ------------------------------------------------- a default changed since
-def _stored_with(out: Path, cid: str, **old: object) -> None:
-    """Rewrite cells.parquet as if cell ``cid`` had been run when some defaults differed."""
-    store = RunStore(out)
-    cells = store.read_cells()
-    i = cells.index[cells["cell_id"] == cid][0]
-    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), **old}, sort_keys=True)
-    store.write_cells(cells.to_dict("records"))
-
-
 def test_changed_default__a_resume_is_refused_naming_cell_and_field_and_nothing_changes(
         capsys: pytest.CaptureFixture[str], finished: tuple[Path, Path]) -> None:
     grid_file, out = finished
     cid = load_grid_file(grid_file).cells[1].cell_id
-    _stored_with(out, cid, lr=0.01, gone=None)
+    store_with_params(out, cid, lr=0.01, gone=None)
     before = snapshot(out)
     code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
@@ -432,7 +429,7 @@ def test_changed_default__a_resume_is_refused_naming_cell_and_field_and_nothing_
 def test_changed_default__rerun_changed_plans_only_that_cell_again_from_the_start(finished: tuple[Path, Path]) -> None:
     grid_file, out = finished
     grid = load_grid_file(grid_file)
-    _stored_with(out, grid.cells[0].cell_id, lr=0.01, removed_field=3)
+    store_with_params(out, grid.cells[0].cell_id, lr=0.01, removed_field=3)
     states = {s.cell_id: s for s in plan_run(RunStore(out), grid, fresh=False, rerun_changed=True)[0]}
     st, other = states[grid.cells[0].cell_id], states[grid.cells[1].cell_id]
     assert (st.phase, st.trained, st.has_checkpoint, st.episodes_done) == ("pending", False, False, 0)
@@ -451,7 +448,7 @@ def test_changed_default__a_cell_without_stored_results_is_not_a_conflict(finish
         part.unlink()
     store.eval_path(cid).unlink()
     store.ckpt_path(cid).unlink()
-    _stored_with(out, cid, lr=0.01)  # e.g. a pending row written by an earlier run
+    store_with_params(out, cid, lr=0.01)  # e.g. a pending row written by an earlier run
     st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
     assert st.phase == "pending" and st.superseded is None and st.rerun == ""
     assert params_changes("nan", grid.cells[0]) == params_changes("", grid.cells[0]) == []  # no parameters stored

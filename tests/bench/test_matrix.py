@@ -18,7 +18,13 @@ from bench.grids import Grid
 from bench.matrix import Condition, read_matrix, run_matrix
 from bench.worker import CellWorker
 from envs.errors import BenchError
-from tests.bench.conftest import cli_argv, snapshot, toy_spec, write_finished_store
+from tests.bench.conftest import (
+    cli_argv,
+    snapshot,
+    store_with_params,
+    toy_spec,
+    write_finished_store,
+)
 
 REPO = Path(__file__).resolve().parents[2]
 K = 3  # evaluation episodes per condition (one chunk)
@@ -160,18 +166,14 @@ def test_matrix__a_run_without_checkpoints_is_refused(toy: str, tiny_run: Path, 
 
 
 def test_matrix__cells_trained_under_other_defaults_are_refused(toy: str, tiny_run: Path, tmp_path: Path) -> None:
-    import json
     import shutil
 
     from bench.store import RunStore
 
     run = tmp_path / "run"
     shutil.copytree(tiny_run, run)
-    store = RunStore(run)
-    cells = store.read_cells()
-    i = cells.index[cells["method"] == "toy"][0]
-    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), "lr": 0.5}, sort_keys=True)
-    store.write_cells(cells.to_dict("records"))
+    cells = RunStore(run).read_cells()
+    store_with_params(run, str(cells.loc[cells["method"] == "toy", "cell_id"].iloc[0]), lr=0.5)
     before = snapshot(run)
     with pytest.raises(BenchError, match=r"1 done cell\(s\) .* lr: 0.5 -> 0.05; run `bench run --rerun-changed`"):
         run_matrix(run, use_ray=False)

@@ -12,7 +12,7 @@ from bench.cells import Cell
 from bench.grids import Grid
 from bench.runner import run_grid
 from bench.store import RunStore
-from tests.bench.conftest import snapshot, toy_spec
+from tests.bench.conftest import snapshot, store_with_params, toy_spec
 
 pytestmark = pytest.mark.usefixtures("ray_local")
 METRICS = ["cell_id", "episode", "team_return", "success_rate", "collision_rate", "invalid_rate", "steps"]
@@ -191,10 +191,7 @@ def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_
     _, train0, eval0 = _frames(out)
     store = RunStore(out)
     cid = grid.cells[0].cell_id
-    cells = store.read_cells()
-    i = cells.index[cells["cell_id"] == cid][0]
-    cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), "lr": 0.5}, sort_keys=True)
-    store.write_cells(cells.to_dict("records"))
+    store_with_params(out, cid, lr=0.5)
     old_eval = store.eval_path(cid).read_bytes()
     with pytest.raises(Exception, match="--rerun-changed"):
         run_grid(grid, out, workers=1, checkpoint_every=2)
