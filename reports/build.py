@@ -10,7 +10,8 @@ listed among the store's problems. Deterministic: bootstrap
 generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
-.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, claims.{md,csv}, calibration.{json,md} (the
+.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, success_by_mode.md (the README's
+results table), progress.md, claims.{md,csv}, calibration.{json,md} (the
 calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/matrix/ exists
 (reports/matrix.py), index.md, index.html.
 """
@@ -43,6 +44,7 @@ from reports.matrix import matrix_entries
 from reports.plotting import DPI
 from reports.progress import progress_markdown
 from reports.store import load_store
+from reports.success_table import success_markdown
 from reports.summary import (
     SUMMARY_CAPTION,
     ci_display,
@@ -212,8 +214,9 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     summary = summary_frame(evals, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
+    write_text(out / "success_by_mode.md", success_markdown(summary, store.cells))  # the README's results table
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
-                         ("summary.md", "summary.csv", "progress.md"),
+                         ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"),
                          tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
 
     ablation = ablation_frame(evals, store.cells)

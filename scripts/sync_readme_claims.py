@@ -1,12 +1,14 @@
-"""Copy the committed reproduction's claims table and status table into the README (issue 13).
+"""Copy the committed reproduction's claims, success and status tables into the README (issue 13).
 
     .venv/bin/python scripts/sync_readme_claims.py [reproduction/paper]
 
 Replaces the text between ``<!-- claims_table:begin -->`` and ``<!-- claims_table:end -->``
-in README.md with ``<run>/report/claims_table.md``, and between ``<!-- progress:begin -->``
-and ``<!-- progress:end -->`` with ``<run>/report/progress.md`` (both written by ``bench
-report``), so the README's verdicts and status are the committed report's;
-``tests/reproduction`` checks they agree.
+in README.md with ``<run>/report/claims_table.md``, between ``<!-- progress:begin -->``
+and ``<!-- progress:end -->`` with ``<run>/report/progress.md``, and between
+``<!-- success:begin -->`` and ``<!-- success:end -->`` with
+``<run>/report/success_by_mode.md`` (all written by ``bench report``), so the README's
+verdicts, success rates and status are the committed report's; ``tests/reproduction``
+checks they agree.
 """
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md"}  # README marker -> report file
+BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md",  # README marker -> report file
+          "success": "success_by_mode.md"}
 
 
 def markers(name: str) -> tuple[str, str]:

@@ -120,16 +120,16 @@ def test_committed_report__is_what_the_current_code_rebuilds(run, tmp_path, monk
 
 
 def test_readme__claims_table_is_the_committed_reports() -> None:
-    """The README's Reproduction section shows the committed report's claims table and
-    status table verbatim (``scripts/sync_readme_claims.py`` copies them), so its verdicts
-    and its account of what is done cannot drift."""
+    """The README's Reproduction section shows the committed report's claims table, success
+    table and status table verbatim (``scripts/sync_readme_claims.py`` copies them), so its
+    verdicts, its success rates and its account of what is done cannot drift."""
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("sync", ROOT.parent / "scripts" / "sync_readme_claims.py")
     sync = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(sync)  # type: ignore[union-attr]
     readme = (ROOT.parent / "README.md").read_text(encoding="utf-8")
-    for name, file in sync.BLOCKS.items():  # the claims table and the status table
+    for name, file in sync.BLOCKS.items():  # the claims, success and status tables
         table = (ROOT / "paper" / "report" / file).read_text(encoding="utf-8")
         assert sync.readme_block(readme, name) == table, \
             f"README's {name} block differs from reproduction/paper/report/{file}; run scripts/sync_readme_claims.py"
