@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -177,12 +177,21 @@ class Method(ABC):
         if not self.learned:
             return []
         t0 = time.perf_counter()
-        rng = batch_rng(self.seed, TRAIN_STREAM, self.iterations)
-        batch = EpisodeBatch(self.env, self.params.batch_episodes, rng, self.layout)
         with torch.inference_mode():
-            state, rows = self.run(batch, ActionChoice.train(self.torch_gen))
-        losses = self.update(state)
-        wall = (time.perf_counter() - t0) / len(rows)
+            state, rows = self.run(self.train_batch(), ActionChoice.train(self.torch_gen))
+        return self.finish_iteration(rows, self.update(state), time.perf_counter() - t0)
+
+    def train_batch(self) -> EpisodeBatch:
+        """The episodes of the next training update (scenarios and loss streams from the
+        cell seed and the update's index)."""
+        rng = batch_rng(self.seed, TRAIN_STREAM, self.iterations)
+        return EpisodeBatch(self.env, self.params.batch_episodes, rng, self.layout)
+
+    def finish_iteration(self, rows: list[dict[str, Any]], losses: dict[str, float],
+                         wall_s: float) -> list[dict[str, Any]]:
+        """Number the update's episode rows, attach its losses and wall time per episode,
+        and count the update."""
+        wall = wall_s / len(rows)
         for k, row in enumerate(rows):
             row.update(losses)
             row["episode"] = self.episodes_done + k
@@ -190,6 +199,22 @@ class Method(ABC):
         self.iterations += 1
         self.episodes_done += len(rows)
         return rows
+
+    @classmethod
+    def stackable(cls, params: Mapping[str, Any]) -> bool:
+        """Whether cells of this method with these parameters can train seed-stacked."""
+        return False
+
+    @classmethod
+    def stack_view(cls, methods: Sequence[Method]) -> Method:
+        """A method whose rollout runs the training episodes of ``methods`` (cells that
+        differ only in their seed) as one batch (``algorithms/common/seed_stack.py``);
+        methods that do not support it raise NotImplementedError."""
+        raise NotImplementedError(f"{cls.name} does not stack seeds")
+
+    def load_stack(self, methods: Sequence[Method]) -> None:
+        """Copy the current parameters of ``methods`` into this stack view."""
+        raise NotImplementedError(f"{self.name} does not stack seeds")
 
     def update(self, state: Any) -> dict[str, float]:
         """Gradient step(s) from a finished training batch; returns named losses."""

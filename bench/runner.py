@@ -23,6 +23,8 @@ numbers do not depend on the number of workers or on the order of execution.
 """
 from __future__ import annotations
 
+import importlib
+import json
 import os
 import signal
 import sys
@@ -100,7 +102,7 @@ def sigterm_as_interrupt() -> Iterator[None]:
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
-             rerun_changed: bool = False) -> RunSummary:
+             rerun_changed: bool = False, stack_seeds: int = 1) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
 
     Raises BenchError before writing anything when the store, the grid or the address is bad.
@@ -127,7 +129,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                         raise
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                           progress or NullProgress(), on_event, command or sys.argv)
+                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds))
                 return run.execute()
         finally:
             ctx.shutdown()
@@ -139,12 +141,13 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
 class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
-                 on_event: EventHook | None, command: list[str]) -> None:
+                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1) -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
+        self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command = on_event, command
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
-        self.inflight: dict[Any, tuple[str, Slot, CellState | None, Any]] = {}
+        self.inflight: dict[Any, tuple[str, Slot, Any, Any]] = {}  # kind, worker, cell(s), unit
         self.versions = versions_json()
         self.t0 = time.monotonic()
         self.start_progress = sum(s.progress() * s.weight for s in states)
@@ -258,11 +261,26 @@ class _Run:
         pending = [s for s in self.states if s.phase == "pending"]
         if pending:
             st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
-            self._start(st, slot)
-            if st.phase == "evaluating":  # trained before the interruption: evaluate now
+            if st.trained:  # trained before the interruption: evaluate now
+                self._start(st)
                 self._dispatch(slot)
+                return
+            group = [st] + self._stack_mates(st, pending)
+            for mate in group:
+                self._start(mate)
+            slot.sticky = group
+            self._submit_train(slot, group)
 
-    def _start(self, st: CellState, slot: Slot) -> None:
+    def _stack_mates(self, st: CellState, pending: list[CellState]) -> list[CellState]:
+        """Up to ``stack_seeds - 1`` other pending, untrained cells that differ from ``st``
+        only in their seed, when its method trains seed-stacked (``--stack-seeds``)."""
+        if self.stack_seeds < 2 or not _stackable(st.spec):
+            return []
+        key = _stack_key(st.spec)
+        return [s for s in pending if s is not st and not s.trained and _stack_key(s.spec) == key
+                ][: self.stack_seeds - 1]
+
+    def _start(self, st: CellState) -> None:
         import ray
 
         st.attempts += 1
@@ -274,15 +292,15 @@ class _Run:
             self._begin_eval(st)
         else:
             st.phase = "training"
-            slot.sticky = st
-            self._submit_train(slot, st)
         self._write_cells()
         self._emit("started", st)
 
-    def _submit_train(self, slot: Slot, st: CellState) -> None:
-        box = [st.state_ref] if st.state_ref is not None else []
-        ref = slot.actor.train_chunk.remote(st.spec, box, st.iterations, self.k)
-        self._submit(ref, "train", slot, st, 0)
+    def _submit_train(self, slot: Slot, group: list[CellState]) -> None:
+        """The next training chunk of the cells of ``group`` (one cell, or a seed stack)."""
+        boxes = [[st.state_ref] if st.state_ref is not None else [] for st in group]
+        ref = slot.actor.train_stack.remote([st.spec for st in group], boxes,
+                                            [st.iterations for st in group], self.k)
+        self._submit(ref, "train", slot, group, 0)
 
     def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: Any) -> None:
         slot.busy = kind != "ping"
@@ -307,8 +325,9 @@ class _Run:
             slot.busy = False
             if kind == "train":
                 slot.sticky = None
-            if st is not None and not st.finished:
-                self._fail(st, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
+            for cell in _cells(st):
+                if not cell.finished:
+                    self._fail(cell, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
             return
         except ray.exceptions.RayError as exc:  # the worker died: retry elsewhere
             self._worker_lost(kind, slot, st, chunk, exc, slots)
@@ -317,16 +336,34 @@ class _Run:
             slot.healthy, slot.pinging, slot.suspect = True, False, False
             return
         slot.busy = False
+        if kind == "train":
+            self._train_done(slot, st, result)
+            return
         if st is None or st.finished:
             return
         st.wall_s += float(result["wall_s"])
         st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
-        if kind == "train":
-            self._train_done(slot, st, result)
-        else:
-            self._eval_done(st, chunk, result["rows"])
+        self._eval_done(st, chunk, result["rows"])
 
-    def _train_done(self, slot: Slot, st: CellState, result: dict[str, Any]) -> None:
+    def _train_done(self, slot: Slot, group: list[CellState], results: list[dict[str, Any]]) -> None:
+        """Store a training chunk of every cell of ``group``; the cells that are not finished
+        get their next chunk on the same worker (which holds their methods)."""
+        going = []
+        for st, result in zip(group, results, strict=True):
+            if st.finished:
+                continue
+            st.wall_s += float(result["wall_s"])
+            st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
+            if self._train_chunk_done(st, result):
+                going.append(st)
+        if going:
+            slot.sticky = going
+            self._submit_train(slot, going)
+        else:
+            slot.sticky = None
+
+    def _train_chunk_done(self, st: CellState, result: dict[str, Any]) -> bool:
+        """Write one cell's chunk (rows, then checkpoint); True while it has training left."""
         import ray
 
         rows = result["rows"]
@@ -344,11 +381,10 @@ class _Run:
         st.state_ref = ray.put(result["state"])
         self._emit("train_chunk", st)
         if result["finished"]:
-            slot.sticky = None
             self._begin_eval(st)
             self._write_cells()
-        else:
-            self._submit_train(slot, st)
+            return False
+        return True
 
     def _eval_done(self, st: CellState, unit: tuple[str, int], rows: list[dict[str, Any]]) -> None:
         st.eval_rows[unit] = rows
@@ -376,8 +412,8 @@ class _Run:
             if not st.finished:
                 st.phase, st.error = "failed", error
 
-    def _worker_lost(self, kind: str, slot: Slot, st: CellState | None, chunk: Any, exc: BaseException,
-                     slots: list[Slot]) -> None:
+    def _worker_lost(self, kind: str, slot: Slot, st_or_group: CellState | list[CellState] | None, chunk: Any,
+                     exc: BaseException, slots: list[Slot]) -> None:
         """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
         import ray
 
@@ -391,7 +427,9 @@ class _Run:
                 slot.next_ping = time.monotonic() + PING_RETRY_S
             return
         slot.busy, slot.healthy, slot.suspect, slot.next_ping = False, False, True, time.monotonic()
-        if st is not None and not st.finished:
+        for st in _cells(st_or_group):
+            if st.finished:
+                continue
             st.retries += 1
             self.last_error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
             if st.retries > MAX_RETRIES:
@@ -442,6 +480,21 @@ def event_message(kind: str, st: CellState, last_error: str = "") -> str:
     if kind == "rerun":
         return f"{label} {st.rerun}"
     return f"{kind} {label}"
+
+
+def _cells(st: CellState | list[CellState] | None) -> list[CellState]:
+    """The cells of an in-flight unit: a training chunk's group, or an evaluation's cell."""
+    return [] if st is None else list(st) if isinstance(st, list) else [st]
+
+
+def _stack_key(spec: dict[str, Any]) -> str:
+    """Cells with equal keys differ only in their seed (and cell id)."""
+    return json.dumps({k: spec[k] for k in ("method_path", "env", "params")}, sort_keys=True, default=str)
+
+
+def _stackable(spec: dict[str, Any]) -> bool:
+    module, name = str(spec["method_path"]).split(":")
+    return bool(getattr(importlib.import_module(module), name).stackable(spec["params"]))
 
 
 def _nanmax(a: float, b: float) -> float:

@@ -27,6 +27,7 @@ from typing import Any
 import torch
 
 from algorithms.base import Method
+from algorithms.common.seed_stack import train_stacked
 from envs.config import EnvConfig
 
 
@@ -79,11 +80,12 @@ def _resolve(box: list[Any]) -> Any:
 
 
 class CellWorker:
-    """Computes chunks of cells; holds at most one training and one evaluation method."""
+    """Computes chunks of cells; holds the methods of the cells it trains (one, or one
+    seed stack) and one evaluation method."""
 
     def __init__(self) -> None:
         torch.set_num_threads(1)
-        self._train: tuple[str, Method] | None = None
+        self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
     def ping(self) -> int:
@@ -96,44 +98,74 @@ class CellWorker:
         ``state_box`` holds the checkpoint state at ``iterations`` (empty at the start).
         Returns rows, the state dict after the chunk, counters, wall_s and peak_mem_mb.
         """
+        return self.train_stack([spec], [state_box], [iterations], k)[0]
+
+    def train_stack(self, specs: list[Mapping[str, Any]], state_boxes: list[list[Any]],
+                    iterations: list[int], k: int) -> list[dict[str, Any]]:
+        """``train_chunk`` for S cells at once; cells that differ only in their seed and whose
+        method stacks (``Method.stackable``) train with their rollouts in one batch
+        (algorithms/common/seed_stack.py: the same numbers as one by one). One result per cell,
+        its ``wall_s`` its share of the chunk (rows' wall time)."""
         reset_peak_rss()
-        t0 = time.perf_counter()
+        start = time.perf_counter()
+        cached = self._train or {}
+        methods = [self._training_method(spec, box, it, cached)
+                   for spec, box, it in zip(specs, state_boxes, iterations, strict=True)]
+        self._train = None
+        rows: dict[int, list[dict[str, Any]]] = {id(m): [] for m in methods}
+        wall = dict.fromkeys(rows, 0.0)
+        views: dict[tuple[int, ...], Method] = {}  # one stack view per set of live cells
+        for _ in range(k):
+            live = [m for m, spec in zip(methods, specs, strict=True)
+                    if m.learned and m.episodes_done < int(spec["episodes"])]
+            if not live:
+                break
+            t0 = time.perf_counter()
+            if len(live) > 1 and type(live[0]).stackable(live[0].params.model_dump()):
+                key = tuple(id(m) for m in live)
+                if key not in views:
+                    views[key] = type(live[0]).stack_view(live)
+                out = train_stacked(live, views[key])
+            else:
+                out = [m.train_iteration() for m in live]
+            share = (time.perf_counter() - t0) / len(live)
+            for m, new in zip(live, out, strict=True):
+                rows[id(m)].extend(new)
+                wall[id(m)] += share
+        states = [copy.deepcopy(m.state_dict()) for m in methods]
+        # Building, loading and copying states: shared alike by the cells of the chunk.
+        overhead = (time.perf_counter() - start - sum(wall.values())) / len(methods)
+        results, keep = [], {}
+        for spec, m, state in zip(specs, methods, states, strict=True):
+            finished = not m.learned or m.episodes_done >= int(spec["episodes"])
+            if not finished:
+                keep[str(spec["cell_id"])] = m
+            results.append({
+                "rows": rows[id(m)], "state": state, "iterations": m.iterations,
+                "episodes_done": m.episodes_done, "finished": finished, "wall_s": wall[id(m)] + overhead,
+                "peak_mem_mb": peak_rss_mb(),
+            })
+        self._train = keep or None
+        return results
+
+    def _training_method(self, spec: Mapping[str, Any], state_box: list[Any], iterations: int,
+                         cached: dict[str, Method]) -> Method:
+        """The cell's method at ``iterations`` updates: the one this worker holds, else rebuilt
+        from the cell seed and the given checkpoint state."""
         cell_id = str(spec["cell_id"])
-        cached = self._train
-        if cached is not None and cached[0] == cell_id and cached[1].iterations == iterations:
-            method = cached[1]
-        else:
-            self._train = None
-            method = build_method(spec)
-            state = _resolve(state_box)
-            if state is not None:
-                method.load_state_dict(state)
-            if method.iterations != iterations:
-                raise RuntimeError(
-                    f"checkpoint of cell {cell_id} is at iteration {method.iterations}, "
-                    f"the driver expected {iterations}"
-                )
-        episodes = int(spec["episodes"])
-        rows: list[dict[str, Any]] = []
-        try:
-            for _ in range(k):
-                if not method.learned or method.episodes_done >= episodes:
-                    break
-                rows.extend(method.train_iteration())
-        except BaseException:
-            self._train = None
-            raise
-        finished = not method.learned or method.episodes_done >= episodes
-        self._train = None if finished else (cell_id, method)
-        return {
-            "rows": rows,
-            "state": copy.deepcopy(method.state_dict()),
-            "iterations": method.iterations,
-            "episodes_done": method.episodes_done,
-            "finished": finished,
-            "wall_s": time.perf_counter() - t0,
-            "peak_mem_mb": peak_rss_mb(),
-        }
+        method = cached.get(cell_id)
+        if method is not None and method.iterations == iterations:
+            return method
+        method = build_method(spec)
+        state = _resolve(state_box)
+        if state is not None:
+            method.load_state_dict(state)
+        if method.iterations != iterations:
+            raise RuntimeError(
+                f"checkpoint of cell {cell_id} is at iteration {method.iterations}, "
+                f"the driver expected {iterations}"
+            )
+        return method
 
     def eval_chunk(self, spec: Mapping[str, Any], state_box: list[Any], chunk: int,
                    execution: str | None = None) -> dict[str, Any]:

@@ -23,7 +23,7 @@ class Slot:
     pinging: bool = False
     suspect: bool = False  # a call failed and no ping has come back since
     next_ping: float = 0.0  # monotonic time of the next health probe
-    sticky: CellState | None = None  # the cell this worker is training
+    sticky: list[CellState] | None = None  # the cells this worker is training (one, or a seed stack)
 
 
 # Worker actors outlive a run only in a Ray session the runner did not start (tests,

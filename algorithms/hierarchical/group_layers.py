@@ -6,6 +6,14 @@ stacked along a leading group axis, shaped (G, in, out), and consumes tensors wh
 axis is the group axis, shaped (Z, ..., in). With ``G == 1`` (parameter sharing) the single
 weight set serves every group. Padding of sets (groups of different sizes) is handled by
 the callers with masks; ``masked_mean`` pools over a set axis.
+
+Seed stacking (``algorithms/common/seed_stack.py``): the rollout of S cells that differ only
+in their seed runs as one batch. Their per-group weights are stacked group-major,
+(Z x S, in, out) with row z S + s holding seed s's group z, and ``seeds = S`` is set on
+every layer; inputs stay (Z, S x B, ...) with the episodes of seed s in rows s B..(s+1) B,
+so ``x.reshape(Z S, -1, in)`` is a view whose slice z S + s is seed s's group z, and one
+batched matmul computes every slice exactly as the seed's own matmul would (same shapes per
+slice; tests/algorithms/hierarchical/test_seed_stack.py).
 """
 from __future__ import annotations
 
@@ -18,6 +26,8 @@ from torch import nn
 class GroupLinear(nn.Module):
     """y[z] = x[z] @ W[z] + b[z]; x (Z, ..., in) -> (Z, ..., out)."""
 
+    seeds = 1  # S > 1: weights stacked for S seeds (module docstring)
+
     def __init__(self, n_param_groups: int, n_groups: int, d_in: int, d_out: int) -> None:
         super().__init__()
         if n_param_groups not in (1, n_groups):
@@ -28,7 +38,7 @@ class GroupLinear(nn.Module):
         self.bias = nn.Parameter(torch.empty(n_param_groups, 1, d_out).uniform_(-bound, bound))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        z = x.shape[0]
+        z = x.shape[0] * self.seeds
         flat = x.reshape(z, -1, x.shape[-1])
         w, b = self.weight, self.bias
         if w.shape[0] != z:  # shared parameters

@@ -19,6 +19,7 @@ intermediates (``Controller.trace``).
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -142,6 +143,43 @@ class HierarchicalMethod(Method):
         self.opt_predictor = torch.optim.Adam(self.predictor.parameters(), lr=p.predictor_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max)
         self.snap = SnapToFree(self.layout)
+        self._decoders: list[tuple[GroupPredictor, int, int]] | None = None  # a stack view's seeds
+
+    # ------------------------------------------------------------ seed stacking
+    STACKED = ("reference", "local", "predictor")  # the modules a rollout runs
+
+    @classmethod
+    def stackable(cls, params: Mapping[str, Any]) -> bool:
+        return not cls.parse_params(params).share_params  # type: ignore[attr-defined]
+
+    @classmethod
+    def stack_view(cls, methods: Sequence[Method]) -> HierarchicalMethod:
+        """The rollout of S seeds of one configuration as one batch (seed_stack): a method
+        whose per-group weights are the seeds' stacked group-major (Z S groups, see
+        ``group_layers``); each seed's predictor decodes its own lost links."""
+        first = methods[0]
+        if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
+            raise ValueError("stack_view: the methods must differ only in their seed")
+        if first.params.share_params:  # type: ignore[attr-defined]
+            raise NotImplementedError("hierarchical: seed stacking needs per-group parameters")
+        rng = torch.get_rng_state()  # building the view must not move the global stream
+        view = cls(first.env, first.params.model_dump(), seed=first.seed)
+        torch.set_rng_state(rng)
+        for name in cls.STACKED:
+            for mod in getattr(view, name).modules():
+                if hasattr(mod, "seeds"):
+                    mod.seeds = len(methods)
+        return view
+
+    def load_stack(self, methods: Sequence[Method]) -> None:
+        b = self.params.batch_episodes  # type: ignore[attr-defined]
+        with torch.no_grad():
+            for name in self.STACKED:
+                per_seed = [dict(getattr(m, name).named_parameters()) for m in methods]
+                for key, param in getattr(self, name).named_parameters():
+                    stacked = torch.stack([ps[key] for ps in per_seed], dim=1)  # (Z, S, ...)
+                    param.data = stacked.reshape(-1, *stacked.shape[2:])
+        self._decoders = [(m.predictor, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]
 
     def modules(self) -> dict[str, torch.nn.Module | torch.optim.Optimizer]:
         return {
@@ -237,7 +275,7 @@ class HierarchicalMethod(Method):
         mode = self.params.messages  # type: ignore[attr-defined]
         if mode == "predicted":
             with torch.no_grad():
-                return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs)
+                return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs, self._decoders)
         pred.age = np.where(avail, 0, pred.age + 1)  # the memory rollout_step keeps, no GRU
         pred.mem = np.where(avail[..., None, None], link_msgs, pred.mem)
         return link_msgs.copy() if mode == "oracle" else pred.mem.copy()

@@ -95,6 +95,8 @@ class LocalPolicy(nn.Module):
     linear, action-aligned path the policy gradient can move quickly; docs/decisions.md).
     """
 
+    seeds = 1  # S > 1: parameters stacked for S seeds (see ``group_layers``)
+
     def __init__(self, n_param_groups: int, n_groups: int, d_robot: int, hidden: int, n_refs: int,
                  obs_radius: int) -> None:
         super().__init__()
@@ -109,17 +111,20 @@ class LocalPolicy(nn.Module):
                 action_mask: torch.Tensor) -> torch.Tensor:
         """robots (Z, M, n, d_robot) features of X^z and G^z only, mask (Z, M, n), ref
         (Z, M) int64, action_mask (Z, M, n, 5) bool -> log-probs (Z, M, n, 5)."""
-        z, m, n, _ = robots.shape
+        # With S stacked seeds the parameter groups are (Z S) and a row block holds M / S
+        # episodes; every view below is free (seed-major rows, see ``group_layers``).
+        zg, n = robots.shape[0] * self.seeds, robots.shape[2]
+        m = robots.shape[1] // self.seeds
         h = self.enc(robots)
         pooled = masked_mean(h, mask, dim=-2)  # shared group encoding
-        table = self.ref_embed.expand(z, -1, -1) if self.ref_embed.shape[0] != z else self.ref_embed
-        e = torch.gather(table, 1, ref.reshape(z, m, 1).expand(z, m, table.shape[-1]))  # (Z, M, H)
-        logits = self._head(h, torch.cat([pooled, e], dim=-1))
+        table = self.ref_embed.expand(zg, -1, -1) if self.ref_embed.shape[0] != zg else self.ref_embed
+        e = torch.gather(table, 1, ref.reshape(zg, m, 1).expand(zg, m, table.shape[-1]))  # (Z, M, H)
+        logits = self._head(h, torch.cat([pooled, e.reshape(*pooled.shape[:2], -1)], dim=-1))
         # index_select of the flattened table: robots[..., action_idx] without advanced
         # indexing's overhead (the same values and layout, as in ``ActionPath``).
         k, a = self.action_idx.shape
-        phi = robots.index_select(-1, self.action_idx.reshape(-1)).view(z, m, n, k, a).transpose(-1, -2)
-        logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1)
+        phi = robots.index_select(-1, self.action_idx.reshape(-1)).view(zg, m, n, k, a).transpose(-1, -2)
+        logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1).reshape(logits.shape)
         return torch.log_softmax(logits.masked_fill(~action_mask, -1e9), dim=-1)
 
     def _head(self, h: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
@@ -128,12 +133,14 @@ class LocalPolicy(nn.Module):
         the first layer's context half is applied once per row and broadcast over the
         robots (equal up to float summation order; tests/algorithms/hierarchical)."""
         z, m, n, d = h.shape
+        zg = z * self.seeds  # parameter groups; (Z, M) rows are (Z S, M / S) blocks
         first = self.head.layers[0]
         w, b = first.weight, first.bias
-        if w.shape[0] != z:  # shared parameters
-            w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
-        per_row = torch.baddbmm(b, ctx, w[:, d:])  # (Z, M, H') context part + bias
-        x = torch.bmm(h.reshape(z, m * n, d), w[:, :d]).reshape(z, m, n, -1) + per_row.unsqueeze(2)
+        if w.shape[0] != zg:  # shared parameters
+            w, b = w.expand(zg, -1, -1), b.expand(zg, -1, -1)
+        per_row = torch.baddbmm(b, ctx.reshape(zg, -1, ctx.shape[-1]), w[:, d:])  # context part + bias
+        x = (torch.bmm(h.reshape(zg, -1, d), w[:, :d]).reshape(z, m, n, -1)
+             + per_row.reshape(z, m, -1).unsqueeze(2))
         layers = self.head.layers
         for k in range(1, len(layers)):  # indexed: a slice of a ModuleList builds a new one per call
             x = layers[k](relu(x))

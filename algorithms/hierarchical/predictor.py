@@ -21,6 +21,7 @@ Parameters are per receiver group (eta_z) or shared, see ``group_layers``.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -140,11 +141,15 @@ def initial_state(model: GroupPredictor, link_msgs: np.ndarray) -> PredictorStat
 
 
 def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.ndarray,
-                 avail: np.ndarray, own_msgs: np.ndarray) -> np.ndarray:
+                 avail: np.ndarray, own_msgs: np.ndarray,
+                 decoders: Sequence[tuple[GroupPredictor, int, int]] | None = None) -> np.ndarray:
     """One predictor step for B episodes (no grad); updates ``state`` in place.
 
     link_msgs (B, Z, K, n, D) true messages on each link, avail (B, Z, K) bool, own_msgs
     (B, Z, n, D) -> completed messages M-hat (B, Z, K, n, D) (eq:interaction_state_estimate).
+    ``decoders``: for a seed-stacked batch (``algorithms/common/seed_stack.py``), each seed's
+    own predictor with its episode rows (lo, hi), which decodes its lost links as its own
+    run would; default: ``model`` decodes the whole batch.
     """
     state.age = np.where(avail, 0, state.age + 1)
     state.mem = np.where(avail[..., None, None], link_msgs, state.mem)
@@ -153,23 +158,29 @@ def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.nda
     x = model.encode(to_t(msg_bar), to_t(avail), to_t(state.age), to_t(own_msgs))
     state.h = model.step(x, state.h)
     out = link_msgs.copy()
-    lost = ~avail
+    for dec, lo, hi in decoders if decoders is not None else [(model, 0, avail.shape[0])]:
+        _decode_lost(dec, state.h[:, lo:hi], state.mem[lo:hi], state.age[lo:hi], ~avail[lo:hi], out[lo:hi])
+    return out
+
+
+def _decode_lost(model: GroupPredictor, h_all: torch.Tensor, mem_all: np.ndarray, age_all: np.ndarray,
+                 lost: np.ndarray, out: np.ndarray) -> None:
+    """Write the predicted messages of the lost links into ``out`` (B, Z, K, n, D): only the
+    lost links are decoded (the others keep the received message), padded per group."""
     if not lost.any():
-        return out
-    # Decode only the lost links (the others use the received message), padded per group.
-    b, z, k = avail.shape
+        return
+    b, z, k = lost.shape
     lost_z = lost.transpose(1, 0, 2).reshape(z, b * k)
     count = lost_z.sum(axis=1)
     sel = np.argsort(~lost_z, axis=1, kind="stable")[:, : int(count.max())]  # (Z, W)
     zi = np.arange(z)[:, None]
-    mem = state.mem.transpose(1, 0, 2, 3, 4).reshape(z, b * k, *state.mem.shape[3:])[zi, sel]
-    age = state.age.transpose(1, 0, 2).reshape(z, b * k)[zi, sel]
-    h = state.h.reshape(z, b * k, -1)[torch.from_numpy(zi), torch.from_numpy(sel)]
+    mem = mem_all.transpose(1, 0, 2, 3, 4).reshape(z, b * k, *mem_all.shape[3:])[zi, sel]
+    age = age_all.transpose(1, 0, 2).reshape(z, b * k)[zi, sel]
+    h = h_all.reshape(z, b * k, -1)[torch.from_numpy(zi), torch.from_numpy(sel)]
     pred = model.decode(h, torch.from_numpy(mem), torch.from_numpy(age)).numpy()
     valid = np.arange(sel.shape[1])[None, :] < count[:, None]
     zz = np.broadcast_to(zi, sel.shape)[valid]
     out[sel[valid] // k, zz, sel[valid] % k] = pred[valid]
-    return out
 
 
 def _group_major(a: np.ndarray) -> torch.Tensor:

@@ -204,3 +204,49 @@ def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_
     pd.testing.assert_frame_equal(train0, train1)  # the same seeds and parameters: the same rows
     pd.testing.assert_frame_equal(eval0, eval1)
     assert run_grid(grid, out, workers=1, checkpoint_every=2).rerun == {}
+
+
+def _hier_seeds(episodes: int = 6) -> Grid:
+    """Three seeds of one hierarchical configuration and a fourth cell that differs in N."""
+    base = dict(method="hierarchical", loss_p=0.3, layout="tiny", episodes=episodes, horizon=15,
+                eval_episodes=2, params={"batch_episodes": 2, "eval_chunk": 2, "hidden": 8,
+                                         "critic_hidden": 8, "predictor_hidden": 8})
+    return _grid(*(dict(base, n_robots=4, seed=s) for s in (0, 1, 2)), dict(base, n_robots=6, seed=0))
+
+
+def test_run__stacked_seeds_give_the_numbers_of_cells_trained_one_by_one(tmp_path: Path) -> None:
+    """--stack-seeds 3: the three seeds of a configuration train in one worker with one rollout
+    batch (algorithms/common/seed_stack.py); every row is what the unstacked run stores, and an
+    interrupted stacked run resumes to the same rows."""
+    grid = _hier_seeds()
+    alone = run_grid(grid, tmp_path / "alone", workers=2, checkpoint_every=1)
+    stacked_events: list[tuple[str, str]] = []
+    stacked = run_grid(grid, tmp_path / "stacked", workers=1, checkpoint_every=1, stack_seeds=3,
+                       on_event=lambda kind, st: stacked_events.append((kind, st.cell_id)))
+    assert (alone.done, stacked.done) == (4, 4)
+    _, ta, ea = _frames(tmp_path / "alone")
+    cs, ts, es = _frames(tmp_path / "stacked")
+    pd.testing.assert_frame_equal(ta, ts)
+    pd.testing.assert_frame_equal(ea, es)
+    # the three seeds started together (one stack, before any chunk came back), the N = 6
+    # cell on its own after them
+    seeds = {c.cell_id for c in grid.cells[:3]}
+    assert [kind for kind, _ in stacked_events[:4]] == ["started"] * 3 + ["train_chunk"]
+    assert {cid for _, cid in stacked_events[:3]} == seeds
+    starts = [cid for kind, cid in stacked_events if kind == "started"]
+    assert starts[3] == grid.cells[3].cell_id
+    assert (cs["wall_s"] > 0).all()
+
+    seen = []
+
+    def interrupt(kind: str, st: object) -> None:
+        seen.append(kind)
+        if seen.count("train_chunk") == 4:  # the stack's second chunk, part-way through it
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_grid(grid, tmp_path / "cut", workers=1, checkpoint_every=1, stack_seeds=3, on_event=interrupt)
+    run_grid(grid, tmp_path / "cut", workers=1, checkpoint_every=1, stack_seeds=3)
+    _, tc, ec = _frames(tmp_path / "cut")
+    pd.testing.assert_frame_equal(ta, tc)
+    pd.testing.assert_frame_equal(ea, ec)

@@ -73,3 +73,27 @@ def test_planner__finishes_training_at_once_without_rows() -> None:
 def test_peak_rss__is_a_positive_number_of_megabytes() -> None:
     mb = peak_rss_mb()
     assert 10.0 < mb < 100_000.0 and not math.isnan(mb)
+
+
+def test_train_stack__stacks_seeds_of_a_stackable_method_and_equals_one_by_one(toy: str, monkeypatch) -> None:
+    """A stack of three hierarchical seeds trains through ``train_stacked`` (one rollout batch
+    per iteration) and returns, cell by cell, what ``train_chunk`` returns for each alone; a
+    toy stack (not stackable) trains one by one."""
+    import bench.worker as worker_mod
+
+    calls = []
+    real = worker_mod.train_stacked
+    monkeypatch.setattr(worker_mod, "train_stacked", lambda ms, view: calls.append(len(ms)) or real(ms, view))
+    kw = toy_spec(method="hierarchical", episodes=4, horizon=10, params={"batch_episodes": 2, "eval_chunk": 2})
+    specs = [cell_spec(Cell.make(**{**kw, "seed": s})) for s in (0, 1, 2)]
+    stacked = CellWorker().train_stack(specs, [[], [], []], [0, 0, 0], 3)
+    assert calls == [3, 3]  # two iterations of 2 episodes each, all three seeds in one batch
+    for spec, got in zip(specs, stacked, strict=True):
+        alone = CellWorker().train_chunk(spec, [], 0, 3)
+        assert got["finished"] and got["iterations"] == alone["iterations"] == 2
+        cols = [c for c in METRICS if c in alone["rows"][0]]
+        pd.testing.assert_frame_equal(pd.DataFrame(got["rows"])[cols], pd.DataFrame(alone["rows"])[cols])
+    calls.clear()
+    toys = [cell_spec(Cell.make(**toy_spec(seed=s))) for s in (0, 1)]
+    CellWorker().train_stack(toys, [[], []], [0, 0], 1)
+    assert calls == []
