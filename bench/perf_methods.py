@@ -31,6 +31,7 @@ import torch
 
 from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
+from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
 from bench.perf_baselines import PAPER_EPISODES, PAPER_HORIZON, time_training
 from envs.config import EnvConfig
@@ -71,27 +72,36 @@ TRAIN_SIZES = (40, 100)
 
 def measure_cell_training(method: str, n_robots: int, layout: str, iterations: int = 2,
                           warmup: int = 1, batch_episodes: int = 8, horizon: int = 200,
-                          loss_p: float = 0.2, seed: int = 0, **params: Any) -> dict[str, Any]:
+                          loss_p: float = 0.2, seed: int = 0, stack: int = 1, **params: Any) -> dict[str, Any]:
     """Throughput of whole training updates as a cell runs them (one torch thread).
 
     ``warmup`` updates run first (one-time costs: torch kernels, the layout's distance
     table); then ``iterations`` timed ``train_iteration()`` calls. Rates per second of
     wall time and of process CPU time (one dedicated core on a shared, busy machine).
+    ``stack`` > 1: that many seeds of the cell trained seed-stacked (``bench run
+    --stack-seeds``), the rates per cell (env-steps of all seeds over the time of all).
     """
     torch.set_num_threads(1)
     env = EnvConfig.make(n_robots=n_robots, layout=layout, horizon=horizon, loss_p=loss_p,
                          groups=min(4, n_robots))
-    m = method_class(method)(env, {"batch_episodes": batch_episodes, **params}, seed=seed)
+    cls = method_class(method)
+    ms = [cls(env, {"batch_episodes": batch_episodes, **params}, seed=seed + k) for k in range(stack)]
+    view = cls.stack_view(ms) if stack > 1 else None
+
+    def update() -> int:
+        out = train_stacked(ms, view) if view is not None else [ms[0].train_iteration()]
+        return int(sum(r["steps"] for rows in out for r in rows))
+
     for _ in range(warmup):
-        m.train_iteration()
+        update()
     steps = 0
     wall0, cpu0 = time.perf_counter(), time.process_time()
     for _ in range(iterations):
-        steps += int(sum(r["steps"] for r in m.train_iteration()))
+        steps += update()
     wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
     steps = max(steps, 1)
     return {
-        "method": method, "n_robots": n_robots, "layout": Path(layout).stem,
+        "method": method, "n_robots": n_robots, "layout": Path(layout).stem, "stacked_seeds": stack,
         "batch_episodes": batch_episodes, "horizon": horizon, "episode_steps": steps,
         "env_steps_per_s": steps / wall, "env_steps_per_s_cpu": steps / cpu,
         "agent_steps_per_s": n_robots * steps / wall, "agent_steps_per_s_cpu": n_robots * steps / cpu,
@@ -102,12 +112,17 @@ def measure_cell_training(method: str, n_robots: int, layout: str, iterations: i
 
 def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int = 8,
                     sizes: tuple[int, ...] = TRAIN_SIZES, methods: tuple[str, ...] = LEARNED,
-                    layout: str | None = None) -> pd.DataFrame:
-    """Training env-steps/s per cell of every learned method at N = 40 and 100 (MovingAI map)."""
+                    layout: str | None = None, stack: int = 3) -> pd.DataFrame:
+    """Training env-steps/s per cell of every learned method at N = 40 and 100 (MovingAI map),
+    and of ``stack`` seeds trained seed-stacked for the methods that stack (hierarchical)."""
     where = layout or str(REAL_MAP)
+    cases = [(name, n, 1) for name in methods for n in sizes]
+    if stack > 1:
+        cases += [(name, n, stack) for name in methods for n in sizes
+                  if method_class(name).stackable({"batch_episodes": batch_episodes})]
     rows = [measure_cell_training(name, n, where, iterations=iterations, horizon=horizon,
-                                  batch_episodes=batch_episodes)
-            for name in methods for n in sizes]
+                                  batch_episodes=batch_episodes, stack=k)
+            for name, n, k in cases]
     return pd.DataFrame([{"suite": "train", **r} for r in rows])
 
 
