@@ -47,9 +47,9 @@ def success_frame(summary: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
                 star = "*" if r["ci_over"] == "episodes" else ""
                 rec[mode] = fmt_ci(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], "pct") + star
             else:
-                rec[mode] = "pending" if mode in own.get((n, p, method), ()) else ""
+                rec[mode] = "pending" if mode in own[(n, p, method)] else ""
         rows.append(rec)
-    return pd.DataFrame(rows, columns=["N", "p", "method", "seeds", *modes])
+    return pd.DataFrame(rows)  # columns in the records' order: N, p, method, seeds, modes
 
 
 def success_markdown(summary: pd.DataFrame, cells: pd.DataFrame) -> str:

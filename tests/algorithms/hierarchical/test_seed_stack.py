@@ -140,3 +140,21 @@ def test_stack_view__refuses_methods_that_differ_in_more_than_the_seed() -> None
         HierarchicalMethod.stack_view(_methods(env, [0]) + _methods(env, [1], lr=1e-4))
     with pytest.raises(NotImplementedError, match="per-group parameters"):
         HierarchicalMethod.stack_view(_methods(env, [0, 1], share_params=True))
+
+
+def test_train_stacked__one_method_is_its_own_iteration_and_wall_times_add_up() -> None:
+    """A stack of one is the method's ``train_iteration``; in a stack of three every row's
+    wall time is positive and the rows' total is the iteration's elapsed time (the shared
+    rollout counted once, split among the seeds, plus each update)."""
+    import time
+
+    env = _env(horizon=20)
+    alone, single = _methods(env, [4]), _methods(env, [4])
+    _same(_fingerprint(alone[0], alone[0].train_iteration()),
+          _fingerprint(single[0], train_stacked(single)[0]))
+    stacked = _methods(env, [0, 1, 2])
+    t0 = time.perf_counter()
+    rows = [r for part in train_stacked(stacked) for r in part]
+    elapsed = time.perf_counter() - t0
+    walls = [r["wall_s"] for r in rows]
+    assert min(walls) > 0 and 0.5 * elapsed < sum(walls) <= elapsed
