@@ -74,7 +74,7 @@ def run(
     yes: bool = typer.Option(False, "--yes", "-y", help="Do not ask before --fresh deletes results."),
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
     rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
-    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2x less CPU; for machines with fewer cores than cells)."),
+    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
