@@ -172,6 +172,11 @@ class Cell(BaseModel):
             raise BenchError(f"method {self.method!r} cannot be imported: {exc}") from None
         return cls.execution_modes(self.eval_temperatures)
 
+    def stackable(self) -> bool:
+        """Whether ``bench run --stack-seeds`` trains this cell with its other seeds
+        (``Method.stackable`` of its method and parameters)."""
+        return bool(method_class(self.method).stackable(self.method_params().model_dump(mode="json")))
+
     def method_path(self) -> str:
         """'module:Class' of the method, so workers import it without the driver's registry."""
         return METHODS[self.method]

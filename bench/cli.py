@@ -126,19 +126,37 @@ def run(
 def grids(
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Count with K seeds instead of each grid's default."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="Also list a user grid file."),
+    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Estimate for `bench run --stack-seeds K` "
+                                    "(seed-stacked hierarchical training: its measured per-cell gain)."),
+    rates_from: Path | None = typer.Option(None, "--rates-from", help="Estimate with the rates a run directory's "
+                                           "done cells observed (your machine), where it has them; the "
+                                           "built-in rates elsewhere."),
 ) -> None:
-    """List the grids with their cell counts (configurations x seeds) and cost (cell-hours on
-    one core, every seed and every evaluation mode counted)."""
+    """List the grids with their cell counts (configurations x seeds) and cost (worker-hours,
+    every seed and every evaluation mode counted; rates observed on the committed
+    reproduction's cells unless --rates-from)."""
     from rich.console import Console
     from rich.table import Table
 
     from bench import costs
+    from bench.cost_calibration import merged_rates, observed_costs, observed_rates
     from bench.grid_files import load_grid_file
     from bench.grids import BUILTIN, get_grid
 
-    table = Table(title=f"grids (cost: {costs.LABEL}, (episodes + eval episodes x modes) x horizon x N "
-                        "/ agent-steps per s, summed over cells = configurations x seeds)")
-    for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "cell-hours"):
+    rates = None
+    source = f"{costs.LABEL} on reproduction/paper"
+    if rates_from is not None:
+        if not (rates_from / "cells.parquet").is_file():
+            raise BenchError(f"--rates-from {str(rates_from)!r}: no results store there (cells.parquet not found)")
+        observed = observed_costs(rates_from)
+        if observed.empty:
+            raise BenchError(f"--rates-from {str(rates_from)!r}: the run has no done cell to take rates from")
+        rates = merged_rates(observed_rates(observed))
+        source = f"rates of the {len(observed)} done cells of {rates_from}, built-in elsewhere"
+    stacked = f", --stack-seeds {stack_seeds}" if stack_seeds > 1 else ""
+    table = Table(title=f"grids (cost: (episodes + eval episodes x modes) x horizon x N / agent-steps per s, "
+                        f"{source}{stacked}; summed over cells = configurations x seeds)")
+    for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "worker-hours"):
         table.add_column(col)
     listed = [get_grid(name, seeds) for name in BUILTIN]
     if grid_file is not None:
@@ -148,7 +166,7 @@ def grids(
         ps = sorted({c.loss_p for c in g.cells})
         table.add_row(g.name, str(len(g)), ",".join(g.methods), ",".join(map(str, ns)),
                       ",".join(map(str, ps)), str(g.configurations), str(g.seeds),
-                      f"{costs.grid_cell_hours(g.cells):.3g}")
+                      f"{costs.grid_cell_hours(g.cells, rates, stack_seeds):.3g}")
     console = Console(width=None if sys.stdout.isatty() else 140)  # logs: no truncated cells
     console.print(table)
     for g in listed:

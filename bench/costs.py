@@ -1,58 +1,85 @@
 """Cost estimates of cells and grids, from throughput constants kept in one place.
 
-cost (core-seconds) = (training episodes + evaluation episodes * execution modes)
-                      * horizon * N / agent-steps per second on one core
+cost (worker-seconds) = training episodes * horizon * N / training rate
+                        / seed-stacking gain (``--stack-seeds``)
+                      + evaluation episodes * execution modes * horizon * N / evaluation rate
 
 (a learned cell is evaluated in every execution mode: argmax, sample and sample@T per
-temperature; a planner in one.)
-
-This is an upper bound on the simulated agent-steps (episodes end early when every robot
-has arrived) and ignores Ray start-up and checkpoint writes. The constants below come from
-``bench perf``; re-measure on your machine with ``bench perf --suite all``.
+temperature; a planner in one.) The agent-steps are an upper bound (episodes end early
+when every robot has arrived); the rates are *effective*: observed on finished cells
+against that same upper bound (bench/cost_calibration.py), so they include early ends,
+checkpoint writes and the load of the machine the cells ran on.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from bench.cells import Cell
 
-# Agent-steps (robots x environment steps) per second on one core at the measured N,
-# for training (rollout plus update, amortized) and evaluation; other N interpolate
-# piecewise linearly (clamped). Evaluation: MEASURED with `bench perf --suite
-# {hierarchical,baselines,pibt}` on 2026-11-22 (quiet 2-core x86_64 box, one torch thread,
-# batch 8, untrained policies, N = 100 on the MovingAI map for hierarchical and PIBT,
-# wh100 for the baselines), rounded. Training: those 2026-11-22 rates times the speed-up of
-# the current code over commit 81f9c6a measured in one run on 2026-11-30 with
-# `scripts/perf_compare.py --sizes 20 40 100 --rounds 2 --iterations 2` (MovingAI map,
-# batch 8, horizon 200, process CPU time, medians; the box was shared, load average
-# 12-19, so its absolute rates are low and only the ratios are used): hierarchical 1.37x
-# (N=20) / 1.24x (N=100), decentralized 0.99x / 1.41x, IC3Net 1.34x / 1.15x; hierarchical
-# training then times the 1.11x (N=40, used for N=20) / 1.34x (N=100) of commit 8bdc317 over
-# 60770c5 measured the same way on 2026-12-02 (quiet box, 2 rounds). Re-measure on
-# your machine with `bench perf --suite train` (env-steps/s per cell, wall and CPU).
+Rates = dict[str, dict[str, dict[int, float]]]
+
+# Effective agent-steps (robots x environment steps, the upper bound above) per second
+# of one worker at the observed N, for training and evaluation; other N interpolate
+# piecewise linearly (clamped). OBSERVED in the committed reproduction (reproduction/paper,
+# the paper's budgets, 45 cells done by 2026-12-02, 1-2 workers on the 2-core x86_64 VM,
+# wall time, on the commits its manifest lists): the median per (method, N) of
+# bench/cost_calibration.py's rates, 2 significant digits. Their spread is this box's
+# (0.5-2x between cells of one configuration run at different times), so an estimate is
+# good to about a factor of 2. Rebuild with `python scripts/calibrate_costs.py RUN`;
+# estimate with your own machine's run with `bench grids --rates-from RUN`. PIBT (no
+# training) keeps its `bench perf --suite pibt` rate of 2026-11-22 until the run holds
+# PIBT cells. Before 2026-12-02 the training rates here were evaluation rates times
+# measured speed-ups, which undercounted a paper cell 2-4x (docs/decisions.md).
 AGENT_STEPS_PER_S: dict[str, dict[str, dict[int, float]]] = {
-    "hierarchical": {"train": {20: 42_000.0, 100: 102_000.0}, "eval": {20: 49_000.0, 100: 116_000.0}},
-    "decentralized": {"train": {20: 108_000.0, 100: 113_000.0}, "eval": {20: 160_000.0, 100: 163_000.0}},
-    "ic3net": {"train": {20: 82_000.0, 100: 115_000.0}, "eval": {20: 180_000.0, 100: 254_000.0}},
+    "hierarchical": {"train": {20: 10_000.0, 40: 31_000.0, 60: 30_000.0, 80: 37_000.0, 90: 39_000.0,
+                               100: 26_000.0},
+                     "eval": {20: 20_000.0, 40: 83_000.0, 60: 66_000.0, 80: 61_000.0, 90: 67_000.0,
+                              100: 28_000.0}},
+    "decentralized": {"train": {20: 48_000.0, 40: 51_000.0, 60: 110_000.0},
+                      "eval": {20: 130_000.0, 40: 92_000.0, 60: 230_000.0}},
+    "ic3net": {"train": {40: 73_000.0, 60: 41_000.0}, "eval": {40: 170_000.0, 60: 94_000.0}},
     "pibt": {"train": {20: float("inf"), 100: float("inf")}, "eval": {20: 330_000.0, 100: 330_000.0}},
 }
 DEFAULT_RATE = {"train": {20: 20_000.0, 100: 20_000.0}, "eval": {20: 40_000.0, 100: 40_000.0}}
 MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 
+# Seed stacking (`bench run --stack-seeds`, hierarchical only): per-cell training speed-up
+# of 3 seeds in one worker over one, MEASURED with `bench perf --suite train` on 2026-12-02
+# (8 episodes x 200 steps per update, MovingAI map, CPU time, medians of 3 rounds):
+# 1.47x at N = 40, 1.22x at N = 100. Other stack sizes follow the model the measurement
+# fits: a share x of a cell's training is the rollout's fixed per-step cost, which S seeds
+# share, so gain(S) = 1 / (1 - x (1 - 1/S)) and x = 1.5 (1 - 1/gain(3)).
+STACK_GAIN_3: dict[str, dict[int, float]] = {"hierarchical": {40: 1.47, 100: 1.22}}
 
-def rate(method: str, phase: str, n_robots: int) -> float:
-    """Agent-steps per second of ``method`` in ``phase`` ("train"/"eval") at ``n_robots``:
-    piecewise linear between the measured N, clamped outside them."""
-    points = sorted(AGENT_STEPS_PER_S.get(method, DEFAULT_RATE)[phase].items())
-    if n_robots <= points[0][0]:
-        return points[0][1]
-    for (n0, r0), (n1, r1) in zip(points[:-1], points[1:], strict=True):
+
+def _interpolate(points: dict[int, float], n_robots: int) -> float:
+    """Piecewise linear in N between the given points, clamped outside them."""
+    pts = sorted(points.items())
+    if n_robots <= pts[0][0]:
+        return pts[0][1]
+    for (n0, r0), (n1, r1) in zip(pts[:-1], pts[1:], strict=True):
         if n_robots <= n1:
             return r0 if r0 == r1 else r0 + (n_robots - n0) / (n1 - n0) * (r1 - r0)
-    return points[-1][1]
+    return pts[-1][1]
+
+
+def rate(method: str, phase: str, n_robots: int, rates: Rates | None = None) -> float:
+    """Agent-steps per second of ``method`` in ``phase`` ("train"/"eval") at ``n_robots``
+    (``rates``: default the built-in ``AGENT_STEPS_PER_S``)."""
+    table = AGENT_STEPS_PER_S if rates is None else rates
+    return _interpolate(table.get(method, DEFAULT_RATE)[phase], n_robots)
+
+
+def stack_gain(method: str, n_robots: int, seeds: int) -> float:
+    """Training speed-up per cell of ``seeds`` cells trained seed-stacked (1 for one
+    seed, or a method that does not stack); see ``STACK_GAIN_3``."""
+    if seeds < 2 or method not in STACK_GAIN_3:
+        return 1.0
+    fixed = 1.5 * (1.0 - 1.0 / _interpolate(STACK_GAIN_3[method], n_robots))
+    return 1.0 / (1.0 - fixed * (1.0 - 1.0 / seeds))
 
 
 def cell_agent_steps(cell: Cell) -> tuple[float, float]:
@@ -62,12 +89,35 @@ def cell_agent_steps(cell: Cell) -> tuple[float, float]:
     return cell.episodes * per_episode, cell.eval_episodes * len(cell.execution_modes()) * per_episode
 
 
-def cell_seconds(cell: Cell) -> float:
-    """Estimated core-seconds of one cell (upper bound; see the module docstring)."""
+def cell_seconds(cell: Cell, rates: Rates | None = None, stacked: int = 1) -> float:
+    """Estimated worker-seconds of one cell, trained in a stack of ``stacked`` seeds."""
     train, ev = cell_agent_steps(cell)
-    return train / rate(cell.method, "train", cell.n_robots) + ev / rate(cell.method, "eval", cell.n_robots)
+    train_s = train / rate(cell.method, "train", cell.n_robots, rates) if train else 0.0
+    return (train_s / stack_gain(cell.method, cell.n_robots, stacked)
+            + ev / rate(cell.method, "eval", cell.n_robots, rates))
 
 
-def grid_cell_hours(cells: Iterable[Cell]) -> float:
-    """Estimated cell-hours (core-hours) of a whole grid."""
-    return sum(cell_seconds(c) for c in cells) / 3600.0
+def stack_sizes(cells: Sequence[Cell], stack_seeds: int) -> list[int]:
+    """For each cell, the size of the seed stack ``bench run --stack-seeds`` trains it in:
+    the cells of one configuration (all but the seed) of a stackable method, in grid
+    order, in stacks of up to ``stack_seeds``; 1 otherwise."""
+    sizes = [1] * len(cells)
+    if stack_seeds < 2:
+        return sizes
+    groups: dict[str, list[int]] = {}
+    for i, c in enumerate(cells):
+        if c.stackable():
+            groups.setdefault(c.model_copy(update={"seed": 0}).canonical_json(), []).append(i)
+    for members in groups.values():
+        for lo in range(0, len(members), stack_seeds):
+            chunk = members[lo: lo + stack_seeds]
+            for i in chunk:
+                sizes[i] = len(chunk)
+    return sizes
+
+
+def grid_cell_hours(cells: Iterable[Cell], rates: Rates | None = None, stack_seeds: int = 1) -> float:
+    """Estimated worker-hours of a whole grid (with ``bench run --stack-seeds stack_seeds``)."""
+    cells = list(cells)
+    return sum(cell_seconds(c, rates, k) for c, k in zip(cells, stack_sizes(cells, stack_seeds), strict=True)
+               ) / 3600.0

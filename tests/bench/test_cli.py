@@ -198,10 +198,29 @@ def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -
     assert rows["paper"].split("│")[2].strip() == "84"  # 28 configurations x 3 seeds (default)
     assert [rows["paper"].split("│")[k].strip() for k in (6, 7)] == ["28", "3"]
     assert rows["full"].split("│")[2].strip() == "216"
-    assert f"cost: {costs.LABEL}" in stdout  # measured or estimate, said in the title
+    assert f"{costs.LABEL} on reproduction/paper" in stdout  # where the rates come from, in the title
     hours = float(rows["paper"].split("│")[8])
     assert hours == pytest.approx(costs.grid_cell_hours(get_grid("paper").cells), rel=1e-2)
     code, stdout, _ = _cli(capsys, "grids", "--seeds", "5")
     five = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
     assert five["paper"].split("│")[2].strip() == "140"
     assert float(five["paper"].split("│")[8]) == pytest.approx(hours * 5 / 3, rel=1e-2)
+
+
+def test_grids__stack_seeds_and_a_runs_observed_rates(capsys: pytest.CaptureFixture[str]) -> None:
+    from bench.cost_calibration import merged_rates, observed_costs, observed_rates
+
+    run = Path(__file__).resolve().parents[2] / "reproduction" / "paper"
+    code, stdout, err = _cli(capsys, "grids", "--stack-seeds", "3", "--rates-from", str(run))
+    assert code == 0, err
+    observed = observed_costs(run)
+    assert f"rates of the {len(observed)} done cells of {run}" in " ".join(stdout.split())
+    rows = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
+    expected = costs.grid_cell_hours(get_grid("paper").cells, merged_rates(observed_rates(observed)), 3)
+    assert float(rows["paper"].split("│")[8]) == pytest.approx(expected, rel=1e-2)
+
+
+def test_grids__rates_from_a_folder_without_done_cells_is_a_clear_error(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    code, _, err = _cli(capsys, "grids", "--rates-from", str(tmp_path))
+    assert code == 2 and "--rates-from" in err and "cells.parquet not found" in err

@@ -118,11 +118,13 @@ def test_grid_file__mistakes_are_one_line_errors_naming_the_key(tmp_path: Path, 
     assert named in str(err.value) and "bad.toml" in str(err.value) and "\n" not in str(err.value)
 
 
-def test_cost_rate__interpolates_linearly_between_measured_team_sizes_and_clamps() -> None:
-    pts = costs.AGENT_STEPS_PER_S["hierarchical"]["train"]
-    assert costs.rate("hierarchical", "train", 60) == pytest.approx((pts[20] + pts[100]) / 2)
-    assert costs.rate("hierarchical", "train", 8) == pts[20]
-    assert costs.rate("hierarchical", "train", 400) == pts[100]
+def test_cost_rate__builtin_points_are_met_exactly_and_clamped_outside() -> None:
+    pts = costs.AGENT_STEPS_PER_S["ic3net"]["train"]
+    lo, hi = min(pts), max(pts)
+    assert costs.rate("ic3net", "train", (lo + hi) // 2) == pytest.approx((pts[lo] + pts[hi]) / 2)
+    assert costs.rate("ic3net", "train", lo) == pts[lo]
+    assert costs.rate("ic3net", "train", 8) == pts[lo]
+    assert costs.rate("ic3net", "train", 400) == pts[hi]
 
 
 def test_cost_rate__piecewise_linear_between_measured_sizes_and_clamped_outside(monkeypatch) -> None:

@@ -1,0 +1,71 @@
+"""What a run's finished cells actually cost, in the units of ``bench/costs.py``.
+
+For every done cell of a run directory: its training seconds (the sum of its training
+rows' ``wall_s``, each an iteration's seconds divided by its episodes) and its evaluation
+seconds (the cell's ``wall_s`` minus those). Dividing the agent-steps ``costs`` charges the
+cell (``cell_agent_steps``: episodes x horizon x N, an upper bound) by these seconds gives
+*effective* rates, so that ``costs.cell_seconds`` of a cell at an observed rate is the
+seconds such a cell took. ``observed_rates`` takes the median per (method, N); ``bench
+grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs`` are the
+committed reproduction's (tests/bench/test_cost_calibration.py keeps the two close).
+
+Wall time: a cell's rate includes whatever else the machine was doing (the other worker,
+other processes), as a user's run will.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench import costs
+from bench.cells import Cell
+from reports.store import load_store
+
+Rates = dict[str, dict[str, dict[int, float]]]
+
+
+def observed_costs(run_dir: Path | str) -> pd.DataFrame:
+    """One row per done cell of the run: ``method``, ``n_robots``, ``train_s``, ``eval_s``
+    and the effective ``train_rate`` / ``eval_rate`` (agent-steps per second; NaN where the
+    cell had no such phase, e.g. a planner's training)."""
+    store = load_store(run_dir)
+    train_s = store.train.groupby("cell_id")["wall_s"].sum()
+    rows = []
+    for r in store.done.itertuples(index=False):
+        cell = Cell.model_validate_json(r.config_json)
+        train_steps, eval_steps = costs.cell_agent_steps(cell)
+        t = float(train_s.get(r.cell_id, 0.0))
+        e = float(r.wall_s) - t
+        rows.append(dict(cell_id=r.cell_id, method=cell.method, n_robots=cell.n_robots, train_s=t, eval_s=e,
+                         train_rate=train_steps / t if train_steps and t > 0 else np.nan,
+                         eval_rate=eval_steps / e if eval_steps and e > 0 else np.nan))
+    return pd.DataFrame(rows, columns=["cell_id", "method", "n_robots", "train_s", "eval_s",
+                                       "train_rate", "eval_rate"])
+
+
+def observed_rates(observed: pd.DataFrame) -> Rates:
+    """Median effective rate per method, phase and N, in the layout of
+    ``costs.AGENT_STEPS_PER_S`` (only the (method, phase, N) the run has)."""
+    out: Rates = {}
+    for (method, n), g in observed.groupby(["method", "n_robots"]):
+        for phase in ("train", "eval"):
+            vals = g[f"{phase}_rate"].dropna()
+            if len(vals):
+                out.setdefault(str(method), {}).setdefault(phase, {})[int(n)] = float(vals.median())
+    return out
+
+
+def merged_rates(observed: Rates, base: Rates | None = None) -> Rates:
+    """``base`` (default: the built-in rates) with each (method, phase) that ``observed``
+    has replaced by the observed points: a run's rates where it measured them."""
+    out = {m: {ph: dict(pts) for ph, pts in phases.items()}
+           for m, phases in (costs.AGENT_STEPS_PER_S if base is None else base).items()}
+    for method, phases in observed.items():
+        for phase, pts in phases.items():
+            out.setdefault(method, {})[phase] = dict(pts)
+    for phases in out.values():  # a method the run measured in one phase only
+        for phase in ("train", "eval"):
+            phases.setdefault(phase, dict(costs.DEFAULT_RATE[phase]))
+    return out
