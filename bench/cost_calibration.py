@@ -6,14 +6,15 @@ seconds (the cell's ``wall_s`` minus those). Dividing the agent-steps ``costs`` 
 cell (``cell_agent_steps``: episodes x horizon x N, an upper bound) by these seconds gives
 *effective* rates, so that ``costs.cell_seconds`` of a cell at an observed rate is the
 seconds such a cell took. ``observed_rates`` takes the median per (method, N); ``bench
-grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs`` are the
-committed reproduction's (tests/bench/test_cost_calibration.py keeps the two close).
+grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
+(``bench/cost_rates.json``, ``rates_file``) are the committed reproduction's.
 
 Wall time: a cell's rate includes whatever else the machine was doing (the other worker,
 other processes), as a user's run will.
 """
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -21,9 +22,8 @@ import pandas as pd
 
 from bench import costs
 from bench.cells import Cell
+from bench.costs import Rates
 from reports.store import load_store
-
-Rates = dict[str, dict[str, dict[int, float]]]
 
 
 def observed_costs(run_dir: Path | str) -> pd.DataFrame:
@@ -60,12 +60,17 @@ def observed_rates(observed: pd.DataFrame) -> Rates:
 def merged_rates(observed: Rates, base: Rates | None = None) -> Rates:
     """``base`` (default: the built-in rates) with each (method, phase) that ``observed``
     has replaced by the observed points: a run's rates where it measured them."""
-    out = {m: {ph: dict(pts) for ph, pts in phases.items()}
-           for m, phases in (costs.AGENT_STEPS_PER_S if base is None else base).items()}
-    for method, phases in observed.items():
-        for phase, pts in phases.items():
-            out.setdefault(method, {})[phase] = dict(pts)
-    for phases in out.values():  # a method the run measured in one phase only
-        for phase in ("train", "eval"):
-            phases.setdefault(phase, dict(costs.DEFAULT_RATE[phase]))
-    return out
+    return costs.merge_rates(costs.AGENT_STEPS_PER_S if base is None else base, observed)
+
+
+def two_digits(x: float) -> float:
+    """``x`` rounded to 2 significant digits (the precision the rates deserve)."""
+    return round(x, 1 - int(math.floor(math.log10(abs(x))))) if x else 0.0
+
+
+def rates_file(observed: pd.DataFrame, run: str) -> dict:
+    """The content of ``bench/cost_rates.json`` for a run's observed costs."""
+    rates = observed_rates(observed)
+    return {"run": run, "done_cells": int(len(observed)),
+            "rates": {m: {ph: {str(n): two_digits(r) for n, r in sorted(pts.items())}
+                          for ph, pts in sorted(phases.items())} for m, phases in sorted(rates.items())}}

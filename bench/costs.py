@@ -12,7 +12,9 @@ checkpoint writes and the load of the machine the cells ran on.
 """
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Sequence
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -22,27 +24,47 @@ Rates = dict[str, dict[str, dict[int, float]]]
 
 # Effective agent-steps (robots x environment steps, the upper bound above) per second
 # of one worker at the observed N, for training and evaluation; other N interpolate
-# piecewise linearly (clamped). OBSERVED in the committed reproduction (reproduction/paper,
-# the paper's budgets, 45 cells done by 2026-12-02, 1-2 workers on the 2-core x86_64 VM,
-# wall time, on the commits its manifest lists): the median per (method, N) of
-# bench/cost_calibration.py's rates, 2 significant digits. Their spread is this box's
-# (0.5-2x between cells of one configuration run at different times), so an estimate is
-# good to about a factor of 2. Rebuild with `python scripts/calibrate_costs.py RUN`;
-# estimate with your own machine's run with `bench grids --rates-from RUN`. PIBT (no
-# training) keeps its `bench perf --suite pibt` rate of 2026-11-22 until the run holds
-# PIBT cells. Before 2026-12-02 the training rates here were evaluation rates times
-# measured speed-ups, which undercounted a paper cell 2-4x (docs/decisions.md).
-AGENT_STEPS_PER_S: dict[str, dict[str, dict[int, float]]] = {
-    "hierarchical": {"train": {20: 10_000.0, 40: 31_000.0, 60: 30_000.0, 80: 37_000.0, 90: 39_000.0,
-                               100: 26_000.0},
-                     "eval": {20: 20_000.0, 40: 83_000.0, 60: 66_000.0, 80: 61_000.0, 90: 67_000.0,
-                              100: 28_000.0}},
-    "decentralized": {"train": {20: 48_000.0, 40: 51_000.0, 60: 110_000.0},
-                      "eval": {20: 130_000.0, 40: 92_000.0, 60: 230_000.0}},
-    "ic3net": {"train": {40: 73_000.0, 60: 41_000.0}, "eval": {40: 170_000.0, 60: 94_000.0}},
+# piecewise linearly (clamped). OBSERVED on the committed reproduction's done cells
+# (reproduction/paper: the paper's budgets, 1-2 workers on the 2-core x86_64 VM, wall
+# time, on the commits its manifest lists): the median per (method, N) of
+# bench/cost_calibration.py's rates, 2 significant digits, in cost_rates.json, which
+# `python scripts/calibrate_costs.py reproduction/paper --write` rebuilds whenever the
+# reproduction's state is committed (a test keeps the two equal). Their spread is this
+# box's (0.5-2x between cells of one configuration run at different times), so an
+# estimate is good to about a factor of 2; `bench grids --rates-from RUN` estimates with
+# your own run's. Methods the reproduction has not finished a cell of fall back to
+# FALLBACK_RATES: PIBT (no training) at its `bench perf --suite pibt` rate of 2026-11-22.
+# Before 2026-12-02 the training rates were evaluation rates times measured speed-ups,
+# which undercounted a paper cell 2-4x (docs/decisions.md).
+RATES_FILE = Path(__file__).with_name("cost_rates.json")
+FALLBACK_RATES: Rates = {
     "pibt": {"train": {20: float("inf"), 100: float("inf")}, "eval": {20: 330_000.0, 100: 330_000.0}},
 }
 DEFAULT_RATE = {"train": {20: 20_000.0, 100: 20_000.0}, "eval": {20: 40_000.0, 100: 40_000.0}}
+
+
+def merge_rates(base: Rates, observed: Rates) -> Rates:
+    """``base`` with each (method, phase) that ``observed`` has replaced by the observed
+    points; a method with one phase observed gets the other from ``base`` or
+    ``DEFAULT_RATE``. Neither input is modified."""
+    out = {m: {ph: dict(pts) for ph, pts in phases.items()} for m, phases in base.items()}
+    for method, phases in observed.items():
+        for phase, pts in phases.items():
+            out.setdefault(method, {})[phase] = dict(pts)
+    for phases in out.values():
+        for phase in ("train", "eval"):
+            phases.setdefault(phase, dict(DEFAULT_RATE[phase]))
+    return out
+
+
+def read_rates_file(path: Path = RATES_FILE) -> Rates:
+    """The ``rates`` of a cost_rates.json, N keys as ints."""
+    raw = json.loads(path.read_text())["rates"]
+    return {m: {ph: {int(n): float(r) for n, r in pts.items()} for ph, pts in phases.items()}
+            for m, phases in raw.items()}
+
+
+AGENT_STEPS_PER_S: Rates = merge_rates(FALLBACK_RATES, read_rates_file())
 MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 

@@ -135,7 +135,7 @@ class CellWorker:
         states = [copy.deepcopy(m.state_dict()) for m in methods]
         # Building, loading and copying states: shared alike by the cells of the chunk.
         overhead = (time.perf_counter() - start - sum(wall.values())) / len(methods)
-        results, keep = [], {}
+        results, keep, peak = [], {}, peak_rss_mb()  # one process: one peak for the chunk
         for spec, m, state in zip(specs, methods, states, strict=True):
             finished = not m.learned or m.episodes_done >= int(spec["episodes"])
             if not finished:
@@ -143,7 +143,7 @@ class CellWorker:
             results.append({
                 "rows": rows[id(m)], "state": state, "iterations": m.iterations,
                 "episodes_done": m.episodes_done, "finished": finished, "wall_s": wall[id(m)] + overhead,
-                "peak_mem_mb": peak_rss_mb(),
+                "peak_mem_mb": peak,
             })
         self._train = keep or None
         return results
