@@ -2,6 +2,7 @@
 grid files cross axes; costs follow the documented formula."""
 from __future__ import annotations
 
+import math
 from collections import Counter
 from pathlib import Path
 
@@ -136,3 +137,34 @@ def test_cost_rate__piecewise_linear_between_measured_sizes_and_clamped_outside(
     assert costs.rate("toy", "train", 70) == pytest.approx(450.0)
     assert costs.rate("toy", "train", 200) == 600.0
     assert costs.rate("toy", "eval", 50) == 1.0
+
+
+def test_cost_rate__an_infinite_rate_stays_exact_at_and_between_its_points() -> None:
+    """A planner trains at an infinite rate: a point met exactly must not interpolate
+    towards an infinite neighbour (0 * inf is NaN), nor a constant segment (inf - inf)."""
+    table = {"toy": {"train": {20: 100.0, 60: 300.0, 100: math.inf}, "eval": {20: 50.0, 100: math.inf}},
+             "planner": {"train": {20: math.inf, 100: math.inf}, "eval": {20: 1.0}}}
+    assert costs.rate("toy", "train", 60, table) == 300.0
+    assert costs.rate("toy", "eval", 20, table) == 50.0
+    assert costs.rate("toy", "train", 80, table) == math.inf
+    assert costs.rate("planner", "train", 50, table) == math.inf
+
+
+def test_cost_rate__uses_the_given_table_and_the_default_for_an_unknown_method() -> None:
+    table = {"toy": {"train": {20: 7.0}, "eval": {20: 9.0}}}
+    assert costs.rate("toy", "train", 40, table) == 7.0
+    assert costs.rate("hierarchical", "train", 40, table) == costs.DEFAULT_RATE["train"][20]
+    assert costs.rate("no-such-method", "eval", 40) == costs.DEFAULT_RATE["eval"][20]
+
+
+def test_cell_and_grid_cost__are_agent_steps_over_the_given_rates() -> None:
+    grid = get_grid("paper").cells
+    cells = [c for c in grid if c.method == "decentralized"][:2] + [c for c in grid if c.method == "pibt"][:2]
+    table = {m: {"train": {20: r, 100: r}, "eval": {20: 2 * r, 100: 2 * r}}
+             for m, r in (("decentralized", 1_000.0), ("pibt", math.inf))}
+    expected = []
+    for c in cells:
+        train, ev = costs.cell_agent_steps(c)
+        expected.append((train / table[c.method]["train"][20]) + ev / table[c.method]["eval"][20])
+        assert costs.cell_seconds(c, table) == pytest.approx(expected[-1])
+    assert costs.grid_cell_hours(cells, table) == pytest.approx(sum(expected) / 3600)
