@@ -78,8 +78,6 @@ def test_committed_ablation__is_complete() -> None:
     assert missing_cells("ablation", cells) == []
 
 
-@pytest.mark.xfail(strict=True, reason="issue 13: the paper grid is still running across sessions; "
-                   "remove this marker when the run is complete (strict: the test fails once it passes)")
 def test_committed_paper__is_complete_for_three_seeds() -> None:
     """Issue 13's done criterion: every cell of the paper grid done for >= 3 seeds (each
     done cell's rows in every mode are checked above)."""
