@@ -131,3 +131,16 @@ def test_readme__claims_table_is_the_committed_reports() -> None:
         table = (ROOT / "paper" / "report" / file).read_text(encoding="utf-8")
         assert sync.readme_block(readme, name) == table, \
             f"README's {name} block differs from reproduction/paper/report/{file}; run scripts/sync_readme_claims.py"
+
+
+def test_fig1a_five_seed_grid_file__adds_exactly_the_paper_grids_seeds_3_and_4() -> None:
+    """reproduction/fig1a-5seeds.toml repeats PAPER_SETTINGS by hand; if they drift, its cells
+    would get new ids and land beside, not inside, the paper grid's Fig. 1(a) cells."""
+    from bench.grid_files import load_grid_file
+    from bench.grids import paper
+
+    extra = load_grid_file(ROOT / "fig1a-5seeds.toml").cells
+    five, three = {c.cell_id for c in paper(5).cells}, {c.cell_id for c in paper(3).cells}
+    assert {c.cell_id for c in extra} <= five - three
+    assert {(c.method, c.n_robots, c.loss_p, c.seed) for c in extra} == {
+        (m, n, 0.2, s) for m in ("hierarchical", "decentralized") for n in (20, 40, 60) for s in (3, 4)}
