@@ -59,6 +59,7 @@ from reports.table1_safety import (
     table1_latex,
     table1_markdown,
 )
+from reports.variants import cell_variants, default_rows
 
 REPORT_DIR = "report"
 ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
@@ -183,7 +184,16 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
     for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
         store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
-    train, evals = store.train, store.eval
+    # Figures, Table I and the claims: each group's default variant only (reports.variants);
+    # the summary and the success table show every variant in its own row.
+    variants = cell_variants(store.cells)
+    train, evals = default_rows(store.train, variants), default_rows(store.eval, variants)
+    paper_cells = default_rows(store.cells, variants)
+    if len(paper_cells) < len(store.cells):
+        store.problems.append(
+            f"{len(store.cells) - len(paper_cells)} cells are variants of their configuration "
+            "(reports/variants.py): they have their own rows in the summary and success tables "
+            "and are left out of the figures, Table I and the claims")
     entries: list[Entry] = []
 
     titles = {
@@ -211,7 +221,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                                       for m in modes)))
 
     write_text(out / "progress.md", progress_markdown(store.cells))  # the README's status table
-    summary = summary_frame(evals, store.cells)
+    summary = summary_frame(store.eval, store.cells)
     write_text(out / "summary.md", summary_markdown(summary))
     write_text(out / "summary.csv", summary.to_csv(index=False))
     write_text(out / "success_by_mode.md", success_markdown(summary, store.cells))  # the README's results table
@@ -219,9 +229,9 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                          ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"),
                          tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
 
-    ablation = ablation_frame(evals, store.cells)
+    ablation = ablation_frame(store.eval, store.cells)
     if len(ablation):  # runs of the ablation grid
-        ab_md = ablation_markdown(ablation, component_values(evals, store.cells), setting(store.cells))
+        ab_md = ablation_markdown(ablation, component_values(store.eval, store.cells), setting(store.cells))
         write_text(out / "ablation.md", ab_md)
         write_text(out / "ablation.csv", ablation.to_csv(index=False))
         entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv"),
@@ -230,7 +240,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                                   ci_display(g, ABLATION_LABELS, ABLATION_METRICS))
                                  for mode, g in ablation.groupby("execution", sort=False))))
 
-    claims = all_claims(train, evals, at=claims_at, cells=store.cells)
+    claims = all_claims(train, evals, at=claims_at, cells=paper_cells)
     cal = _calibration(out)
     write_text(out / "claims.md", claims_markdown(claims, cal))
     write_text(out / "claims_table.md", claims_table_markdown(claims))  # the README's table

@@ -16,6 +16,7 @@ import pandas as pd
 from reports.plotting import label_order, method_label
 from reports.store import execution_order
 from reports.summary import fmt_ci
+from reports.variants import cell_variants, variant_suffix
 
 CAPTION = (
     "Success rate (% of robots at their goal at the end of an evaluation episode): mean over seeds "
@@ -25,20 +26,24 @@ CAPTION = (
 
 
 def success_frame(summary: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
-    """Display strings: N, p, method, seeds (done/cells), then one column per execution mode
-    of the run's cells (``executions`` of cells.parquet); a configuration's own modes read
-    "pending" until it has evaluation rows, the modes it does not have stay empty."""
+    """Display strings: N, p, method (with its variant, ``reports.variants``), seeds
+    (done/cells), then one column per execution mode of the run's cells (``executions`` of
+    cells.parquet); a configuration's own modes read "pending" until it has evaluation rows,
+    the modes it does not have stay empty."""
     if summary.empty:
         return pd.DataFrame(columns=["N", "p", "method", "seeds"])
+    variants = cells["cell_id"].map(cell_variants(cells)).fillna("")
     own = {k: execution_order(m for e in g["executions"] for m in str(e).split(",") if m)
-           for k, g in cells.groupby(["n_robots", "loss_p", "method"])}
+           for k, g in cells.assign(variant=variants).groupby(["n_robots", "loss_p", "method", "variant"])}
     modes = execution_order(m for ms in own.values() for m in ms)
+    summary = summary if "variant" in summary else summary.assign(variant="")
     rows = []
-    order = sorted(summary.groupby(["n_robots", "loss_p", "method"], sort=False).groups,
-                   key=lambda k: (k[0], k[1], label_order(method_label(k[2])), k[2]))
-    for n, p, method in order:
-        g = summary[(summary["n_robots"] == n) & (summary["loss_p"] == p) & (summary["method"] == method)]
-        rec = {"N": str(n), "p": f"{p:g}", "method": method_label(method),
+    order = sorted(summary.groupby(["n_robots", "loss_p", "method", "variant"], sort=False).groups,
+                   key=lambda k: (k[0], k[1], label_order(method_label(k[2])), k[2], k[3]))
+    for n, p, method, variant in order:
+        g = summary[(summary["n_robots"] == n) & (summary["loss_p"] == p) & (summary["method"] == method)
+                    & (summary["variant"] == variant)]
+        rec = {"N": str(n), "p": f"{p:g}", "method": method_label(method) + variant_suffix(variant),
                "seeds": f"{int(g['seeds'].max())}/{int(g['cells'].iloc[0])}"}
         by_mode = {r["execution"]: r for _, r in g.iterrows()}
         for mode in modes:
@@ -47,7 +52,7 @@ def success_frame(summary: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
                 star = "*" if r["ci_over"] == "episodes" else ""
                 rec[mode] = fmt_ci(r["success_rate"], r["success_rate_lo"], r["success_rate_hi"], "pct") + star
             else:
-                rec[mode] = "pending" if mode in own[(n, p, method)] else ""
+                rec[mode] = "pending" if mode in own.get((n, p, method, variant), []) else ""
         rows.append(rec)
     return pd.DataFrame(rows)  # columns in the records' order: N, p, method, seeds, modes
 

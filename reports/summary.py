@@ -15,6 +15,7 @@ import pandas as pd
 
 from reports.stats import bootstrap_ci, iqm, mean_ci
 from reports.store import execution_order, fmt_pct
+from reports.variants import cell_variants, variant_suffix
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
@@ -54,16 +55,17 @@ def metric_range(metric: str) -> tuple[float, float]:
 
 
 def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
-    """One row per (method, n_robots, loss_p) group present in ``cells`` and execution mode
-    of its evaluation rows (modes in report order; "-" when the group has no rows)."""
+    """One row per (method, n_robots, loss_p, variant) group present in ``cells`` and
+    execution mode of its evaluation rows (modes in report order; "-" when the group has no
+    rows). Variants (``reports.variants``) are never pooled: each is its own group."""
+    cells = cells.assign(variant=cells["cell_id"].map(cell_variants(cells)).fillna(""))
     out = []
-    for key, group_cells in cells.groupby(KEYS, sort=True):
-        method, n, p = key
-        group = evals[(evals["method"] == method) & (evals["n_robots"] == n)
-                      & np.isclose(evals["loss_p"].astype(float), float(p))]
+    for key, group_cells in cells.groupby(KEYS + ["variant"], sort=True):
+        method, n, p, variant = key
+        group = evals[evals["cell_id"].isin(group_cells["cell_id"])]
         for mode in execution_order(group["execution"]) or ["-"]:
             rows = group[group["execution"] == mode]
-            out.append(_summary_row(method, int(n), float(p), mode, rows, group_cells))
+            out.append({**_summary_row(method, int(n), float(p), mode, rows, group_cells), "variant": variant})
     return pd.DataFrame(out)
 
 
@@ -118,7 +120,7 @@ def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
     for _, r in frame.iterrows():
         filt = bool(r.get("safety_filter", True))
         rows.append([
-            str(r["method"]), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
+            str(r["method"]) + variant_suffix(str(r.get("variant", "") or "")), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
             f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
             + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
             str(r["eval_episodes"]),

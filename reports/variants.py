@@ -1,0 +1,74 @@
+"""Which variant of its method each cell is, so that no table or test pools variants.
+
+A store can hold cells of one (method, N, p) that differ in more than their seed: the
+ablation grid's eight hierarchical variants (``messages="oracle"``, ``share_params``, ...),
+or a user's grid file beside the paper grid. Their rows are not seeds of one
+configuration, and the seed is the statistical unit of every interval and test. So:
+
+* ``cell_variants`` labels each cell by the settings in which it differs from the other
+  cells of its (method, N, p) group: the keys whose values vary within the group (the
+  resolved hyperparameters of ``params_json`` and the cell's configuration, seed
+  excluded), written ``key=value`` where the cell's value is not the method's default (a
+  key that is not a hyperparameter, such as ``episodes``, is always written). A group
+  whose cells agree on everything has one variant, labelled ``""``, whatever its settings.
+* The summary and the success table give each variant its own row (``variant_suffix``);
+  the figures, Table I and the claims use the default variant only (``default_rows``):
+  the paper's method at the method's defaults, the others' own defaults (docs/decisions.md
+  "Variants are never pooled").
+"""
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import pandas as pd
+
+from algorithms.registry import METHODS, method_class
+
+GROUP = ("method", "n_robots", "loss_p")
+NOT_A_VARIANT = frozenset({"seed", "method", "n_robots", "loss_p", "params"})  # group keys, the seed, raw overrides
+
+
+def _settings(row: Any) -> dict[str, str]:
+    """Every setting of a cell but its group and seed, values as canonical JSON."""
+    config_json, params_json = getattr(row, "config_json", None), getattr(row, "params_json", None)
+    config = json.loads(config_json) if isinstance(config_json, str) and config_json else {}
+    params = json.loads(params_json) if isinstance(params_json, str) and params_json else {}
+    merged = {k: v for k, v in config.items() if k not in NOT_A_VARIANT}
+    merged.update(params)
+    return {k: json.dumps(v, sort_keys=True) for k, v in merged.items()}
+
+
+def _defaults(method: str) -> dict[str, str]:
+    if method not in METHODS:
+        return {}
+    fields = method_class(method).Params.model_fields
+    return {k: json.dumps(f.default, sort_keys=True) for k, f in fields.items() if not f.is_required()}
+
+
+def cell_variants(cells: pd.DataFrame) -> pd.Series:
+    """cell_id -> variant label ("" for a group's default variant; see the module doc)."""
+    labels: dict[str, str] = {}
+    if cells.empty:
+        return pd.Series(labels, dtype=object)
+    for (method, _, _), group in cells.groupby(list(GROUP), sort=False):
+        defaults = _defaults(str(method))  # a hyperparameter a cell does not store is at its default
+        settings = {row.cell_id: {**defaults, **_settings(row)} for row in group.itertuples()}
+        keys = sorted(set().union(*settings.values()))
+        varying = [k for k in keys if len({s.get(k) for s in settings.values()}) > 1]
+        for cid, s in settings.items():
+            labels[cid] = ", ".join(f"{k}={json.loads(s[k]) if k in s else None}" for k in varying
+                                    if k not in defaults or s.get(k) != defaults[k])
+    return pd.Series(labels, dtype=object)
+
+
+def variant_suffix(label: str) -> str:
+    """What a method's display label gets for a variant: "" or " [key=value, ...]"."""
+    return f" [{label}]" if label else ""
+
+
+def default_rows(rows: pd.DataFrame, variants: pd.Series) -> pd.DataFrame:
+    """The rows (any table with ``cell_id``) of cells of their group's default variant."""
+    if rows.empty or "cell_id" not in rows:
+        return rows
+    return rows[rows["cell_id"].map(variants).fillna("").eq("")]
