@@ -43,10 +43,37 @@ def test_cell_variants__label_only_what_varies_and_only_where_it_departs_from_th
     assert sorted(kept["cell_id"]) == ["a0", "a1", "d0"]
 
 
-def test_cell_variants__a_store_without_settings_columns_is_one_variant_per_group() -> None:
+def test_cell_variants__a_store_without_settings_is_one_variant_per_group() -> None:
     cells = pd.DataFrame({"cell_id": ["x", "y"], "method": ["ic3net"] * 2, "n_robots": [40, 40],
                           "loss_p": [0.2, 0.2]})
     assert cell_variants(cells).to_dict() == {"x": "", "y": ""}
+    for params_json, config_json in (("", None), (None, "")):  # empty JSON columns: nothing stored
+        empty = cells.assign(params_json=params_json, config_json=config_json)
+        assert cell_variants(empty).to_dict() == {"x": "", "y": ""}
+
+
+def test_cell_variants__names_every_departing_key_and_a_setting_a_cell_lacks() -> None:
+    cells = _cells([("a", "hierarchical", 40, {}, {}),
+                    ("b", "hierarchical", 40, {"messages": "oracle", "ref_hold": 10}, {})])
+    assert cell_variants(cells).to_dict() == {"a": "", "b": "messages=oracle, ref_hold=10"}
+    no_budget = cells.assign(config_json=[json.dumps({"seed": 0}), json.dumps({"seed": 1, "episodes": 50})])
+    assert cell_variants(no_budget).to_dict() == {"a": "episodes=None", "b": "episodes=50, messages=oracle, ref_hold=10"}
+
+
+def test_cell_variants__the_same_nested_setting_written_in_another_key_order_is_one_variant() -> None:
+    cells = _cells([("x", "pibt", 40, {"schedule": {"a": 1, "b": 2}}, {}),
+                    ("y", "pibt", 40, {"schedule": {"b": 2, "a": 1}}, {}),
+                    ("z", "pibt", 40, {"schedule": {"a": 1, "b": 3}}, {})])
+    assert cell_variants(cells).to_dict() == {"x": "schedule={'a': 1, 'b': 2}", "y": "schedule={'a': 1, 'b': 2}",
+                                              "z": "schedule={'a': 1, 'b': 3}"}
+
+
+def test_default_rows__keeps_rows_of_unlabelled_cells_and_tables_without_cell_ids() -> None:
+    variants = pd.Series({"a": "", "b": "messages=oracle"})
+    rows = pd.DataFrame({"cell_id": ["a", "b", "c"], "v": [1, 2, 3]})
+    assert list(default_rows(rows, variants)["v"]) == [1, 3]  # c is in no variant table: kept
+    plain = pd.DataFrame({"v": [1, 2]})
+    assert default_rows(plain, variants) is plain
 
 
 def _two_variant_evals() -> tuple[pd.DataFrame, pd.DataFrame]:
