@@ -20,7 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import METHODS, method_class
-from envs.config import EnvConfig
+from envs.config import EnvConfig, bursty_loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
@@ -94,6 +94,10 @@ class Cell(BaseModel):
     def _check(self) -> Cell:
         if self.groups > self.n_robots:
             raise ValueError(f"groups: {self.groups} groups exceed n_robots={self.n_robots}")
+        if self.loss_model == "gilbert_elliott":  # the environment's burst length
+            why = bursty_loss_error(self.loss_p, EnvConfig.model_fields["burst_length"].default)
+            if why is not None:
+                raise ValueError(f"loss_p: {why}")
         clash = sorted(set(self.params) & (set(SHARED_PARAM_FIELDS) | set(type(self).model_fields)))
         if clash:
             raise ValueError(f"params.{clash[0]}: set it as the cell field {clash[0]!r}, not in params")

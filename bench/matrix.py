@@ -46,7 +46,7 @@ from bench.plan import cell_spec, params_changes
 from bench.schema import METRIC_FIELDS, rows_to_table
 from bench.store import RunStore, read_meta, read_table, write_table
 from bench.worker import CellWorker, build_method
-from envs.config import EnvConfig
+from envs.config import EnvConfig, bursty_loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
@@ -141,6 +141,12 @@ def check_arguments(ns: Iterable[int], ps: Iterable[float], models: Iterable[str
     for b in bursts:
         if not (math.isfinite(b) and b >= 1.0):
             raise BenchError(f"--burst {b}: a mean burst length must be >= 1 step")
+    if "gilbert_elliott" in models:
+        for p in ps:
+            for b in bursts:
+                why = bursty_loss_error(p, b)
+                if why is not None:
+                    raise BenchError(f"--p {p:g} with --burst {b:g}: {why}")
     if episodes is not None and episodes < 1:
         raise BenchError(f"--episodes {episodes}: evaluate at least 1 episode per condition")
 

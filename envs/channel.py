@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from envs.config import EnvConfig
+from envs.config import EnvConfig, bursty_loss_error
 
 
 def group_assignment(n_robots: int, n_groups: int) -> np.ndarray:
@@ -53,7 +53,8 @@ class LossProcess:
     ``gilbert_elliott``: each link is a two-state Markov chain (Good: delivered, Bad: lost)
     with P(Good -> Bad) = p / (burst (1 - p)) and P(Bad -> Good) = 1 / burst, so the
     stationary loss rate is p and bad runs last ``burst`` steps on average. The chain
-    starts in its stationary distribution.
+    starts in its stationary distribution. A p above burst / (burst + 1) has no such chain
+    (P(Good -> Bad) > 1) and is refused, never quietly lowered.
     """
 
     def __init__(
@@ -62,7 +63,11 @@ class LossProcess:
     ) -> None:
         self.shape, self.p, self.rng, self.model = link_shape, float(p), rng, model
         if model == "gilbert_elliott":
+            why = bursty_loss_error(self.p, burst_length)
+            if why is not None:
+                raise ValueError(f"gilbert_elliott loss: {why}")
             self.p_bg = 1.0 / burst_length
+            # min: p at the limit L / (L + 1) gives 1 up to rounding
             self.p_gb = min(1.0, p * self.p_bg / (1.0 - p)) if p < 1.0 else 1.0
             self.bad = rng.random(link_shape) < p
         elif model != "bernoulli":

@@ -19,6 +19,24 @@ class RewardWeights(BaseModel):
     q_tau: float = Field(0.1, gt=0, description="per step while the task is unfinished")
 
 
+def max_bursty_loss(burst_length: float) -> float:
+    """The largest mean loss a Gilbert-Elliott chain with bad runs of ``burst_length`` steps
+    on average can have: L / (L + 1), where P(Good -> Bad) = p / (L (1 - p)) reaches 1
+    (every delivered step is followed by a loss). A larger p needs longer bursts,
+    L >= p / (1 - p)."""
+    return burst_length / (burst_length + 1.0)
+
+
+def bursty_loss_error(loss_p: float, burst_length: float) -> str | None:
+    """Why (loss_p, burst_length) is no Gilbert-Elliott channel, or None when it is one.
+    p = 1 (never delivered) is a channel at any burst length."""
+    if loss_p >= 1.0 or loss_p <= max_bursty_loss(burst_length) * (1.0 + 1e-12):
+        return None
+    return (f"mean loss {loss_p:g} is more than bursts of {burst_length:g} steps allow "
+            f"(at most {max_bursty_loss(burst_length):.4g}: P(Good -> Bad) = p / (L (1 - p)) "
+            f"would exceed 1); use bursts of at least {loss_p / (1.0 - loss_p):.4g} steps or a smaller loss")
+
+
 class EnvConfig(BaseModel):
     """Everything that defines a warehouse episode distribution and its channel."""
 
@@ -60,6 +78,10 @@ class EnvConfig(BaseModel):
     def _groups_fit(self) -> EnvConfig:
         if self.groups > self.n_robots:
             raise ValueError(f"groups={self.groups} exceeds n_robots={self.n_robots}")
+        if self.loss_model == "gilbert_elliott":
+            why = bursty_loss_error(self.loss_p, self.burst_length)
+            if why is not None:
+                raise ValueError(f"loss_p={self.loss_p:g} with burst_length={self.burst_length:g}: {why}")
         return self
 
     @classmethod

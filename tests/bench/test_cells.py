@@ -54,6 +54,7 @@ def test_cell__json_round_trip_gives_the_same_cell() -> None:
 @pytest.mark.parametrize(("fields", "named"), [
     (dict(n_robots=0), "n_robots"),
     (dict(loss_p=1.5), "loss_p"),
+    (dict(loss_p=0.9, loss_model="gilbert_elliott"), "loss_p"),  # bursts of 4 allow at most 0.8
     (dict(seed=-1), "seed"),
     (dict(method="qmix"), "method"),
     (dict(groups=30, n_robots=20), "groups"),

@@ -144,6 +144,7 @@ def test_matrix__n_below_the_groups_is_an_unsupported_row(toy: str, tiny_run: Pa
     (dict(ns=[500]), "--n 500: 500 robots do not fit layout 'tiny'"),
     (dict(models=["burst"]), "--loss-model 'burst': unknown loss model"),
     (dict(bursts=[0.5]), "--burst 0.5"),
+    (dict(ps=[0.9], bursts=[4.0]), "--p 0.9 with --burst 4: mean loss 0.9 is more than bursts of 4 steps allow"),
     (dict(episodes=0), "--episodes 0"),
 ])
 def test_matrix__bad_arguments_are_one_bench_error(toy: str, tiny_run: Path, kwargs: dict, message: str) -> None:

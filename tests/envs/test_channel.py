@@ -6,6 +6,7 @@ import pytest
 
 from envs.channel import GroupChannel, LossProcess, comm_graph, group_assignment, group_members
 from envs.config import EnvConfig
+from envs.errors import BenchError
 
 
 def loss_runs(lost: np.ndarray) -> np.ndarray:
@@ -44,6 +45,24 @@ def test_gilbert_elliott_has_the_same_mean_loss_and_bursts_of_the_given_length()
     assert abs(runs.mean() - 4.0) < 0.2
     bern = loss_runs(sample("bernoulli", 0.3))
     assert runs.mean() > 2.5 * bern.mean()
+
+
+@pytest.mark.parametrize(("p", "burst"), [(0.8, 4.0), (0.9, 16.0)])
+def test_gilbert_elliott_keeps_a_high_mean_loss_up_to_what_its_bursts_allow(p: float, burst: float) -> None:
+    lost = sample("gilbert_elliott", p, steps=8000, burst=burst)  # p = L / (L + 1): P(G -> B) = 1
+    assert abs(lost.mean() - p) < 0.02
+    assert abs(loss_runs(lost).mean() - burst) < 0.1 * burst
+
+
+@pytest.mark.parametrize(("p", "burst", "limit"), [(0.9, 4.0, "0.8"), (0.6, 1.0, "0.5"), (0.81, 4.0, "0.8")])
+def test_gilbert_elliott_refuses_a_loss_its_bursts_cannot_have(p: float, burst: float, limit: str) -> None:
+    # The chain would need P(Good -> Bad) > 1; quietly capping it gave a mean loss of
+    # L / (L + 1) instead of p (0.8 for p = 0.9, L = 4).
+    with pytest.raises(ValueError, match=f"at most {limit}"):
+        LossProcess((2, 2), p, np.random.default_rng(0), "gilbert_elliott", burst_length=burst)
+    with pytest.raises(BenchError, match=f"loss_p={p:g} with burst_length={burst:g}"):
+        EnvConfig.make(loss_p=p, loss_model="gilbert_elliott", burst_length=burst)
+    EnvConfig.make(loss_p=p, loss_model="bernoulli", burst_length=burst)  # Bernoulli has no bursts
 
 
 def test_extreme_loss_probabilities_deliver_always_or_never() -> None:
