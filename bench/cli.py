@@ -350,8 +350,10 @@ def calibrate(
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
     out: Path | None = typer.Option(None, "--out", help="Also write the JSON here (e.g. RUN/report/calibration.json)."),
 ) -> None:
-    """Rate of `supported` of every claim test under the null (must be <= 5% + MC error)
-    and its power under a stated effect, at 3, 5 and 10 seeds; exit 1 if a null rate is too high."""
+    """Rate of `supported` of every claim test under the null (must be <= 5% + MC error),
+    its power under a stated effect, and its rate of `contradicted` where the claim holds or
+    sits at its boundary (must be <= 5% + MC error), for single checks and whole claims
+    over several configurations, at 3, 5 and 10 seeds; exit 1 if an error rate is too high."""
     import pandas as pd
 
     from reports.calibrate import calibration_report

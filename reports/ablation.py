@@ -161,9 +161,9 @@ def ablation_markdown(frame: pd.DataFrame, components: list[dict[str, object]], 
              "Each variant changes one design choice of the paper's method (the `departs` column "
              "names the paper line); `decentralized` is the baseline. Mean over seeds of the "
              f"per-seed evaluation mean, [95% Student t CI over {unit}], one table per execution "
-             "mode (every mode on the same evaluation scenarios). The summary, Table I and the "
-             "claims of this run pool every hierarchical variant together; read the variants "
-             "here."]
+             "mode (every mode on the same evaluation scenarios). The summary gives each variant "
+             "a row of its own; the figures, Table I and the claims of this run use the default "
+             "variant of each configuration only (variants are never pooled as seeds)."]
     modes = list(dict.fromkeys(frame["execution"])) if len(frame) else []
     for mode in modes:
         lines += ["", f"### Execution: {mode}", "",

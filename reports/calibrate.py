@@ -1,5 +1,9 @@
 """``bench calibrate``: how often each claim test says *supported* when the claim is
-false (must be <= 5% + Monte-Carlo error) and when it is true with a stated effect (power).
+false (must be <= 5% + Monte-Carlo error) and when it is true with a stated effect (power),
+and how often it says *contradicted* when the claim holds or sits at its boundary (must be
+<= 5% + Monte-Carlo error too). Whole claims over several configurations and execution
+modes are simulated as well ("families"): one contradicted check contradicts a claim, so
+there the checks' Bonferroni level (``reports.verdicts``) is what keeps the rate down.
 
 Simulated per-seed data with known truth is laid out as training / evaluation tables
 (the store's columns) and pushed through the claims' own functions
@@ -11,7 +15,7 @@ replaced. Every stream is seeded: the same ``seed`` gives the same table.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,14 +50,15 @@ def _train(method: str, n: int, curves: np.ndarray, first_cell: int = 0) -> pd.D
                          "method": method, "n_robots": n, "loss_p": 0.2})
 
 
-def _eval(method: str, n: int, cols: dict[str, np.ndarray]) -> pd.DataFrame:
-    """Evaluation rows of (S, E) metric arrays, argmax mode, safety filter on."""
+def _eval(method: str, n: int, cols: dict[str, np.ndarray], p: float = 0.2,
+          execution: str = "argmax") -> pd.DataFrame:
+    """Evaluation rows of (S, E) metric arrays, one execution mode, safety filter on."""
     s, e = next(iter(cols.values())).shape
-    return pd.DataFrame({"cell_id": np.repeat([f"{method}{n}-{k}" for k in range(s)], e),
+    return pd.DataFrame({"cell_id": np.repeat([f"{method}{n}-{p:g}-{k}" for k in range(s)], e),
                          "episode": np.tile(np.arange(e), s),
                          **{k: v.reshape(-1) for k, v in cols.items()},
-                         "method": method, "n_robots": n, "loss_p": 0.2,
-                         "safety_filter": method == "hierarchical", "execution": "argmax"})
+                         "method": method, "n_robots": n, "loss_p": p,
+                         "safety_filter": method == "hierarchical", "execution": execution})
 
 
 def _plateau(rng: np.random.Generator, levels: np.ndarray) -> np.ndarray:
@@ -146,12 +151,48 @@ def sim_few_corrections(rng: np.random.Generator, s: int, effect: bool) -> str:
                                    configs=[(40, 0.2)]).checks[0].verdict
 
 
+# ----------------------------------------------------------------- families
+FAMILY_MODES = ("argmax", "sample", "sample@0.5")
+
+
+def sim_family_hier_above_dec(rng: np.random.Generator, s: int, effect: bool) -> str:
+    """Fig. 1(a)'s claim as a whole: N = 20, 40, 60, each as ``sim_hier_above_dec``."""
+    parts = []
+    for n in (20, 40, 60):
+        parts += [_train("hierarchical", n, _plateau(rng, 10.0 + 3.0 * effect + rng.normal(0, 1.0, s))),
+                  _train("decentralized", n, _plateau(rng, 10.0 + rng.normal(0, 1.5, s)))]
+    return C.claim_hier_above_dec(pd.concat(parts), configs=[(20, 0.2), (40, 0.2), (60, 0.2)]).verdict
+
+
+def sim_family_above_ic3net(rng: np.random.Generator, s: int, effect: bool) -> str:
+    """Fig. 2's claim as a whole: 6 configurations x 3 execution modes (18 checks), each
+    as ``sim_above_ic3net`` with its own draws."""
+    configs = [(n, p) for n in (40, 60) for p in (0.2, 0.4, 0.6)]
+    ev = pd.concat([_eval(m, n, {"success_rate": _success(rng, s, 0.6 + 0.2 * effect * (m == "hierarchical"))},
+                          p, mode)
+                    for n, p in configs for mode in FAMILY_MODES for m in ("hierarchical", "ic3net")])
+    return C.claim_above_ic3net(ev, configs=configs).verdict
+
+
+def sim_family_few_corrections(rng: np.random.Generator, s: int, effect: bool) -> str:
+    """Table I's correction claim as a whole: 5 configurations x 3 modes (15 checks)."""
+    configs = [(n, 0.2) for n in (40, 60, 80, 90, 100)]
+    parts = []
+    for n, p in configs:
+        for mode in FAMILY_MODES:
+            m = (0.05 if effect else V.MAX_CORRECTION) + rng.normal(0, 0.01, (s, 1))
+            parts.append(_eval("hierarchical", n, {"correction_rate": m + rng.normal(0, 0.01, (s, EVAL_EPISODES))},
+                               p, mode))
+    return C.claim_few_corrections(pd.concat(parts), configs=configs).verdict
+
+
 @dataclass(frozen=True)
 class Scenario:
     test: str  # claim key
     name: str
     effect: str  # what the "effect" simulation makes true
     sim: Callable[[np.random.Generator, int, bool], str]
+    boundary: bool = True  # the null sits on the claim's boundary: a contradiction there is false too
 
 
 SCENARIOS = (
@@ -159,15 +200,25 @@ SCENARIOS = (
     Scenario("gap_widens", "equal gaps", "gap at 60 larger by 3 (seed s.d. 1)", sim_gap_widens),
     Scenario("convergence", "still rising by exactly the tolerance", "flat after the ramp",
              sim_convergence_at_tolerance),
-    Scenario("convergence", "no gain (flat curve)", "gain 5, flat after the ramp", sim_convergence_flat),
+    Scenario("convergence", "no gain (flat curve)", "gain 5, flat after the ramp", sim_convergence_flat,
+             boundary=False),
     Scenario("above_ic3net", "identical methods", "+0.2 success at every episode", sim_above_ic3net),
     Scenario("above_ic3net", "worst 30% of episodes exactly 0.05 lower", "+0.3 everywhere",
              sim_above_ic3net_band),
     Scenario("no_collisions", "per-episode collision probability at the 95% bound", "no collisions",
-             sim_no_collisions),
+             sim_no_collisions, boundary=False),
     Scenario("few_corrections", "mean correction rate exactly 8%", "mean correction rate 5%",
              sim_few_corrections),
+    Scenario("hier_above_dec", "family of 3 configurations, equal final rewards", "+3 at each",
+             sim_family_hier_above_dec),
+    Scenario("above_ic3net", "family of 6 configurations x 3 modes, identical methods",
+             "+0.2 at each", sim_family_above_ic3net),
+    Scenario("few_corrections", "family of 5 configurations x 3 modes, exactly 8%", "5% at each",
+             sim_family_few_corrections),
 )
+
+
+FAMILIES = tuple(i for i, sc in enumerate(SCENARIOS) if sc.name.startswith("family"))
 
 
 def null_limit(sims: int, alpha: float = ALPHA) -> float:
@@ -175,21 +226,30 @@ def null_limit(sims: int, alpha: float = ALPHA) -> float:
     return alpha + 2.0 * float(np.sqrt(alpha * (1 - alpha) / sims))
 
 
-def calibrate(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SEED_COUNTS) -> pd.DataFrame:
+def calibrate(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SEED_COUNTS,
+              scenarios: Sequence[int] | None = None) -> pd.DataFrame:
     """One row per (test, scenario, truth in {null, effect}, seeds): the rate of
-    ``supported`` over ``sims`` simulations, its MC standard error, and (null rows)
-    whether it is within ``null_limit``."""
+    ``supported`` over ``sims`` simulations, its MC standard error, (null rows) whether it
+    is within ``null_limit``; the rate of ``contradicted`` and whether it is within the
+    limit where the claim holds (effect rows) or sits at its boundary (boundary nulls).
+    ``scenarios``: indices into ``SCENARIOS`` to run (default all); each keeps its own
+    random streams, so a subset gives the same rows as the whole."""
     rows = []
     for i, sc in enumerate(SCENARIOS):
+        if scenarios is not None and i not in scenarios:
+            continue
         for s in seed_counts:
             for effect in (False, True):
                 rng = np.random.default_rng(np.random.SeedSequence([seed, i, s, int(effect)]))
-                hits = sum(sc.sim(rng, s, effect) == V.SUPPORTED for _ in range(sims))
-                rate = hits / sims
+                verdicts = [sc.sim(rng, s, effect) for _ in range(sims)]
+                rate = verdicts.count(V.SUPPORTED) / sims
+                contra = verdicts.count(V.CONTRADICTED) / sims
                 rows.append({"test": sc.test, "truth": "effect" if effect else "null",
                              "scenario": sc.effect if effect else sc.name, "seeds": s, "sims": sims,
                              "rate": rate, "mc_se": float(np.sqrt(rate * (1 - rate) / sims)),
-                             "null_ok": bool(effect or rate <= null_limit(sims))})
+                             "null_ok": bool(effect or rate <= null_limit(sims)),
+                             "contradicted": contra,
+                             "contra_ok": bool(not (effect or sc.boundary) or contra <= null_limit(sims))})
     return pd.DataFrame(rows)
 
 
@@ -225,5 +285,5 @@ def calibration_report(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, 
     return {"meta": {"sims": sims, "seed": seed, "alpha": ALPHA, "null_limit": round(null_limit(sims), 4),
                      "seed_counts": list(seed_counts), "coverage_sims": coverage_sims,
                      "train_episodes": TRAIN_EPISODES, "eval_episodes": EVAL_EPISODES, "ar1_phi": PHI},
-            "all_null_ok": bool(cal["null_ok"].all()),
+            "all_null_ok": bool(cal["null_ok"].all() and cal["contra_ok"].all()),
             "calibration": cal.to_dict("records"), "coverage": cov.to_dict("records")}

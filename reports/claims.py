@@ -3,7 +3,8 @@ the data, one check per configuration and execution mode.
 
 Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05 in the
 paper's direction), **contradicted** (significant in the opposite direction),
-**inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
+**inconclusive** (neither; a contradiction counts at 0.05 / k for a claim of k checks, so
+that its false-contradiction rate is <= 0.05 too), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side, or the configuration is missing). Two checks are not statistical: the payload
 ratio is **verified by construction** (the bench counts the scalars with the paper's
 formula), and Lemma 1's candidate bound is arithmetic on the settings.
@@ -14,8 +15,10 @@ the unit: every test takes one number per seed (a per-seed mean), never pooled e
 and is a Welch / one-sample t test (``reports.stats``). Its rate of
 ``supported`` under the null and its power are measured by ``bench calibrate``
 (``reports.calibrate``), which feeds simulated tables through these same functions.
-A claim's verdict combines its checks: any contradicted -> contradicted; all supported
--> supported; else inconclusive if any check is, else not enough seeds.
+A claim's verdict combines its checks: any contradicted -> contradicted (each check
+decided at 0.05 / k, Bonferroni over the claim's k checks); all supported -> supported
+(each at 0.05, an intersection-union test); else inconclusive if any check is, else not
+enough seeds.
 """
 from __future__ import annotations
 
@@ -28,6 +31,7 @@ import pandas as pd
 from reports.fig3_payload import payload_points
 from reports.store import fmt_p, select
 from reports.verdicts import (
+    ALPHA,
     BAND_TOL,
     BY_CONSTRUCTION,
     CONTRADICTED,
@@ -171,12 +175,17 @@ Configs = Sequence[tuple]
 
 
 def _each(claim: Claim, paper: Configs, run: Configs,
-          fn: Callable[[tuple], list[tuple[str, str, str, str, str]]]) -> Claim:
-    """Append fn(config) -> [(config label, execution, verdict, numbers, test)] per scope;
-    run configurations that are paper ones are not repeated."""
+          fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
+    """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
+    test)] per scope; run configurations that are paper ones are not repeated.
+
+    A scope's k checks decide one claim, and one contradicted check contradicts it, so
+    each check may contradict only at ALPHA / k (Bonferroni; ``reports.verdicts``): a
+    first pass counts the checks, the second decides at that level."""
     for scope, configs in (("paper", paper), ("run", [c for c in run if c not in paper])):
+        k = sum(len(fn(c, ALPHA)) for c in configs)
         for c in configs:
-            for label, ex, v, nums, test in fn(c):
+            for label, ex, v, nums, test in fn(c, ALPHA / max(k, 1)):
                 claim.checks.append(Check(label, v, nums, test, ex, scope))
     return claim
 
@@ -196,10 +205,11 @@ def claim_hier_above_dec(train: pd.DataFrame, configs: Configs = PAPER["fig1a"],
         f"Per seed, the mean team return over the last {FINAL_FRAC:.0%} of training; Welch t over "
         "seeds, one-sided, level 0.05.")
 
-    def one(c: tuple) -> list:
+    def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
         v, nums, test = check_greater(final_means(select(train, "hierarchical", n, p)),
-                                      final_means(select(train, "decentralized", n, p)), "final reward")
+                                      final_means(select(train, "decentralized", n, p)), "final reward",
+                                      contra_alpha)
         return [(_cfg(n, p), TRAINING, v, nums, test)]
     return _each(claim, configs, run, one)
 
@@ -212,11 +222,11 @@ def claim_gap_widens(train: pd.DataFrame, configs: Configs = PAPER["gap"], run: 
         "Gap(N) = mean final reward hierarchical - decentralized; Welch t on the contrast "
         "Gap(large) - Gap(small) of four groups of per-seed means, one-sided, level 0.05.")
 
-    def one(c: tuple) -> list:
+    def one(c: tuple, contra_alpha: float) -> list:
         large, small, p = c
         groups = [final_means(select(train, m, n, p))
                   for n in (large, small) for m in ("hierarchical", "decentralized")]
-        v, nums, test = check_gap(groups, large, small)
+        v, nums, test = check_gap(groups, large, small, contra_alpha)
         return [(f"Gap({large}) vs Gap({small}), p = {fmt_p(p)}", TRAINING, v, nums, test)]
     return _each(claim, configs, run, one)
 
@@ -232,10 +242,11 @@ def claim_convergence(train: pd.DataFrame, configs: Configs = PAPER["fig1b"], ru
         "contradicted when the gain is < 0 or the drift is beyond the tolerance (still rising or "
         "collapsing) significantly.")
 
-    def one(c: tuple) -> list:
+    def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
         rows = select(train, "hierarchical", n, p)
-        return [(_cfg(n, p), TRAINING, *check_convergence(per_cell(rows, "team_return")))]
+        return [(_cfg(n, p), TRAINING, *check_convergence(per_cell(rows, "team_return"),
+                                                          contra_alpha=contra_alpha))]
     return _each(claim, configs, run, one)
 
 
@@ -249,7 +260,7 @@ def claim_above_ic3net(evals: pd.DataFrame, configs: Configs = PAPER["fig2"], ru
         "below IC3Net's (one-sided simultaneous band), per execution mode.")
     ev = with_execution(evals)
 
-    def one(c: tuple) -> list:
+    def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
         h, i = select(ev, "hierarchical", n, p), select(ev, "ic3net", n, p)
         pairs = mode_pairs(h, i) if len(h) and len(i) else []
@@ -259,7 +270,7 @@ def claim_above_ic3net(evals: pd.DataFrame, configs: Configs = PAPER["fig2"], ru
         out = []
         for mode, hh, ii in pairs:
             out.append((_cfg(n, p), mode, *check_curves(per_cell(hh, "success_rate"),
-                                                        per_cell(ii, "success_rate"))))
+                                                        per_cell(ii, "success_rate"), contra_alpha)))
         return out
     return _each(claim, configs, run, one)
 
@@ -280,7 +291,7 @@ def claim_no_collisions(evals: pd.DataFrame, configs: Configs = PAPER["table1"],
         "Supported iff no evaluation episode of >= 3 seeds has a collision; any collision "
         "contradicts; per execution mode.")
     return _each(claim, configs, run, _per_filter_mode(
-        with_execution(evals), lambda rows: check_collisions(per_cell(rows, "collision_rate"))))
+        with_execution(evals), lambda rows, _: check_collisions(per_cell(rows, "collision_rate"))))
 
 
 def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"], run: Configs = ()) -> Claim:
@@ -291,18 +302,21 @@ def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"
         f"One-sample t over per-seed mean correction rates against {MAX_CORRECTION:.0%}, one-sided, "
         "level 0.05, per execution mode.")
     return _each(claim, configs, run, _per_filter_mode(
-        with_execution(evals), lambda rows: check_corrections(seed_means(rows, "correction_rate"))))
+        with_execution(evals), lambda rows, contra_alpha: check_corrections(
+            seed_means(rows, "correction_rate"), contra_alpha=contra_alpha)))
 
 
-def _per_filter_mode(ev: pd.DataFrame, check: Callable[[pd.DataFrame], tuple]) -> Callable[[tuple], list]:
-    """A per-configuration check for ``_each``: ``check`` on the hierarchical rows (filter
-    on) of each execution mode at (N, p), or 'not enough seeds' when there are none."""
-    def one(c: tuple) -> list:
+def _per_filter_mode(ev: pd.DataFrame, check: Callable[[pd.DataFrame, float], tuple],
+                     ) -> Callable[[tuple, float], list]:
+    """A per-configuration check for ``_each``: ``check(rows, contra_alpha)`` on the
+    hierarchical rows (filter on) of each execution mode at (N, p), or 'not enough seeds'
+    when there are none."""
+    def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
         modes = _hier_modes(ev, n, p)
         if not modes:
             return [(_cfg(n, p), "-", NOT_ENOUGH, "configuration missing (or filter off)", "-")]
-        return [(_cfg(n, p), mode, *check(rows)) for mode, rows in modes]
+        return [(_cfg(n, p), mode, *check(rows, contra_alpha)) for mode, rows in modes]
     return one
 
 
@@ -342,7 +356,7 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
         "Arithmetic on the settings with the largest group n_z = ceil(N/Z): verified when the bound is "
         "<= C_max; contradicted (the guarantee does not hold) when it exceeds C_max.")
 
-    def one(c: tuple) -> list:
+    def one(c: tuple, _: float) -> list:  # arithmetic: no error to control
         n, z, radius, c_max = c
         n_z = -(-n // z)
         b = lemma1_bound(n_z, radius)

@@ -43,22 +43,30 @@ def _esc(s: object) -> str:
 
 def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None) -> str:
     """The calibration table: per test, scenario and seed count, the rate of
-    ``supported`` with its Monte-Carlo standard error."""
+    ``supported`` with its Monte-Carlo standard error, and the rate of ``contradicted``
+    (a column only when the calibration measured it)."""
     meta = meta or {}
+    contra = "contradicted" in cal.columns
     lines = ["# Calibration of the claim tests", "",
              "Simulated tables with known truth pushed through the claims' own functions "
              "(`bench calibrate`). *null*: the claim is false (at its boundary); the rate of "
              "`supported` must be <= 5% + Monte-Carlo error. *effect*: the claim is true with the "
-             "stated effect; the rate is the power.", ""]
+             "stated effect; the rate is the power."
+             + (" Where the claim holds (effect) or sits at its boundary, the rate of `contradicted` "
+                "must be <= 5% + Monte-Carlo error too. A *family* is a whole claim over several "
+                "configurations and execution modes (its verdict, not one check)." if contra else ""), ""]
     if meta:
         lines += [", ".join(f"{k}: {v}" for k, v in meta.items()), ""]
-    head = ["test", "truth", "scenario", "seeds", "sims", "rate supported", "MC s.e.", "ok"]
+    head = ["test", "truth", "scenario", "seeds", "sims", "rate supported", "MC s.e."]
+    head += ["rate contradicted", "ok"] if contra else ["ok"]
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for _, r in cal.iterrows():
-        ok = "" if r["truth"] != "null" else ("yes" if r["null_ok"] else "**NO**")
-        lines.append("| " + " | ".join(_esc(x) for x in (
-            r["test"], r["truth"], r["scenario"], r["seeds"], r["sims"], f"{r['rate']:.3f}",
-            f"{r['mc_se']:.3f}", ok)) + " |")
+        fine = bool(r["null_ok"]) and (not contra or bool(r["contra_ok"]))
+        checked = r["truth"] == "null" or contra
+        ok = "" if not checked else ("yes" if fine else "**NO**")
+        cells = [r["test"], r["truth"], r["scenario"], r["seeds"], r["sims"], f"{r['rate']:.3f}",
+                 f"{r['mc_se']:.3f}"] + ([f"{r['contradicted']:.3f}"] if contra else []) + [ok]
+        lines.append("| " + " | ".join(_esc(x) for x in cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -69,10 +77,13 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
     lines = ["# Claims of the paper's Sec. IV against this run", "",
              "Verdicts: " + ", ".join(f"**{v}**" for v in VERDICTS) + ". Tests take the seed as "
              "the unit (per-seed means, Welch / one-sample t, level 0.05); fewer than 3 seeds on a "
-             "side is **not enough seeds**, whatever the data.", ""]
+             "side is **not enough seeds**, whatever the data. A claim is supported when every "
+             "check is (each at 0.05), and contradicted when one check is at 0.05 / k, k being the "
+             "claim's number of checks (Bonferroni), so neither verdict is wrong more than 5% of "
+             "the time.", ""]
     if calibration_link:
-        lines += [f"How often each test says *supported* when the claim is false, and its power: "
-                  f"[calibration]({calibration_link}).", ""]
+        lines += [f"How often each test says *supported* when the claim is false, its power, and how "
+                  f"often it says *contradicted* when the claim holds: [calibration]({calibration_link}).", ""]
     head = "| claim | name | verdict (paper configurations) | per execution mode |"
     lines += [head + (" verdict (run configurations) |" if run_scope else ""),
               "|---|---|---|---|" + ("---|" if run_scope else "")]

@@ -233,11 +233,19 @@ def quantile_curve(x: Sequence[float] | np.ndarray, pct: np.ndarray) -> np.ndarr
 
 
 def smooth(y: Sequence[float] | np.ndarray, window: int) -> np.ndarray:
-    """Trailing moving average of (T,) ``y`` over ``window`` points (fewer at the start)."""
-    c = np.concatenate([[0.0], np.cumsum(y)])  # cumsum flattens; 0.0 makes it float
+    """Trailing moving average of (T,) ``y`` over ``window`` points (fewer at the start),
+    over the finite points of each window: a missing (NaN) episode leaves a gap of at most
+    ``window`` points, never the rest of the curve (NaN where a window has no finite point).
+    Without NaNs, the plain trailing mean (the same numbers)."""
+    y = np.asarray(y, dtype=np.float64).reshape(-1)
+    ok = np.isfinite(y)
+    c = np.concatenate([[0.0], np.cumsum(np.where(ok, y, 0.0))])
+    n = np.concatenate([[0], np.cumsum(ok)])
     k = np.arange(1, c.size)
     start = np.maximum(k - max(1, int(window)), 0)
-    return (c[k] - c[start]) / (k - start)
+    count = n[k] - n[start]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, (c[k] - c[start]) / count, np.nan)
 
 
 def smoothing_window(n_episodes: int) -> int:

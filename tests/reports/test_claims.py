@@ -600,3 +600,50 @@ def test_safety_claims__read_the_hierarchical_rows_with_the_filter_on_only():
     missing = claim_no_collisions(ev, configs=[(60, 0.2)]).checks
     assert [(k.config, k.verdict, k.numbers) for k in missing] == [
         ("N = 60, p = 0.2", NOT_ENOUGH, "configuration missing (or filter off)")]
+
+
+# ------------------------------------------------- false contradiction (Bonferroni)
+def _train_levels(levels: dict[tuple[str, int], list[float]], episodes: int = 20) -> pd.DataFrame:
+    """Training rows whose per-seed curves are flat at the given levels."""
+    rows = []
+    for (method, n), lv in levels.items():
+        for k, level in enumerate(lv):
+            rows.append(pd.DataFrame({"cell_id": f"{method}{n}-{k}", "episode": np.arange(episodes),
+                                      "team_return": level, "method": method, "n_robots": n, "loss_p": 0.2}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def test_check_greater__contradicts_only_at_its_contradiction_level():
+    a, b = np.array([0.0, 1.0, 2.0]), np.array([2.04, 3.04, 4.04])  # one-sided p_less ~ 0.033
+    p_less = t_test([a, b], [1.0, -1.0]).p_less
+    assert 0.05 / 3 < p_less < 0.05
+    assert check_greater(a, b, "x")[0] == CONTRADICTED
+    v, _, test = check_greater(a, b, "x", contra_alpha=0.05 / 3)
+    assert v == INCONCLUSIVE and "0.017 (Bonferroni)" in test
+    assert check_greater(b, a, "x", contra_alpha=1e-9)[0] == SUPPORTED  # support keeps 0.05
+
+
+def test_check_corrections__contradicts_only_at_its_contradiction_level():
+    m = np.array([0.08, 0.09, 0.10]) + 0.0125  # above 8%: t = 3.9 on 2 df, one-sided p ~ 0.03
+    t = t_test([m], [1.0], null=0.08)
+    assert 0.05 / 3 < t.p_greater < 0.05
+    assert check_corrections(m)[0] == CONTRADICTED
+    assert check_corrections(m, contra_alpha=0.05 / 3)[0] == INCONCLUSIVE
+    assert check_corrections(np.array([0.01, 0.02, 0.03]), contra_alpha=1e-9)[0] == SUPPORTED
+
+
+def test_claim__one_of_three_checks_contradicts_the_claim_only_beyond_alpha_over_three():
+    # N = 20: hierarchical below with p ~ 0.033 (a contradiction alone, not one of three);
+    # N = 40, 60: equal. Then far below at N = 20: contradicted whatever the correction.
+    def levels(shift: float) -> dict:
+        out = {("hierarchical", 20): [0.0, 1.0, 2.0], ("decentralized", 20): [shift, 1 + shift, 2 + shift]}
+        for n in (40, 60):
+            out[("hierarchical", n)] = out[("decentralized", n)] = [0.0, 1.0, 2.0]
+        return out
+    alone = claim_hier_above_dec(_train_levels(levels(2.04)), configs=[(20, 0.2)])
+    assert alone.verdict == CONTRADICTED
+    three = claim_hier_above_dec(_train_levels(levels(2.04)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
+    assert three.verdict == INCONCLUSIVE and three.checks[0].verdict == INCONCLUSIVE
+    assert "0.017 (Bonferroni)" in three.checks[0].test
+    far = claim_hier_above_dec(_train_levels(levels(10.0)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
+    assert far.verdict == CONTRADICTED

@@ -249,6 +249,9 @@ def test_smooth__trailing_mean():
     np.testing.assert_allclose(smooth([1, 3], 5), [1.0, 2.0])
     assert smooth([], 3).size == 0
     np.testing.assert_allclose(smooth(np.array([[1.0], [3.0]]), 2), [1.0, 2.0])  # a column is a curve
+    # A missing episode leaves a gap of one window, not the rest of the curve.
+    np.testing.assert_allclose(smooth(np.array([1.0, 2.0, np.nan, 4, 5, 6]), 2), [1.0, 1.5, 2.0, 4.0, 4.5, 5.5])
+    assert np.isnan(smooth(np.array([1.0, np.nan, np.nan, 4.0]), 2)[2])
     assert smoothing_window(2000) == 100 and smoothing_window(10) == 1 and smoothing_window(200) == 10
     assert smoothing_window(5000) == 100  # capped
 
