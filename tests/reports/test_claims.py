@@ -647,3 +647,25 @@ def test_claim__one_of_three_checks_contradicts_the_claim_only_beyond_alpha_over
     assert "0.017 (Bonferroni)" in three.checks[0].test
     far = claim_hier_above_dec(_train_levels(levels(10.0)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
     assert far.verdict == CONTRADICTED
+
+
+def test_check_curves__its_two_ways_to_contradict_share_the_level():
+    # Mean success lower with one-sided p ~ 0.033: a contradiction at 0.05 for one test,
+    # not for the union of the mean and the band (each at 0.025).
+    h = [np.full(20, v) for v in (0.30, 0.40, 0.50)]
+    i = [np.full(20, v + 0.204) for v in (0.30, 0.40, 0.50)]
+    p_less = t_test([np.array([0.30, 0.40, 0.50]), np.array([0.504, 0.604, 0.704])], [1.0, -1.0]).p_less
+    assert 0.025 < p_less < 0.05
+    assert check_curves(h, i)[0] == INCONCLUSIVE
+    assert check_curves(h, [x + 0.5 for x in h])[0] == CONTRADICTED
+
+
+def test_check_convergence__its_three_ways_to_contradict_share_the_level():
+    # Per-seed gains -3.2, -2.2, -1.2 (one-sided p ~ 0.03) and a flat last window: the gain
+    # part and the "still rising" part are each below 0.05 but not below 0.05 / 3.
+    curves = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-3.2, -2.2, -1.2)]
+    gains = t_test([np.array([-3.2, -2.2, -1.2])], [1.0])
+    assert 0.05 / 3 < gains.p_less < 0.05
+    assert check_convergence(curves)[0] == INCONCLUSIVE
+    far = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-30.2, -30.0, -29.8)]
+    assert check_convergence(far)[0] == CONTRADICTED
