@@ -183,9 +183,11 @@ def _each(claim: Claim, paper: Configs, run: Configs,
     each check may contradict only at ALPHA / k (Bonferroni; ``reports.verdicts``): a
     first pass counts the checks, the second decides at that level."""
     for scope, configs in (("paper", paper), ("run", [c for c in run if c not in paper])):
-        k = sum(len(fn(c, ALPHA)) for c in configs)
-        for c in configs:
-            for label, ex, v, nums, test in fn(c, ALPHA / max(k, 1)):
+        first = [fn(c, ALPHA) for c in configs]
+        k = sum(len(rows) for rows in first)
+        decided = first if k <= 1 else [fn(c, ALPHA / k) for c in configs]  # one check: already at ALPHA
+        for rows in decided:
+            for label, ex, v, nums, test in rows:
                 claim.checks.append(Check(label, v, nums, test, ex, scope))
     return claim
 
