@@ -139,12 +139,12 @@ def check_curves(h: list[np.ndarray], i: list[np.ndarray], contra_alpha: float =
         return NOT_ENOUGH, seeds_msg(len(h), len(i)), "-"
     ma, mb = per_seed_means(h), per_seed_means(i)
     t = t_test([ma, mb], [1.0, -1.0])
-    diff, lo, hi = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
-                                     np.stack([quantile_curve(x, BAND_PCT) for x in i]))
+    qh = np.stack([quantile_curve(x, BAND_PCT) for x in h])
+    qi = np.stack([quantile_curve(x, BAND_PCT) for x in i])
+    diff, lo, _ = simultaneous_band(qh, qi)  # support: lower bound at ALPHA
     if not t.valid or not np.isfinite(lo).all():
         return NOT_ENOUGH, "no finite success rates", "-"
-    _, _, hi_c = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
-                                   np.stack([quantile_curve(x, BAND_PCT) for x in i]), alpha=contra_alpha / 2)
+    _, _, hi_c = simultaneous_band(qh, qi, alpha=contra_alpha / 2)  # contradiction: upper bound
     if t.p_less < contra_alpha / 2 or bool((hi_c < -BAND_TOL).any()):
         verdict = CONTRADICTED
     elif t.p_greater < ALPHA and bool((lo > -BAND_TOL).all()):
