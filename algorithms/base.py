@@ -50,7 +50,9 @@ from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout
 
-__all__ = ["ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
+__all__ = ["UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
+
+UNRANKED = 100  # legend_rank of a method that declares none: after the paper's methods
 
 
 class MethodParams(BaseModel):
@@ -87,11 +89,30 @@ class LearnedParams(MethodParams):
 
 
 class Method(ABC):
-    """Base class of all methods; see the module docstring for the contract."""
+    """Base class of all methods; see the module docstring for the contract.
+
+    Besides ``Params``, a method declares what the harness needs to know of it, so that no
+    module outside its own names it (docs/extending.md): ``learned`` (False: a planner,
+    evaluated in mode ``planner`` and never trained), ``safety_filter_default`` (a cell's
+    ``safety_filter`` when the cell leaves it unset), ``payload_model`` (how the scalars it
+    sends per step are counted, shown by ``bench methods``), ``display_name`` and ``color``
+    (legend label and hex colour in every report figure; default: the name, grey) and
+    ``legend_rank`` (order in legends and tables; default after the built-ins).
+    """
 
     name: ClassVar[str]
     learned: ClassVar[bool] = True
     Params: ClassVar[type[MethodParams]] = MethodParams
+    safety_filter_default: ClassVar[bool] = False
+    payload_model: ClassVar[str] = "scalars the method reports in Decision.payload each step"
+    display_name: ClassVar[str] = ""
+    color: ClassVar[str] = "#4d4d4d"
+    legend_rank: ClassVar[int] = UNRANKED  # position in legends and tables (lower first)
+
+    @classmethod
+    def label(cls) -> str:
+        """The method's name in legends and tables (``display_name``, else ``name``)."""
+        return cls.display_name or cls.name
 
     def __init__(self, env: EnvConfig, params: Mapping[str, Any] | None = None, seed: int = 0) -> None:
         self.env = env

@@ -132,6 +132,10 @@ class DecentralizedState:
 
 class DecentralizedMethod(Method):
     name = "decentralized"
+    display_name = "Decentralized"
+    color = "#de8f05"
+    legend_rank = 1
+    payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams
     params: DecentralizedParams
 

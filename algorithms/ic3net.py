@@ -212,6 +212,10 @@ class IC3NetState:
 
 class IC3NetMethod(Method):
     name = "ic3net"
+    display_name = "IC3Net"
+    color = "#029e73"
+    legend_rank = 2
+    payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams
     params: IC3NetParams
 

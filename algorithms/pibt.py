@@ -129,6 +129,10 @@ class PIBTMethod(Method):
     """Centralized PIBT planner (no learning; ``train_iteration`` returns no rows)."""
 
     name = "pibt"
+    display_name = "PIBT"
+    color = "#949494"
+    legend_rank = 3
+    payload_model = "not modelled: a centralized planner with full information (NaN in the eval rows)"
     learned = False
     Params = PIBTParams
 

@@ -19,7 +19,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
-from algorithms.registry import METHODS, method_class
+from algorithms.registry import method_class, method_target
 from envs.config import EnvConfig, bursty_loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
@@ -40,7 +40,7 @@ class Cell(BaseModel):
 
     # strict=True on numbers and flags: `n_robots = true` or `horizon = 2.5` is an error, not 1
     # or 2 (a number is a number, a flag is a flag); an int is still accepted for a float.
-    method: str = Field(description="registered method name (algorithms/registry.py)")
+    method: str = Field(description="registered method name or module:Class (algorithms/registry.py)")
     n_robots: int = Field(ge=1, le=10_000, strict=True, description="team size N")
     loss_p: float = Field(ge=0.0, le=1.0, strict=True, description="inter-group message loss probability p")
     seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
@@ -49,7 +49,7 @@ class Cell(BaseModel):
     search_radius: int = Field(2, ge=0, strict=True, description="safety-filter search radius L")
     c_max: int = Field(500, ge=1, strict=True, description="safety-filter candidate budget C_max")
     safety_filter: bool = Field(
-        False, strict=True, description="safety filter on (default: True for hierarchical, else False)"
+        False, strict=True, description="safety filter on (default: the method's safety_filter_default)"
     )
     layout: str = Field("auto", description="'auto' (preset sized for N), a preset or a .map path")
     episodes: int = Field(2000, ge=0, strict=True,
@@ -71,8 +71,11 @@ class Cell(BaseModel):
         if not isinstance(data, dict):
             return data
         data = dict(data)
-        if data.get("safety_filter") is None:
-            data["safety_filter"] = data.get("method") == "hierarchical"
+        if data.get("safety_filter") is None and isinstance(data.get("method"), str):
+            try:  # the method's declared default (an unknown method fails in _known_method)
+                data["safety_filter"] = method_class(data["method"]).safety_filter_default
+            except BenchError:
+                data["safety_filter"] = False
         n = data.get("n_robots")
         if data.get("layout", "auto") == "auto" and isinstance(n, int) and not isinstance(n, bool):
             data["layout"] = preset_for(n)
@@ -81,8 +84,10 @@ class Cell(BaseModel):
     @field_validator("method")
     @classmethod
     def _known_method(cls, name: str) -> str:
-        if name not in METHODS:
-            raise ValueError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
+        try:
+            method_class(name)
+        except BenchError as exc:
+            raise ValueError(str(exc).removeprefix("method ")) from None
         return name
 
     @field_validator("eval_temperatures")
@@ -182,8 +187,8 @@ class Cell(BaseModel):
         return bool(method_class(self.method).stackable(self.method_params().model_dump(mode="json")))
 
     def method_path(self) -> str:
-        """'module:Class' of the method, so workers import it without the driver's registry."""
-        return METHODS[self.method]
+        """'module:Class' of the method (what workers import; algorithms/registry.py)."""
+        return method_target(self.method)
 
     def config_columns(self) -> dict[str, Any]:
         """The config columns of cells.parquet (bench/schema.py CELLS_SCHEMA)."""

@@ -173,10 +173,48 @@ def grids(
         console.print(f"  {g.name}: {g.description}")
 
 
+# ----------------------------------------------------------------- methods
+@app.command()
+def methods(
+    method: str | None = typer.Argument(None, help="One method (a registered name or module:Class): "
+                                        "also list its hyperparameters with defaults."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table."),
+) -> None:
+    """List every method: where it comes from (built-in, entry point, module path), whether
+    it learns, its execution modes, safety-filter default and payload model. A method is
+    named in grid files, `bench eval --method` and `bench tune --method` by a registered
+    name or as module:Class (docs/extending.md)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from algorithms.registry import available, describe
+
+    names = [method] if method else list(available())
+    info = [describe(n) for n in names]
+    if as_json:
+        typer.echo(json.dumps(info, indent=2, default=str))
+        return
+    console = Console(width=None if sys.stdout.isatty() else 160)
+    table = Table(title="methods (entry-point group warehouse_marl_bench.methods, or module:Class)")
+    for col in ("name", "display name", "source", "learns", "executions", "safety filter", "payload"):
+        table.add_column(col)
+    for d in info:
+        table.add_row(d["name"], d["display_name"], d["source"], "yes" if d["learned"] else "no (planner)",
+                      d["executions"], "on" if d["safety_filter"] else "off", d["payload"])
+    console.print(table)
+    if method:
+        params = Table(title=f"{method} hyperparameters ({info[0]['target']}; a cell's params override them)")
+        for col in ("parameter", "default", "description"):
+            params.add_column(col)
+        for name, (default, text) in info[0]["params"].items():
+            params.add_row(name, json.dumps(default), text)
+        console.print(params)
+
+
 # -------------------------------------------------------------------- eval
 @app.command("eval")
 def eval_(
-    method: str | None = typer.Option(None, "--method", help="Method name (hierarchical, decentralized, ic3net, pibt)."),
+    method: str | None = typer.Option(None, "--method", help="A registered method name or module:Class (`bench methods` lists them)."),
     checkpoint: Path | None = typer.Option(None, "--checkpoint", help="checkpoints/<cell_id>.pt of a run (default: untrained)."),
     n_robots: int | None = typer.Option(None, "--n-robots", min=1, help="Team size N (default: the checkpoint's, else 20)."),
     loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0, help="Loss probability p (default: the checkpoint's, else 0.2)."),
@@ -188,7 +226,7 @@ def eval_(
     execution: str | None = typer.Option(None, "--execution", help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode of the cell)."),
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
-    pibt) on the same scenarios; print the eval metrics, one column per mode."""
+    a planner) on the same scenarios; print the eval metrics, one column per mode."""
     from bench.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,

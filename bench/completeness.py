@@ -24,6 +24,7 @@ from typing import Any
 
 import pyarrow.parquet as pq
 
+from algorithms.common.execution import PLANNER
 from bench.store import RunStore
 from envs.errors import BenchError
 
@@ -34,13 +35,11 @@ class RowCounts:
     eval: int
 
 
-def expected_rows(method: str, episodes: int, eval_episodes: int, params: Mapping[str, Any],
+def expected_rows(learned: bool, episodes: int, eval_episodes: int, params: Mapping[str, Any],
                   n_modes: int) -> RowCounts:
     """Rows a done cell of this config has in train/ and eval/ (the single source of truth);
-    ``n_modes``: how many execution modes it is evaluated in."""
-    from algorithms.registry import method_class
-
-    learned = bool(getattr(method_class(method), "learned", True))
+    ``learned``: the method's trait (a planner has no training rows); ``n_modes``: how many
+    execution modes it is evaluated in."""
     batch = max(int(params.get("batch_episodes", 1)), 1)
     train = math.ceil(episodes / batch) * batch if learned and episodes > 0 else 0
     return RowCounts(train, int(eval_episodes) * int(n_modes))
@@ -49,17 +48,23 @@ def expected_rows(method: str, episodes: int, eval_episodes: int, params: Mappin
 def expected_for_cell(cell: Any) -> RowCounts:
     """``expected_rows`` of a ``bench.cells.Cell``."""
     params = cell.method_params().model_dump(mode="json")
-    return expected_rows(cell.method, cell.episodes, cell.eval_episodes, params, len(cell.execution_modes()))
+    from algorithms.registry import method_class
+
+    return expected_rows(method_class(cell.method).learned, cell.episodes, cell.eval_episodes, params,
+                         len(cell.execution_modes()))
 
 
 def expected_for_row(row: Mapping[str, Any]) -> RowCounts:
     """``expected_rows`` of a cells.parquet row (``params_json``: the resolved params;
-    ``executions``: its comma-separated evaluation modes)."""
+    ``executions``: its comma-separated evaluation modes; a planner's is ``planner``), so a
+    report needs no import of the method: a run of a plugin that is not installed here
+    still checks)."""
     params = json.loads(str(row.get("params_json") or "{}"))
     modes = [m for m in str(row.get("executions") or "").split(",") if m]
     if not modes:
         raise ValueError("no executions recorded")
-    return expected_rows(str(row["method"]), int(row["episodes"]), int(row["eval_episodes"]), params, len(modes))
+    learned = PLANNER not in modes
+    return expected_rows(learned, int(row["episodes"]), int(row["eval_episodes"]), params, len(modes))
 
 
 def _num_rows(path: Any) -> int:

@@ -23,7 +23,6 @@ numbers do not depend on the number of workers or on the order of execution.
 """
 from __future__ import annotations
 
-import importlib
 import json
 import os
 import signal
@@ -36,6 +35,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
+from algorithms.registry import method_class
 from bench.grids import Grid
 from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
@@ -493,8 +493,7 @@ def _stack_key(spec: dict[str, Any]) -> str:
 
 
 def _stackable(spec: dict[str, Any]) -> bool:
-    module, name = str(spec["method_path"]).split(":")
-    return bool(getattr(importlib.import_module(module), name).stackable(spec["params"]))
+    return bool(method_class(str(spec["method_path"])).stackable(spec["params"]))
 
 
 def _nanmax(a: float, b: float) -> float:

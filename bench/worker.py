@@ -16,7 +16,6 @@ The class is plain Python (unit-testable without Ray); the runner wraps it with
 from __future__ import annotations
 
 import copy
-import importlib
 import os
 import resource
 import sys
@@ -28,6 +27,7 @@ import torch
 
 from algorithms.base import Method
 from algorithms.common.seed_stack import train_stacked
+from algorithms.registry import method_class
 from envs.config import EnvConfig
 
 
@@ -59,8 +59,7 @@ def peak_rss_mb() -> float:
 
 def build_method(spec: Mapping[str, Any]) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
-    module, name = str(spec["method_path"]).split(":")
-    cls = getattr(importlib.import_module(module), name)
+    cls = method_class(str(spec["method_path"]))
     return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
 
 

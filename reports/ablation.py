@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from algorithms.registry import METHODS, method_class
+from algorithms.registry import find_method
 from bench.grids import ABLATION_VARIANTS, Variant
 from reports.stats import t_test
 from reports.store import execution_order, fmt_pct
@@ -45,7 +45,8 @@ COMPONENTS = (
 
 
 def _defaults(method: str) -> dict[str, Any]:
-    fields = method_class(method).Params.model_fields
+    cls = find_method(method)
+    fields = cls.Params.model_fields if cls is not None else {}
     return {k: fields[k].default for k in VARIANT_KEYS if k in fields}
 
 
@@ -54,7 +55,7 @@ def variant_of(method: str, ref_size: int, params_json: str | None) -> Variant |
     overrides (a grid's spec) or every resolved hyperparameter (cells.parquet): a key that
     defines variants must equal the variant's value, or the method's default if the
     variant does not set it."""
-    if method not in METHODS:
+    if find_method(method) is None:
         return None
     params = json.loads(params_json) if params_json else {}
     defaults = _defaults(method)

@@ -6,8 +6,8 @@ state, no GUI backend; rendering uses Agg), styled with seaborn, sized for a pap
 index prints under it, e.g. which of the paper's configurations the run lacks) and a
 caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
 under the figure and ``reports.build.save_figure`` stores as PDF metadata and a sidecar
-``.txt``. One palette and one label per method (``METHOD_COLORS``, ``METHOD_LABELS``) for
-every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
+``.txt``. One colour and one label per method, as the method declares them
+(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
 shades of that method's colour (``shades``), never another palette.
 """
 from __future__ import annotations
@@ -16,11 +16,17 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
+from functools import lru_cache
+
 import matplotlib
 import numpy as np
 import seaborn as sns
 from matplotlib.axes import Axes
+from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
+
+from algorithms.base import UNRANKED
+from algorithms.registry import available, find_method
 
 COLUMN_IN = 3.5  # paper column width, inches
 FONT_PT = 7
@@ -33,11 +39,7 @@ RC = {
     "ytick.major.pad": 1.5, "axes.labelpad": 2.0, "axes.titlepad": 3.0,
     "pdf.fonttype": 42, "svg.fonttype": "none",
 }
-_PAL = sns.color_palette("colorblind")
-METHOD_COLORS = {"hierarchical": _PAL[0], "decentralized": _PAL[1], "ic3net": _PAL[2],
-                 "pibt": _PAL[7]}
-METHOD_LABELS = {"hierarchical": "Hierarchical (ours)", "decentralized": "Decentralized",
-                 "ic3net": "IC3Net", "pibt": "PIBT"}
+UNKNOWN_COLOR = (0.3, 0.3, 0.3)  # a method that cannot be resolved here (plugin not installed)
 
 
 @dataclass
@@ -61,17 +63,31 @@ def new_figure(height_in: float, width_in: float = COLUMN_IN) -> Figure:
 
 
 def method_color(method: str) -> tuple[float, float, float]:
-    return METHOD_COLORS.get(method, (0.3, 0.3, 0.3))
+    """The colour a method declares (``Method.color``), grey if it cannot be resolved."""
+    cls = find_method(method)
+    return to_rgb(cls.color) if cls is not None else UNKNOWN_COLOR
 
 
 def method_label(method: str) -> str:
-    return METHOD_LABELS.get(method, method)
+    """The label a method declares (``Method.label()``), else its name."""
+    cls = find_method(method)
+    return cls.label() if cls is not None else method
 
 
 def label_order(label: str) -> int:
-    """Legend position of a method label: the paper's method first, then the baselines."""
-    labels = list(METHOD_LABELS.values())
-    return labels.index(label) if label in labels else len(labels)
+    """Legend and table position of a method label: ``Method.legend_rank`` of the registered
+    method with that label (the paper's method first, then the baselines), others last."""
+    return _ranks().get(label, UNRANKED)
+
+
+@lru_cache(maxsize=1)
+def _ranks() -> dict[str, int]:
+    ranks: dict[str, int] = {}
+    for name in available():
+        cls = find_method(name)
+        if cls is not None:
+            ranks.setdefault(cls.label(), cls.legend_rank)
+    return ranks
 
 
 def shades(method: str, ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:

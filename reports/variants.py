@@ -23,7 +23,7 @@ from typing import Any
 
 import pandas as pd
 
-from algorithms.registry import METHODS, method_class
+from algorithms.registry import find_method
 
 GROUP = ("method", "n_robots", "loss_p")
 NOT_A_VARIANT = frozenset({"seed", "method", "n_robots", "loss_p", "params"})  # group keys, the seed, raw overrides
@@ -40,9 +40,10 @@ def _settings(row: Any) -> dict[str, str]:
 
 
 def _defaults(method: str) -> dict[str, str]:
-    if method not in METHODS:
+    cls = find_method(method)
+    if cls is None:
         return {}
-    fields = method_class(method).Params.model_fields
+    fields = cls.Params.model_fields
     return {k: json.dumps(f.default, sort_keys=True) for k, f in fields.items() if not f.is_required()}
 
 

@@ -17,7 +17,6 @@ trial (common random numbers), while training uses the seed of the trial's repli
 """
 from __future__ import annotations
 
-import importlib
 import math
 import time
 from collections.abc import Mapping
@@ -29,6 +28,7 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from algorithms.base import Method
+from algorithms.registry import method_class
 from bench.cells import Cell
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
@@ -155,9 +155,8 @@ class Segment:
 
 
 def load_method(path: str) -> type[Method]:
-    """Import ``module:Class``."""
-    module, name = path.split(":")
-    return getattr(importlib.import_module(module), name)
+    """The class at ``module:Class`` (algorithms/registry.py resolves every method)."""
+    return method_class(path)
 
 
 class TrialWorker:

@@ -115,6 +115,11 @@ class Controller:
 
 class HierarchicalMethod(Method):
     name = "hierarchical"
+    display_name = "Hierarchical (ours)"
+    color = "#0173b2"
+    legend_rank = 0
+    safety_filter_default = True  # Sec. III-C: the predictive safety filter is part of the method
+    payload_model = "inter-group messages on delivered links: (Z - 1) N d_m per step at most (Sec. III-A)"
     Params = HierarchicalParams
 
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:

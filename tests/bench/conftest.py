@@ -18,7 +18,7 @@ REPO = Path(__file__).resolve().parents[2]
 # of a fresh interpreter does not know it).
 CLI_WITH_TOY = (
     "import sys; from algorithms import registry; "
-    f"registry.METHODS['toy'] = {TOY_PATH!r}; "
+    f"registry.register('toy', {TOY_PATH!r}); "
     "from bench.cli import main; sys.argv = ['bench'] + sys.argv[1:]; main()"
 )
 
@@ -28,10 +28,11 @@ def cli_argv(*args: str) -> list[str]:
 
 
 @pytest.fixture
-def toy(monkeypatch: pytest.MonkeyPatch) -> str:
+def toy() -> Iterator[str]:
     """Register the toy method in the driver's registry for the test."""
-    monkeypatch.setitem(registry.METHODS, "toy", TOY_PATH)
-    return "toy"
+    registry.register("toy", TOY_PATH)
+    yield "toy"
+    registry.unregister("toy")
 
 
 def toy_spec(**kw: Any) -> dict[str, Any]:

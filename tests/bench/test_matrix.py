@@ -36,7 +36,7 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     from algorithms import registry
     from tests.bench.toy_method import TOY_PATH
 
-    registry.METHODS["toy"] = TOY_PATH
+    registry.register("toy", TOY_PATH)
     cells = [Cell.make(**toy_spec(n_robots=n, loss_p=p, episodes=4, eval_episodes=2, seed=int(p == 0.6)))
              for n in (4, 6) for p in (0.2, 0.6)]  # seeds differ: pairing must not come from the cell
     cells += [Cell.make(method="pibt", n_robots=n, loss_p=p, layout="tiny", episodes=0, horizon=12, eval_episodes=2)
@@ -44,7 +44,7 @@ def tiny_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
     out = tmp_path_factory.mktemp("matrix") / "run"
     write_finished_store(out, Grid("toygrid", "test", tuple(cells)))
     yield out
-    registry.METHODS.pop("toy", None)
+    registry.unregister("toy")
 
 
 def _frame(run: Path) -> pd.DataFrame:

@@ -21,12 +21,12 @@ from reports.build import build_report
 from reports.fig1_training import fig1_training
 from reports.fig2_success import GRID, fig2_success, seed_quantile_curves
 from reports.fig3_payload import fig3_payload
-from reports.plotting import METHOD_COLORS, METHOD_LABELS
+from reports.plotting import method_color, method_label
 from reports.stats import t_band
 from reports.table1_safety import table1_display, table1_frame, table1_latex
 from tests.reports.synthetic import frames, joined, smoke_specs, write_store
 
-BLUE = METHOD_COLORS["hierarchical"]
+BLUE = method_color("hierarchical")
 
 
 def _two_seed_smoke() -> list[dict]:
@@ -85,13 +85,13 @@ def test_figures__hierarchical_is_blue_and_labelled_ours_everywhere(paper, smoke
     assert 0.53 < h < 0.67 and s > 0.5  # the paper's method is blue
     for train, evals in (paper, smoke):
         for fig in (fig1_training(train).fig, fig2_success(evals).fig, fig3_payload(evals).fig):
-            lines = _lines(fig, METHOD_LABELS["hierarchical"])
+            lines = _lines(fig, method_label("hierarchical"))
             assert lines and all(np.allclose(to_rgb(ln.get_color()), BLUE) for ln in lines)
             labels = {ln.get_label() for ax in fig.axes for ln in ax.get_lines()}
             assert "Hierarchical" not in labels  # never without "(ours)"
             for m in ("decentralized", "ic3net"):
-                for ln in _lines(fig, METHOD_LABELS[m]):
-                    assert np.allclose(to_rgb(ln.get_color()), METHOD_COLORS[m])
+                for ln in _lines(fig, method_label(m)):
+                    assert np.allclose(to_rgb(ln.get_color()), method_color(m))
 
 
 def test_fig1__panel_b_only_with_n80_to_100_and_in_shades_of_blue(paper, smoke):
@@ -147,7 +147,7 @@ def test_fig2__plotted_line_is_the_seed_mean_on_the_grid(paper):
     _, evals = paper
     fig = fig2_success(evals).fig
     hier = evals[(evals["method"] == "hierarchical") & (evals["n_robots"] == 40) & np.isclose(evals["loss_p"], 0.2)]
-    line = _lines(fig, METHOD_LABELS["hierarchical"])[0]
+    line = _lines(fig, method_label("hierarchical"))[0]
     np.testing.assert_allclose(line.get_xdata(), GRID)
     np.testing.assert_allclose(line.get_ydata(), 100 * seed_quantile_curves(hier).mean(axis=0))
 

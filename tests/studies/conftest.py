@@ -1,6 +1,7 @@
 """Fixtures of the studies tests: the fake method, tiny settings, a local study."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from pathlib import Path
 
 import optuna
@@ -16,10 +17,11 @@ optuna.logging.set_verbosity(optuna.logging.WARNING)
 
 
 @pytest.fixture(autouse=True)
-def fake_method(monkeypatch: pytest.MonkeyPatch) -> str:
+def fake_method() -> Iterator[str]:
     """Register ``fake_hier`` for the duration of a test."""
-    monkeypatch.setitem(registry.METHODS, "fake_hier", FAKE_PATH)
-    return "fake_hier"
+    registry.register("fake_hier", FAKE_PATH)
+    yield "fake_hier"
+    registry.unregister("fake_hier")
 
 
 @pytest.fixture

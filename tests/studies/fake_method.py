@@ -61,4 +61,4 @@ def register() -> None:
     """Make ``fake_hier`` a method name (in this process only)."""
     from algorithms import registry
 
-    registry.METHODS["fake_hier"] = FAKE_PATH
+    registry.register("fake_hier", FAKE_PATH)
