@@ -64,7 +64,7 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     from studies.report import build_study_report
     from studies.runner import make_pruner, preflight, run_study
     from studies.schedule import SearchPlan
-    from studies.space import space_size
+    from studies.space import plain, space_size
     from studies.storage import (
         CONFIG_ATTR,
         merge_config,
@@ -120,7 +120,7 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     best, reason = None, ""
     try:
         row = best_configuration(study)
-        best = {"params": {k: int(row[k]) for k in space}, **{k: row[k] for k in (
+        best = {"params": {k: plain(row[k]) for k in space}, **{k: row[k] for k in (
             "value", "ci_low", "ci_high", "complete", "success_rate", "team_return", "trials")}}
     except BenchError as exc:
         reason = str(exc)
@@ -131,11 +131,25 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
 def _config(options: dict[str, Any]) -> dict[str, Any]:
     """The full config for a new study: defaults overridden by ``options``."""
     from studies.objective import TrialSettings
-    from studies.space import parse_overrides, search_space
+    from studies.space import (
+        C_MAX_CHOICES,
+        PARAMETERS,
+        has_paper_space,
+        method_space,
+        parse_overrides,
+        search_space,
+        split_overrides,
+    )
 
     settings = TrialSettings.make(**{k: v for k, v in options.items() if k in TrialSettings.model_fields})
-    overrides = parse_overrides(options.get("param") or [])
-    space = search_space(c_max=bool(options.get("c_max")), overrides=overrides)
+    texts = options.get("param") or []
+    names = set(split_overrides(texts))
+    if has_paper_space(settings.method) and names <= set(PARAMETERS):  # the paper's study
+        space = search_space(c_max=bool(options.get("c_max")), overrides=parse_overrides(texts))
+    else:  # any declared hyperparameter of the method, by the same protocol
+        space = method_space(settings.method, split_overrides(texts)
+                             | ({"c_max": [str(v) for v in C_MAX_CHOICES]} if options.get("c_max")
+                                and "c_max" not in split_overrides(texts) else {}))
     from studies.pruning import MIN_RHO, WARMUP, warmup_step
     from studies.schedule import resolve_mode
 
@@ -197,7 +211,8 @@ def tune(
                                              help="'success' (return breaks ties) or 'success,return' (multi-objective, no pruning)"),
     c_max: bool | None = typer.Option(None, "--c-max/--no-c-max", help="also search C_max (default: no)"),
     param: list[str] | None = typer.Option(None, "--param", metavar="NAME=VALUES",
-                                              help="restrict a parameter, e.g. ref_size=4,8 or search_radius=1..3 (repeatable)"),
+                                              help="the choices of a parameter, e.g. ref_size=4,8 or search_radius=1..3, "
+                                                   "or any hyperparameter of --method, e.g. lr=1e-3,3e-3 (repeatable)"),
     pruner: str | None = typer.Option(None, "--pruner",
                                       help="median (after the warm-up, gated by the rank correlation) or none (default: median)"),
     seed: int | None = typer.Option(None, "--seed", help="study seed (trial seeds derive from it) (default: 0)"),
@@ -207,9 +222,12 @@ def tune(
     address: str | None = typer.Option(None, "--address", help="join this Ray cluster (else RAY_ADDRESS, else embedded)"),
     out: Path = typer.Option(DEFAULT_ROOT, "--out", help="root folder of the studies"),
     inline: bool = typer.Option(False, "--inline", help="run trials in this process, without Ray (debugging)"),
-    method: str | None = typer.Option(None, "--method", hidden=True),
+    method: str | None = typer.Option(None, "--method", help="the learned method to tune: a registered name or "
+                                      "module:Class (default: hierarchical); its hyperparameters: `bench methods M`"),
 ) -> None:
-    """Tune |R_z| (ref_size) and L (search_radius) of the hierarchical method with Optuna."""
+    """Tune a learned method with Optuna by one protocol for every method: by default |R_z|
+    (ref_size) and L (search_radius) of the hierarchical method (the paper's study), else
+    any declared hyperparameter of --method given with --param NAME=VALUES."""
     if best is not None:
         typer.echo(print_best(best, storage, out), nl=False)
         return

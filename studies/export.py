@@ -22,7 +22,7 @@ from optuna.trial import FrozenTrial, TrialState
 
 from bench.store import atomic_file
 from envs.errors import BenchError
-from studies.space import PARAMETERS
+from studies.space import ordered, plain
 from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
 
 TRIALS_FILE = "trials.parquet"
@@ -48,11 +48,13 @@ def trials_frame(study: optuna.Study) -> pd.DataFrame:
     multi-objective study (NaN otherwise); ``intermediate_json`` maps step -> reported value.
     """
     trials = study.get_trials(deepcopy=False)
-    names = [p for p in PARAMETERS if any(p in t.params for t in trials)]
+    names = ordered({p for t in trials for p in t.params})
     rows = [_row(study.study_name, t, names) for t in trials]
     frame = pd.DataFrame(rows, columns=[*TRIAL_COLUMNS, *names])
+    ints = [n for n in names if all(isinstance(t.params.get(n), int) and not isinstance(t.params.get(n), bool)
+                                    for t in trials if n in t.params)]
     for col in ("number", "seed", "replicate", "retry_of", "last_step", "pruned_at_step", "prune_n",
-                "episodes", *names):
+                "episodes", *ints):
         frame[col] = frame[col].astype("Int64")
     for col in ("value", "value_return", "success_rate", "team_return", "prune_rho", "wall_s",
                 "duration_s"):
@@ -117,7 +119,8 @@ def importances(study: optuna.Study) -> dict[str, Any]:
     varies; otherwise they are empty and ``reason`` says why. ``caveat`` goes with them.
     """
     complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-    varying = [p for p in PARAMETERS if len({t.params.get(p) for t in complete}) > 1]
+    varying = [p for p in ordered({p for t in complete for p in t.params})
+               if len({t.params.get(p) for t in complete}) > 1]
     if len(complete) < MIN_IMPORTANCE_TRIALS or not varying:
         return {"importances": {}, "caveat": None,
                 "reason": f"too few trials for importances: {len(complete)} complete, "
@@ -168,12 +171,15 @@ def best_grid_snippet(study: optuna.Study) -> str:
     base: dict[str, Any] = {k: settings[k] for k in (
         "method", "n_robots", "loss_p", "groups", "layout", "episodes", "horizon",
         "eval_episodes") if k in settings}
-    base.update({k: int(best[k]) for k in names})
+    from bench.cells import Cell
+
+    base.update({k: plain(best[k]) for k in names if k in Cell.model_fields})
     params = dict(settings.get("params", {}))
+    params.update({k: plain(best[k]) for k in names if k not in Cell.model_fields})
     for key in ("batch_episodes", "eval_chunk"):
         if key in settings:
             params[key] = settings[key]
-    label = ", ".join(f"{k}={int(best[k])}" for k in names)
+    label = ", ".join(f"{k}={plain(best[k])}" for k in names)
     lines = [
         f"# best configuration of study {study.study_name!r}: {label}",
         f"# mean objective {best['value']:.4f} over {int(best['complete'])} replicates "

@@ -46,7 +46,7 @@ class TrialSettings(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    method: str = Field("hierarchical", description="registered method name")
+    method: str = Field("hierarchical", description="registered method name or module:Class")
     n_robots: int = Field(8, ge=1, description="team size N")
     loss_p: float = Field(0.2, ge=0.0, le=1.0, description="inter-group message loss p")
     layout: str = Field("tiny", description="layout preset or map path")
@@ -82,13 +82,17 @@ class TrialSettings(BaseModel):
     def directions(self) -> list[str]:
         return ["maximize", "maximize"] if self.multi_objective else ["maximize"]
 
-    def cell(self, sampled: Mapping[str, int], seed: int) -> Cell:
-        """The validated bench cell a trial trains (BenchError naming a bad field)."""
-        params = {**self.params, "batch_episodes": self.batch_episodes, "eval_chunk": self.eval_chunk}
+    def cell(self, sampled: Mapping[str, Any], seed: int) -> Cell:
+        """The validated bench cell a trial trains (BenchError naming a bad field): sampled
+        cell fields (ref_size, search_radius, c_max) set the cell, other sampled names the
+        method's hyperparameters."""
+        fields = {k: v for k, v in sampled.items() if k in Cell.model_fields}
+        params = {**self.params, **{k: v for k, v in sampled.items() if k not in fields},
+                  "batch_episodes": self.batch_episodes, "eval_chunk": self.eval_chunk}
         return Cell.make(method=self.method, n_robots=self.n_robots, loss_p=self.loss_p,
                          groups=self.groups, layout=self.layout, episodes=self.episodes,
                          horizon=self.horizon, eval_episodes=self.eval_episodes, seed=seed,
-                         params=params, **dict(sampled))
+                         params=params, **fields)
 
     def spec(self, sampled: Mapping[str, int], seed: int, eval_seed: int) -> TrialSpec:
         """Plain data a worker needs (it imports the method by path, not via the registry)."""

@@ -20,7 +20,7 @@ import pandas as pd
 from scipy import stats
 
 from envs.errors import BenchError
-from studies.space import PARAMETERS
+from studies.space import ordered, plain
 
 CONFIDENCE = 0.95
 
@@ -40,8 +40,11 @@ def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
 
 
 def param_columns(trials: pd.DataFrame) -> list[str]:
-    """The searched parameters present in the frame (``ref_size``, ``search_radius``, ...)."""
-    return [p for p in PARAMETERS if p in trials and trials[p].notna().any()]
+    """The searched parameters present in the frame (``ref_size``, ``search_radius``, ``lr``,
+    ...): every column that is not one of the trial columns of studies/export.py."""
+    from studies.export import TRIAL_COLUMNS
+
+    return ordered(c for c in trials.columns if c not in TRIAL_COLUMNS and trials[c].notna().any())
 
 
 def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
@@ -65,7 +68,7 @@ def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
         mean, low, high = t_interval(comp["value"].to_numpy(float))
         n_pruned = int((part["state"] == "PRUNED").sum())
         rows.append({
-            **{n: int(v) for n, v in zip(names, key, strict=True)},
+            **{n: plain(v) for n, v in zip(names, key, strict=True)},
             "complete": len(comp), "pruned": n_pruned,
             "running": int(part["state"].isin(["RUNNING", "WAITING"]).sum()),
             "failed": int((part["state"] == "FAIL").sum()),

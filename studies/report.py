@@ -78,6 +78,12 @@ def landscape_figure(trials: pd.DataFrame) -> Built:
     import seaborn as sns
     from matplotlib.patches import Patch, Rectangle
 
+    if not {"search_radius", "ref_size"} <= set(trials.columns):  # a study of other parameters
+        with paper_style():
+            fig = new_figure(2.6)
+            placeholder(fig.add_subplot(), "this study does not search L x |R_z|")
+        return Built(fig, ["the L x |R_z| landscape applies to the paper's study only; see the "
+                           "history and the per-configuration table"])
     mean, n_comp, n_pruned = landscape_table(trials)
     notes = []
     if "c_max" in trials and trials["c_max"].notna().any():

@@ -32,7 +32,7 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from envs.errors import BenchError
-from studies.space import space_size
+from studies.space import plain, space_size
 from studies.storage import REPLICATE, RETRY_OF
 
 GRID_MAX = 64  # spaces up to this many points are searched exhaustively under "auto"
@@ -49,7 +49,7 @@ def replicate_seed(study_seed: int, replicate: int) -> int:
 
 def point_key(params: Mapping[str, int]) -> str:
     """Canonical text of a configuration (sorted JSON), used to count its trials."""
-    return json.dumps({k: int(v) for k, v in sorted(params.items())}, sort_keys=True)
+    return json.dumps({k: plain(v) for k, v in sorted(params.items())}, sort_keys=True)
 
 
 def grid_points(space: Mapping[str, Sequence[int]], seed: int) -> list[dict[str, int]]:

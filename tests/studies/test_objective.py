@@ -53,3 +53,10 @@ def test_settings__a_bad_value_is_named() -> None:
         TrialSettings.make(loss_p=1.5)
     with pytest.raises(BenchError, match="n_robots"):
         TrialSettings.make(method="fake_hier", n_robots=500).cell({"ref_size": 2}, seed=0)
+
+
+def test_trial_cell__sampled_cell_fields_set_the_cell_and_other_names_the_method_params() -> None:
+    settings = TrialSettings.make(method="decentralized", n_robots=4)
+    cell = settings.cell({"lr": 1e-3, "search_radius": 1}, seed=5)
+    assert cell.search_radius == 1 and cell.params["lr"] == 1e-3 and "search_radius" not in cell.params
+    assert cell.method_params().lr == 1e-3

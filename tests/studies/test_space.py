@@ -56,3 +56,36 @@ def test_distributions__categorical_over_the_choices() -> None:
     dists = distributions(search_space())
     assert dists["ref_size"] == CategoricalDistribution([2, 4, 8, 16, 32])
     assert dists["search_radius"] == CategoricalDistribution([0, 1, 2, 3])
+
+
+def test_method_space__parses_by_each_hyperparameter_type_and_validates_with_the_method() -> None:
+    from studies.space import method_space
+
+    space = method_space("hierarchical", {"lr": ["3e-3", "1e-3"], "share_params": ["true", "false"],
+                                          "messages": ["oracle"], "search_radius": ["1..2"]})
+    assert space == {"search_radius": (1, 2), "lr": (0.001, 0.003), "messages": ("oracle",),
+                     "share_params": (False, True)}
+
+
+@pytest.mark.parametrize("overrides, message", [
+    ({"lr": ["-1"]}, "lr: -1.0: Input should be greater than 0"),
+    ({"lr": ["fast"]}, "cannot parse 'fast' as a number"),
+    ({"share_params": ["yes"]}, "true/false"),
+    ({"messages": ["telepathy"]}, "messages: 'telepathy'"),
+    ({"nope": ["1"]}, "unknown study parameter 'nope' for method decentralized"),
+    ({"batch_episodes": ["4"]}, "part of the tuning budget"),
+    ({}, "give the parameters to tune"),
+])
+def test_method_space__bad_parameter_is_one_clear_error(overrides: dict, message: str) -> None:
+    from studies.space import method_space
+
+    method = "hierarchical" if set(overrides) & {"share_params", "messages"} else "decentralized"
+    with pytest.raises(BenchError, match=message):
+        method_space(method, overrides)
+
+
+def test_method_space__a_planner_has_nothing_to_tune() -> None:
+    from studies.space import method_space
+
+    with pytest.raises(BenchError, match="planner"):
+        method_space("pibt", {"eval_chunk": ["2"]})
