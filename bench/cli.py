@@ -280,9 +280,13 @@ def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
     out: Path | None = typer.Option(None, "--out", help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
     claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at", help="Check claims at the paper's configurations only, or also at the run's own."),
+    against: Path | None = typer.Option(None, "--against", help="Also report the done cells of this run directory "
+                                        "(e.g. reproduction/paper) at the configurations RUN covers, as if they had "
+                                        "run together; refused unless settings and scenarios match."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
-    Warns naming every done cell whose stored rows are incomplete."""
+    Warns naming every done cell whose stored rows are incomplete. With --against REF, a
+    method of your own is judged against REF's committed baselines without retraining them."""
     import os
 
     run_dir = _run_dir(run)
@@ -304,7 +308,9 @@ def report(
             typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
                        "rerun `bench run` to complete it", err=True)
     try:
-        built = build_report(run_dir, out, claims_at=claims_at.value)
+        if against is not None:
+            RunStore(against).require_run()
+        built = build_report(run_dir, out, claims_at=claims_at.value, against=against)
     except PermissionError as exc:
         hint = "; write the report elsewhere with --out DIR" if out is None else ""
         raise BenchError(f"cannot write the report: {exc.filename or target}: permission denied{hint}") from None

@@ -24,11 +24,13 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+import pandas as pd
 from matplotlib.figure import Figure
 
 from bench.completeness import incomplete_cells
 from bench.store import DiskFull, RunStore, file_mode, is_disk_full
 from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
+from reports.against import merge_against
 from reports.claims import all_claims
 from reports.claims_page import (
     calibration_markdown,
@@ -40,6 +42,15 @@ from reports.fig1_training import fig1_training
 from reports.fig2_success import fig2_success
 from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
+from reports.leaderboard import (
+    aggregate_frame,
+    leaderboard_display,
+    leaderboard_frame,
+    leaderboard_markdown,
+    profile_figure,
+    safety_frame,
+    success_figure,
+)
 from reports.matrix import matrix_entries
 from reports.plotting import DPI
 from reports.progress import progress_markdown
@@ -175,15 +186,46 @@ def _shown_path(run_dir: Path) -> str:
         return str(run)
 
 
-def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper") -> Path:
+def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
+    """The method-agnostic part of every report (reports/leaderboard.py): every method of
+    the run by its declared name, each configuration's default variant."""
+    board = leaderboard_frame(evals)
+    iqm, poi = aggregate_frame(evals)
+    safety = safety_frame(evals)
+    write_text(out / "leaderboard.md", leaderboard_markdown(board, iqm, poi, safety))
+    write_text(out / "leaderboard.csv", board.to_csv(index=False))
+    write_text(out / "leaderboard_aggregate.csv", iqm.to_csv(index=False))
+    write_text(out / "leaderboard_improvement.csv", poi.to_csv(index=False))
+    write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
+    files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
+             "safety_all_methods.csv"]
+    captions = []
+    for stem, built in (("success_vs_n", success_figure(board, "n_robots")),
+                        ("success_vs_p", success_figure(board, "loss_p")), ("performance_profiles", profile_figure(evals))):
+        save_figure(built.fig, out / stem, built.caption)
+        files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
+        captions.append(built.caption)
+    return Entry("Leaderboard: every method of the run", tuple(files),
+                 tables=(("Success rate per configuration and execution mode: mean over seeds [95% CI over seeds] "
+                          "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
+                          "columns of every method: leaderboard.md.", leaderboard_display(board)),),
+                 image="success_vs_n.png", caption=captions[0])
+
+
+def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper",
+                 against: Path | str | None = None) -> Path:
     """Rebuild the report (default ``<run_dir>/report/``, else ``out_dir``) from the store;
     returns that directory (holding ``index.html``). Missing, failed or incomplete cells are
     listed, never fatal; a run directory without ``cells.parquet`` is a ``BenchError``.
-    ``claims_at="run"`` also checks the claims at the run's own configurations."""
+    ``claims_at="run"`` also checks the claims at the run's own configurations. ``against``:
+    a second run whose done cells at this run's configurations join the report
+    (reports/against.py: refused unless settings and scenarios match)."""
     store = load_store(run_dir)
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
     for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
         store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
+    if against is not None:
+        store = merge_against(store, against)
     # Figures, Table I and the claims: each group's default variant only (reports.variants);
     # the summary and the success table show every variant in its own row.
     variants = cell_variants(store.cells)
@@ -228,6 +270,8 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
                          ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"),
                          tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
+
+    entries.append(_leaderboard(evals, out))
 
     ablation = ablation_frame(store.eval, store.cells)
     if len(ablation):  # runs of the ablation grid

@@ -23,7 +23,6 @@ same protocol: the same settings, replicate seeds, budget and pruning rule
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-
 from typing import Any
 
 from optuna.distributions import BaseDistribution, CategoricalDistribution

@@ -17,7 +17,7 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import MethodParams, Method
+from algorithms.base import Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from envs.actions import N_ACTIONS, WAIT
