@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
+from algorithms.registry import method_class
 from bench.cells import Cell
 from envs.errors import BenchError
 from envs.layouts import PAPER_MAP
@@ -62,8 +63,8 @@ def _cells(specs: Iterable[dict[str, Any]], seeds: int) -> tuple[Cell, ...]:
 
 
 def _planner_settings(spec: dict[str, Any]) -> dict[str, Any]:
-    """PIBT learns nothing: no training episodes."""
-    return {**spec, "episodes": 0} if spec["method"] == "pibt" else spec
+    """A planner (``Method.learned`` False, e.g. PIBT) learns nothing: no training episodes."""
+    return spec if method_class(spec["method"]).learned else {**spec, "episodes": 0}
 
 
 def smoke(seeds: int = 1) -> Grid:
