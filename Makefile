@@ -3,7 +3,7 @@ VENV ?= .venv
 BENCH := $(VENV)/bin/bench
 PY := $(VENV)/bin/python
 
-.PHONY: setup smoke test lint anchors clean-venv
+.PHONY: setup smoke test lint anchors clean-venv example-check
 
 $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
@@ -19,6 +19,10 @@ smoke: setup
 ## Set up and run the whole test suite (2 workers).
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile
+
+## The worked outside method packages end to end, with no edit to this package.
+example-check: setup
+	VENV=$(VENV) bash scripts/example_check.sh
 
 lint: setup
 	$(VENV)/bin/ruff check .
