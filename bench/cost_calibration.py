@@ -23,17 +23,27 @@ import pandas as pd
 from bench import costs
 from bench.cells import Cell
 from bench.costs import Rates
-from reports.store import load_store
+from bench.store import RunStore
+from envs.errors import BenchError
 
 
 def observed_costs(run_dir: Path | str) -> pd.DataFrame:
     """One row per done cell of the run: ``method``, ``n_robots``, ``train_s``, ``eval_s``
     and the effective ``train_rate`` / ``eval_rate`` (agent-steps per second; NaN where the
     cell had no such phase, e.g. a planner's training)."""
-    store = load_store(run_dir)
-    train_s = store.train.groupby("cell_id")["wall_s"].sum()
+    store = RunStore(run_dir)
+    cells = store.read_cells()
+    if cells is None:
+        raise BenchError(f"no results store at {str(run_dir)!r}: cells.parquet not found")
+    return costs_of(cells, store.read_train())
+
+
+def costs_of(cells: pd.DataFrame, train: pd.DataFrame) -> pd.DataFrame:
+    """``observed_costs`` of a run's ``cells.parquet`` rows and training rows."""
+    done = cells[cells["status"] == "done"]
+    train_s = train[train["cell_id"].isin(done["cell_id"])].groupby("cell_id")["wall_s"].sum()
     rows = []
-    for r in store.done.itertuples(index=False):
+    for r in done.itertuples(index=False):
         cell = Cell.model_validate_json(r.config_json)
         train_steps, eval_steps = costs.cell_agent_steps(cell)
         t = float(train_s.get(r.cell_id, 0.0))

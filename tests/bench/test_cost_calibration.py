@@ -96,12 +96,11 @@ def test_observed_costs__split_each_cell_into_its_training_rows_and_the_rest(rep
     assert (reproduction.loc[reproduction.method != "pibt", ["train_s", "eval_s"]] > 0).all().all()
 
 
-def test_observed_costs__seconds_and_effective_rates_of_each_done_cell(monkeypatch) -> None:
+def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None:
     """A learned cell's training seconds are its training rows' sum and the rest of its wall
     time is evaluation; a planner without training rows trains 0 s at no rate; a phase
     under a second still gets its rate; pending cells are left out."""
     from bench import cost_calibration
-    from reports.store import Store
 
     grid = get_grid("paper").cells
     learned = next(c for c in grid if c.method == "decentralized")
@@ -111,9 +110,7 @@ def test_observed_costs__seconds_and_effective_rates_of_each_done_cell(monkeypat
                           for c, s, w in ((learned, "done", 100.5), (planner, "done", 0.25),
                                           (pending, "running", 9.0))])
     train = pd.DataFrame(dict(cell_id=[learned.cell_id] * 3 + [pending.cell_id], wall_s=[40.0, 50.0, 10.0, 5.0]))
-    monkeypatch.setattr(cost_calibration, "load_store",
-                        lambda run: Store(run_dir=Path(run), cells=cells, train=train, eval=pd.DataFrame()))
-    out = observed_costs("somewhere")
+    out = cost_calibration.costs_of(cells, train)
     assert list(out.columns) == ["cell_id", "method", "n_robots", "train_s", "eval_s", "train_rate", "eval_rate"]
     assert list(out["cell_id"]) == [learned.cell_id, planner.cell_id]
     assert list(out["method"]) == ["decentralized", "pibt"]
@@ -124,25 +121,20 @@ def test_observed_costs__seconds_and_effective_rates_of_each_done_cell(monkeypat
     assert list(out["eval_rate"]) == pytest.approx([le / 0.5, pe / 0.25])
 
 
-def test_observed_costs__a_phase_with_no_time_has_no_rate_and_no_cells_give_no_rows(monkeypatch) -> None:
+def test_observed_costs__a_phase_with_no_time_has_no_rate_and_no_cells_give_no_rows() -> None:
     """Edge cells: a learned cell without training rows, one whose training took all of its
     wall time (half a second); a store without done cells still has every column."""
     from bench import cost_calibration
-    from reports.store import Store
 
     a, b = [c for c in get_grid("paper").cells if c.method == "decentralized"][:2]
     cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=w, config_json=c.canonical_json())
                           for c, w in ((a, 30.0), (b, 0.5))])
     train = pd.DataFrame(dict(cell_id=[b.cell_id], wall_s=[0.5]))
-    stores = {"two": Store(run_dir=Path("two"), cells=cells, train=train, eval=pd.DataFrame()),
-              "none": Store(run_dir=Path("none"), cells=cells.assign(status="pending"), train=train,
-                            eval=pd.DataFrame())}
-    monkeypatch.setattr(cost_calibration, "load_store", lambda run: stores[run])
-    out = observed_costs("two")
+    out = cost_calibration.costs_of(cells, train)
     assert list(out["train_s"]) == [0.0, 0.5] and list(out["eval_s"]) == [30.0, 0.0]
     assert np.isnan(out["train_rate"][0]) and np.isnan(out["eval_rate"][1])
     assert out["train_rate"][1] == pytest.approx(costs.cell_agent_steps(b)[0] / 0.5)
-    empty = observed_costs("none")
+    empty = cost_calibration.costs_of(cells.assign(status="pending"), train)
     assert empty.empty and list(empty.columns) == list(out.columns)
     assert observed_rates(empty) == {}
 
