@@ -26,6 +26,7 @@ example-check: setup
 
 lint: setup
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 	$(VENV)/bin/hadolint Dockerfile
 
 ## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1);

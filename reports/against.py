@@ -59,11 +59,11 @@ def check_compatible(mine: Store, ref: Store, ref_name: str) -> None:
             if a != b:
                 raise BenchError(f"--against {ref_name}: {field} differs at {where}: "
                                  f"{', '.join(a)} here, {', '.join(b)} there")
-        a = sorted(set(map(int, _learned(ours)["episodes"])))
-        b = sorted(set(map(int, _learned(theirs)["episodes"])))
-        if a and b and a != b:
+        ea = sorted({int(v) for v in _learned(ours)["episodes"]})
+        eb = sorted({int(v) for v in _learned(theirs)["episodes"]})
+        if ea and eb and ea != eb:
             raise BenchError(f"--against {ref_name}: training episodes differ at {where}: "
-                             f"{', '.join(map(str, a))} here, {', '.join(map(str, b))} there")
+                             f"{', '.join(map(str, ea))} here, {', '.join(map(str, eb))} there")
     ours = mine.eval[PAIR + ["scenario"]].drop_duplicates(PAIR)
     theirs = ref.eval[PAIR + ["scenario"]].drop_duplicates(PAIR)
     pairs = ours.merge(theirs, on=PAIR, suffixes=("", "_ref"))

@@ -91,7 +91,7 @@ def method_space(method: str, overrides: Mapping[str, Sequence[str]]) -> Space:
             raise BenchError(f"study parameter {name}: empty range; give at least one value")
         for v in values:
             try:
-                cls.Params(**{name: v})
+                cls.Params.model_validate({name: v})
             except ValidationError as exc:
                 err = exc.errors()[0]
                 raise BenchError(f"study parameter {name}: {v!r}: {err['msg']}") from None
