@@ -38,6 +38,9 @@ METHOD_COLORS = {"hierarchical": _PAL[0], "decentralized": _PAL[1], "ic3net": _P
                  "pibt": _PAL[7]}
 METHOD_LABELS = {"hierarchical": "Hierarchical (ours)", "decentralized": "Decentralized",
                  "ic3net": "IC3Net", "pibt": "PIBT"}
+# A line style per method besides its colour, so lines stay apart in greyscale and where
+# bands overlap (issue 35).
+METHOD_STYLES = {"hierarchical": "-", "decentralized": "--", "ic3net": "-.", "pibt": ":"}
 
 
 @dataclass
@@ -64,6 +67,10 @@ def method_color(method: str) -> tuple[float, float, float]:
     return METHOD_COLORS.get(method, (0.3, 0.3, 0.3))
 
 
+def method_style(method: str) -> str:
+    return METHOD_STYLES.get(method, "-")
+
+
 def method_label(method: str) -> str:
     return METHOD_LABELS.get(method, method)
 
@@ -74,11 +81,12 @@ def label_order(label: str) -> int:
     return labels.index(label) if label in labels else len(labels)
 
 
-def shades(method: str, ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
+def shades(method: str, ns: Sequence[int], spread: float = 0.35) -> dict[int, tuple[float, float, float]]:
     """One shade of ``method``'s colour per team size, dark (small N) to light (large N),
-    so a panel of one method keeps that method's hue."""
+    so a panel of one method keeps that method's hue; ``spread`` (0..1) is how far the
+    ends go toward black and white."""
     base = np.asarray(method_color(method), dtype=np.float64)
-    mix = np.linspace(-0.35, 0.35, len(ns)) if len(ns) > 1 else np.zeros(1)
+    mix = np.linspace(-spread, spread, len(ns)) if len(ns) > 1 else np.zeros(1)
     out = {}
     for m, n in zip(mix, sorted(ns), strict=True):  # < 0 darkens toward black, > 0 lightens toward white
         c = base * (1 + m) if m < 0 else base + (1 - base) * m
