@@ -22,7 +22,6 @@ from matplotlib.ticker import FixedLocator
 
 from reports.plotting import (
     Built,
-    fmt_list,
     method_color,
     method_label,
     method_style,
