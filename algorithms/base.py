@@ -96,7 +96,8 @@ class Method(ABC):
     evaluated in mode ``planner`` and never trained), ``safety_filter_default`` (a cell's
     ``safety_filter`` when the cell leaves it unset), ``payload_model`` (how the scalars it
     sends per step are counted, shown by ``bench methods``), ``display_name`` and ``color``
-    (legend label and hex colour in every report figure; default: the name, grey) and
+    (legend label and hex colour in every report figure; default: the name, grey),
+    ``line_style`` and
     ``legend_rank`` (order in legends and tables; default after the built-ins).
     """
 
@@ -107,6 +108,7 @@ class Method(ABC):
     payload_model: ClassVar[str] = "scalars the method reports in Decision.payload each step"
     display_name: ClassVar[str] = ""
     color: ClassVar[str] = "#4d4d4d"
+    line_style: ClassVar[str] = "-"  # matplotlib line style, so lines stay apart in greyscale
     legend_rank: ClassVar[int] = UNRANKED  # position in legends and tables (lower first)
 
     @classmethod

@@ -135,6 +135,7 @@ class DecentralizedMethod(Method):
     display_name = "Decentralized"
     color = "#de8f05"
     legend_rank = 1
+    line_style = "--"
     payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams
     params: DecentralizedParams

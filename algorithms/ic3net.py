@@ -215,6 +215,7 @@ class IC3NetMethod(Method):
     display_name = "IC3Net"
     color = "#029e73"
     legend_rank = 2
+    line_style = "-."
     payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams
     params: IC3NetParams

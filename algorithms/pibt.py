@@ -132,6 +132,7 @@ class PIBTMethod(Method):
     display_name = "PIBT"
     color = "#949494"
     legend_rank = 3
+    line_style = ":"
     payload_model = "not modelled: a centralized planner with full information (NaN in the eval rows)"
     learned = False
     Params = PIBTParams

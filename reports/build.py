@@ -9,8 +9,9 @@ umask), so an interrupted rebuild never leaves a half-written file; a full disk 
 listed among the store's problems. Deterministic: bootstrap
 generators are seeded, so the same store gives the same numbers.
 
-Outputs: fig1_training, fig2_success_percentiles, fig3_comm_payload (.png at 200 dpi and
-.pdf), table1_safety.{md,tex,csv}, summary.{md,csv}, success_by_mode.md (the README's
+Outputs: fig1_training, fig2_success_percentiles (the run's first execution mode, argmax
+when it has it) and fig2_success_percentiles_<mode> for each other mode, fig3_comm_payload
+(.png at 200 dpi, .pdf and the caption in .txt), table1_safety.{md,tex,csv}, summary.{md,csv}, success_by_mode.md (the README's
 results table), progress.md, claims.{md,csv}, calibration.{json,md} (the
 calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/matrix/ exists
 (reports/matrix.py), index.md, index.html.
@@ -39,7 +40,7 @@ from reports.claims_page import (
     claims_table_markdown,
 )
 from reports.fig1_training import fig1_training
-from reports.fig2_success import fig2_success
+from reports.fig2_success import fig2_modes, fig2_success
 from reports.fig3_payload import fig3_payload
 from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.leaderboard import (
@@ -78,6 +79,12 @@ ABLATION_METRICS = {"success_rate": ("success rate", "pct"), "collision_rate": (
                     "correction_rate": ("correction rate", "pct"), "fallback_rate": ("fallback rate", "pct"),
                     "payload_scalars_per_step": ("payload (scalars/step)", "payload")}
 FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
+
+
+def mode_slug(mode: str) -> str:
+    """A file-name part for an execution mode: "sample@0.5" -> "sample_at_0p5" (no dot, so
+    ``Path.with_suffix`` keeps it)."""
+    return "".join(c if c.isalnum() else {"@": "_at_", ".": "p"}.get(c, "_") for c in mode)
 
 
 def _atomic(path: Path, write: Callable[[str], None]) -> Path:
@@ -240,17 +247,21 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
 
     titles = {
         "fig1_training": "Fig. 1: training convergence",
-        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net, per execution mode",
+        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net",
         "fig3_comm_payload": "Fig. 3: communication payload and ratio",
     }
-    builders = {"fig1_training": lambda: fig1_training(train),
-                "fig2_success_percentiles": lambda: fig2_success(evals),
-                "fig3_comm_payload": lambda: fig3_payload(evals)}
-    for stem in FIGURES:
-        built = builders[stem]()
-        save_figure(built.fig, out / stem, built.caption)
-        entries.append(Entry(titles[stem], (f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"), tuple(built.notes),
-                             image=f"{stem}.png", caption=built.caption))
+    fig2_mode_list = fig2_modes(evals)  # Fig. 2: one figure per execution mode, the first under its CI name
+    builders = {"fig1_training": lambda: [("fig1_training", titles["fig1_training"], fig1_training(train))],
+                "fig2_success_percentiles": lambda: [
+                    ("fig2_success_percentiles" + ("" if k == 0 else "_" + mode_slug(m)),
+                     f"{titles['fig2_success_percentiles']} ({m} execution)", fig2_success(evals, m))
+                    for k, m in enumerate(fig2_mode_list)],
+                "fig3_comm_payload": lambda: [("fig3_comm_payload", titles["fig3_comm_payload"], fig3_payload(evals))]}
+    for key in FIGURES:
+        for stem, title, built in builders[key]():
+            save_figure(built.fig, out / stem, built.caption)
+            entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"), tuple(built.notes),
+                                 image=f"{stem}.png", caption=built.caption))
 
     table, t_notes = table1_frame(evals)
     write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
@@ -294,9 +305,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
         "Calibration of the claim tests: rate of 'supported' on simulated data where the claim is "
         "false (null, must be <= 5% + MC error) or true (effect: the power)")) if cal else []
     entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv", "claims_table.md") + ((cal,) if cal else ()),
-                         tables=(("Claims of the paper's Sec. IV: one row per claim, scope, configuration and "
-                                  "execution mode, with the numbers and the test behind each verdict.",
-                                  checks),) + tuple(cal_tables)))
+                         tables=tuple(cal_tables), checks=checks))  # checks grouped per claim (index_claims)
 
     studies, studies_note = _study_entries(Path(run_dir), out)
     entries += studies

@@ -25,18 +25,22 @@ from reports.plotting import (
     label_order,
     method_color,
     method_label,
+    method_style,
     new_figure,
     paper_style,
     placeholder,
     shades,
     thousands,
 )
+from reports.seed_counts import counts_text
 from reports.stats import smooth, smoothing_window, t_band
 from reports.store import fmt_p, select
+from reports.ylimits import fit_ylims
 
 PAPER_A_N = (20, 40, 60)
 PAPER_B_N = (80, 90, 100)
 PAPER_P = 0.2
+B_STYLES = ("-", "--", ":")  # (b): one line style per team size, beside its shade
 
 
 @dataclass(frozen=True)
@@ -66,10 +70,15 @@ def training_curve(train: pd.DataFrame, method: str, n: int, p: float,
     return Curve(wide.index.to_numpy(), mean, lo, hi, curves.shape[0], window)
 
 
-def _draw(ax: Axes, curve: Curve, color: tuple[float, float, float], label: str) -> None:
-    ax.plot(curve.episode, curve.mean, color=color, label=label)
+def _draw(ax: Axes, curve: Curve, color: tuple[float, float, float], label: str, ls: str = "-",
+          band_alpha: float = 0.25) -> None:
+    """Mean line in ``ls``; with several seeds the band, its edges thin lines in the same
+    colour and style, so overlapping bands stay apart."""
+    ax.plot(curve.episode, curve.mean, color=color, label=label, ls=ls, lw=1.3)
     if curve.seeds > 1:
-        ax.fill_between(curve.episode, curve.lo, curve.hi, color=color, alpha=0.25, lw=0)
+        ax.fill_between(curve.episode, curve.lo, curve.hi, color=color, alpha=band_alpha, lw=0)
+        for edge in (curve.lo, curve.hi):
+            ax.plot(curve.episode, edge, color=color, ls=ls, lw=0.4, alpha=0.8, label="_band edge")
 
 
 def _pick_p(train: pd.DataFrame) -> tuple[float | None, list[str]]:
@@ -81,20 +90,29 @@ def _pick_p(train: pd.DataFrame) -> tuple[float | None, list[str]]:
     return ps[0], [f"the run has no p = {fmt_p(PAPER_P)}; showing p = {fmt_p(ps[0])}"]
 
 
-def _caption(p: str, curves: list[tuple[str, Curve]], has_b: bool) -> str:
-    """Fig. 1's caption: configuration, seeds, episodes, smoothing and the band."""
-    seeds = sorted({c.seeds for _, c in curves})
-    eps = sorted({int(c.episode.max()) + 1 for _, c in curves})
-    wins = sorted({c.window for _, c in curves})
-    what = "(a) hierarchical (ours) vs decentralized" + (", (b) hierarchical (ours) at N = 80-100" if has_b else "")
+def _smoothing_text(windows: list[int]) -> str:
+    if windows == [1]:
+        return "not smoothed (5% of training is under 2 episodes)"
+    return (f"trailing moving average over {'/'.join(map(str, windows))} episodes (5% of training)")
+
+
+def _caption(p: str, curves: list[tuple[str, int, Curve]], has_b: bool, own_y: bool) -> str:
+    """Fig. 1's caption: configuration, seeds per configuration, episodes, smoothing, band."""
     if not curves:
         return f"Fig. 1: training convergence at p = {p}; the run has no training data to plot."
-    band = ("shaded band: pointwise 95% Student t interval over seeds of the mean curve"
-            if max(seeds) > 1 else "no band (one seed per configuration)")
+    eps = sorted({int(c.episode.max()) + 1 for _, _, c in curves})
+    wins = sorted({c.window for _, _, c in curves})
+    what = "(a) hierarchical (ours) vs decentralized" + (", (b) hierarchical (ours) at N = 80-100" if has_b else "")
+    seeds = []
+    for method in dict.fromkeys(m for m, _, _ in curves):
+        counts = {(float(n),): c.seeds for m, n, c in curves if m == method}
+        seeds.append(f"{method_label(method)}: {counts_text(counts)}")
+    band = ("shaded band: pointwise 95% Student t interval over seeds of the mean curve, its edges thin lines"
+            if max(c.seeds for _, _, c in curves) > 1 else "no band (one seed per configuration)")
+    scale = " Each panel of (a) has its own y-scale (their ranges differ)." if own_y else ""
     return (f"Fig. 1: training convergence, {what}, at p = {p}. Team return per training episode, "
-            f"trailing moving average over {'/'.join(map(str, wins))} episodes (5% of training); "
-            f"line: mean over {'/'.join(map(str, seeds))} seed(s) per configuration "
-            f"({'/'.join(map(str, eps))} training episodes each); {band}.")
+            f"{_smoothing_text(wins)}; line: mean over seeds ({'; '.join(seeds)}; "
+            f"{'/'.join(map(str, eps))} training episodes each); {band}.{scale}")
 
 
 def _episode_axis(ax: Axes, nbins: int) -> None:
@@ -119,7 +137,7 @@ def fig1_training(train: pd.DataFrame) -> Built:
     if b_missing:
         notes.append(f"(b) the run has no hierarchical training data for N = {fmt_list(b_missing)} at p = {ptxt}"
                      + ("; panel (b) is omitted" if not b_ns else ""))
-    drawn_curves: list[tuple[str, Curve]] = []
+    drawn_curves: list[tuple[str, int, Curve]] = []
 
     with paper_style():
         fig = new_figure(3.7 if b_ns else 1.9)
@@ -128,7 +146,8 @@ def fig1_training(train: pd.DataFrame) -> Built:
             top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.1])
         else:
             top, bottom = fig, None
-        axes_a = list(top.subplots(1, ncol, sharey=True, squeeze=False)[0])
+        axes_a = list(top.subplots(1, ncol, squeeze=False)[0])
+        with_data = []
         handles: dict[str, object] = {}
         for k, ax in enumerate(axes_a):
             if k >= len(a_ns):
@@ -141,39 +160,42 @@ def fig1_training(train: pd.DataFrame) -> Built:
                 if c is None:
                     notes.append(f"(a) N = {n}: no {method} training data at p = {ptxt}")
                     continue
-                _draw(ax, c, method_color(method), method_label(method))
-                drawn_curves.append((method, c))
+                _draw(ax, c, method_color(method), method_label(method), method_style(method))
+                drawn_curves.append((method, n, c))
                 drawn = True
             if not drawn:
                 placeholder(ax, "no data")
+            else:
+                with_data.append(ax)
             ax.set_title(f"N = {n}")
             _episode_axis(ax, 3)
-            if k > 0:
-                ax.tick_params(labelleft=False)
+            ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
             for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
                 handles.setdefault(lab, h)
+        own_y = fit_ylims(with_data) and len(with_data) > 1
         axes_a[0].set_ylabel("team return")
         top.supxlabel("training episode", fontsize=FONT_PT)
         if handles:
             order = sorted(handles, key=label_order)
             top.legend([handles[k] for k in order], order, loc="outside upper center",
-                       ncol=len(handles), frameon=False, handlelength=1.5, columnspacing=1.0)
+                       ncol=len(handles), frameon=False, handlelength=2.5, columnspacing=1.0)
         if bottom is not None:
             axes_a[0].annotate("(a)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
                                textcoords="offset points", fontweight="bold", va="bottom")
             ax_b = bottom.subplots()
-            colors = shades("hierarchical", b_ns)
-            for n in b_ns:
+            colors = shades("hierarchical", b_ns, spread=0.5)
+            for k, n in enumerate(b_ns):
                 c = training_curve(at_p, "hierarchical", int(n), p)
                 if c is not None:
-                    _draw(ax_b, c, colors[int(n)], f"N = {int(n)}")
-                    drawn_curves.append(("hierarchical", c))
+                    _draw(ax_b, c, colors[int(n)], f"N = {int(n)}", B_STYLES[k % len(B_STYLES)],
+                          band_alpha=0.12)
+                    drawn_curves.append(("hierarchical", int(n), c))
             ax_b.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False,
-                        title=method_label("hierarchical").replace(" (", "\n("), handlelength=1.2,
+                        title=method_label("hierarchical").replace(" (", "\n("), handlelength=2.5,
                         borderaxespad=0.2)
             _episode_axis(ax_b, 5)
             ax_b.set_xlabel("training episode")
             ax_b.set_ylabel("team return")
             ax_b.annotate("(b)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),
                           textcoords="offset points", fontweight="bold", va="bottom")
-    return Built(fig, notes, _caption(ptxt, drawn_curves, bool(b_ns)))
+    return Built(fig, notes, _caption(ptxt, drawn_curves, bool(b_ns), own_y))

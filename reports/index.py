@@ -2,10 +2,13 @@
 claims' verdicts, what the run lacks (cells not done, failed with their error, paper
 configurations absent) and the run's manifest (versions, git commit, command).
 
-In ``index.html`` every figure has its caption under it and every table (Table I per
-execution mode, the summary, the claims with their readable names and numbers, the
-ablation) is an HTML table with a caption, written by pandas' ``Styler.to_html`` with every
-cell escaped. Every link is relative to the report folder and stays inside it (no ``..``),
+In ``index.html`` a table of contents (``reports.page_layout``) links every section, figure
+and claim; the content uses the window's width; every figure has its caption beside or
+under it and every table (Table I per execution mode, the summary, the claims' checks with
+their readable names and numbers, the ablation) is an HTML table with a caption, written by
+pandas' ``Styler.to_html`` with every cell escaped, in a box that scrolls when the table is
+wider or longer than the window. The claims' checks are grouped per claim, the ones
+without enough seeds in one line (``reports.index_claims``). Every link is relative to the report folder and stays inside it (no ``..``),
 so a copied report folder keeps working."""
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ class Entry:
     image: str | None = None  # PNG shown inline in the HTML page
     caption: str = ""  # printed under the figure (index.html, index.md)
     tables: tuple[tuple[str, pd.DataFrame], ...] = ()  # (caption, display strings) -> HTML tables
+    checks: pd.DataFrame | None = None  # the claims' checks (claims_frame), grouped per claim in HTML
 
 
 @dataclass
@@ -155,54 +159,71 @@ def _table(head: list[str], rows: list[list[str]], caption: str) -> str:
             f"<tbody>{body}</tbody></table>")
 
 
-_CSS = """body{font-family:system-ui,sans-serif;max-width:60em;margin:2em auto;padding:0 1em;
-line-height:1.4}table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;
-padding:2px 6px;font-size:90%;vertical-align:top}img{max-width:100%;border:1px solid #eee}
-.supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
-.not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
-code{font-size:90%}table.data{display:block;overflow-x:auto;max-width:100%}caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
-figure{margin:.5em 0}figcaption{font-size:90%;color:#333;max-width:700px}"""
-
-
 def index_html(d: IndexData) -> str:
+    from reports.index_claims import badge, grouped_checks_html
+    from reports.page_layout import PAGE_CSS, Anchors, scroll_box, toc_html
+
     e = html.escape
+    anchor = Anchors()
+    toc: list[tuple[str, str, list[tuple[str, str]]]] = []
+
+    def h2(text: str) -> str:
+        uid = anchor(text)
+        toc.append((text, uid, []))
+        return f"<h2 id='{e(uid)}'>{e(text)}</h2>"
+
     title = e(str(d.manifest.get("grid", "run")))
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>Report: {title}</title>"
-             f"<style>{_CSS}</style></head><body><h1>Report: {title}</h1>",
-             f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", "<h2>Claims of the paper (Sec. IV)</h2>"]
-    parts.append(_table(["claim", "key", "verdict"], [
-        [e(c.name), f"<code>{e(c.key)}</code>", f"<b class='{c.verdict.replace(' ', '-')}'>{e(c.verdict)}</b>"]
-        for c in d.claims], "Verdict of each claim at the paper's configurations (numbers per "
-        "configuration and execution mode in the claims table below)"))
-    parts.append("<h2>Figures and tables</h2>")
+    parts = [f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", h2("Claims of the paper (Sec. IV)")]
+    claims_toc = toc[-1][2]  # each claim's block of checks, nested under the claims' heading
+    claim_ids = {c.key: anchor(f"claim {c.key}") for c in d.claims}
+    parts.append(scroll_box(_table(["claim", "key", "verdict"], [
+        [f"<a href='#{e(claim_ids[c.key])}'>{e(c.name)}</a>", f"<code>{e(c.key)}</code>", badge(c.verdict)]
+        for c in d.claims], "Verdict of each claim at the paper's configurations (its checks per "
+        "configuration and execution mode under \"Claims of Sec. IV\" below)")))
+    parts.append(h2("Figures and tables"))
     for k, en in enumerate(d.entries):
+        uid = anchor(en.title)
+        toc[-1][2].append((en.title, uid))
         links = ", ".join(f"<a href='{e(f)}'>{e(f)}</a>" for f in en.files)
-        parts.append(f"<h3>{e(en.title)}</h3><p>Files: {links}</p>")
+        notes = "<ul>" + "".join(f"<li>{e(n)}</li>" for n in en.notes) + "</ul>" if en.notes else ""
+        parts.append(f"<h3 id='{e(uid)}'>{e(en.title)}</h3>")
         if en.image:
             cap = f"<figcaption>{e(en.caption)}</figcaption>" if en.caption else ""
-            parts.append(f"<figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>{cap}</figure>")
+            parts.append(f"<div class='figrow'><figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>"
+                         f"</figure><div class='side'>{cap}<p>Files: {links}</p>{notes}</div></div>")
+        else:
+            parts.append(f"<p>Files: {links}</p>")
+        if en.checks is not None:
+            block, claim_toc = grouped_checks_html(en.checks, {c.key: c.verdict for c in d.claims},
+                                                   lambda key: claim_ids.get(key) or anchor(f"claim {key}"))
+            parts.append(block)
+            claims_toc += claim_toc
         for j, (caption, frame) in enumerate(en.tables):
-            parts.append(html_table(frame, caption, f"t{k}_{j}"))
-        if en.notes:
-            parts.append("<ul>" + "".join(f"<li>{e(n)}</li>" for n in en.notes) + "</ul>")
+            parts.append(scroll_box(html_table(frame, caption, f"t{k}_{j}")))
+        if notes and not en.image:
+            parts.append(notes)
     if d.studies_note:
-        parts.append(f"<h2>Studies</h2><p>{e(d.studies_note)}</p>")
+        parts.append(h2("Studies") + f"<p>{e(d.studies_note)}</p>")
     if d.replays:
-        parts.append("<h2>Replays</h2><ul>" + "".join(
+        parts.append(h2("Replays") + "<ul>" + "".join(
             f"<li><a href='{e(r)}'>{e(r)}</a></li>" for r in d.replays) + "</ul>")
     head, missing = _cell_lines(d.cells)
-    parts.append(f"<h2>What this run lacks</h2><p>{e(head)}</p>")
+    parts.append(h2("What this run lacks") + f"<p>{e(head)}</p>")
     if missing:
         keys = ["cell", "method", "N", "p", "seed", "status", "error"]
-        parts.append(_table(keys, [[e(r[k]) for k in keys] for r in missing],
-                            "Cells of the store that are not done, with the last line of their error"))
+        parts.append(scroll_box(_table(keys, [[e(r[k]) for k in keys] for r in missing],
+                                       "Cells of the store that are not done, with the last line of their error"),
+                                wrap=True))
     else:
         parts.append("<p>Every cell of the store is done.</p>")
     if d.problems:
         parts.append("<ul>" + "".join(f"<li>{e(p)}</li>" for p in d.problems) + "</ul>")
-    parts.append("<h2>Manifest</h2>")
+    parts.append(h2("Manifest"))
     rows = [[e(k), f"<code>{e(v)}</code>"] for k, v in _manifest_rows(d.manifest)]
-    parts.append(_table(["key", "value"], rows or [["(no manifest.json)", ""]],
-                        "The run's manifest: versions, git commit and command"))
-    parts.append("</body></html>")
-    return "\n".join(parts) + "\n"
+    parts.append(scroll_box(_table(["key", "value"], rows or [["(no manifest.json)", ""]],
+                                   "The run's manifest: versions, git commit and command"), wrap=True))
+    nav = toc_html(toc)
+    return ("\n".join([f"<!DOCTYPE html><html><head><meta charset='utf-8'><meta name='viewport' "
+                       f"content='width=device-width, initial-scale=1'><title>Report: {title}</title>"
+                       f"<style>{PAGE_CSS}</style></head><body>", nav, f"<main><h1>Report: {title}</h1>",
+                       *parts, "</main></body></html>"]) + "\n")

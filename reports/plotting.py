@@ -67,6 +67,12 @@ def method_color(method: str) -> tuple[float, float, float]:
     return to_rgb(cls.color) if cls is not None else UNKNOWN_COLOR
 
 
+def method_style(method: str) -> str:
+    """The line style a method declares (``Method.line_style``), solid if unresolved."""
+    cls = find_method(method)
+    return cls.line_style if cls is not None else "-"
+
+
 def method_label(method: str) -> str:
     """The label a method declares (``Method.label()``), else its name."""
     cls = find_method(method)
@@ -89,11 +95,12 @@ def _ranks() -> dict[str, int]:
     return ranks
 
 
-def shades(method: str, ns: Sequence[int]) -> dict[int, tuple[float, float, float]]:
+def shades(method: str, ns: Sequence[int], spread: float = 0.35) -> dict[int, tuple[float, float, float]]:
     """One shade of ``method``'s colour per team size, dark (small N) to light (large N),
-    so a panel of one method keeps that method's hue."""
+    so a panel of one method keeps that method's hue; ``spread`` (0..1) is how far the
+    ends go toward black and white."""
     base = np.asarray(method_color(method), dtype=np.float64)
-    mix = np.linspace(-0.35, 0.35, len(ns)) if len(ns) > 1 else np.zeros(1)
+    mix = np.linspace(-spread, spread, len(ns)) if len(ns) > 1 else np.zeros(1)
     out = {}
     for m, n in zip(mix, sorted(ns), strict=True):  # < 0 darkens toward black, > 0 lightens toward white
         c = base * (1 + m) if m < 0 else base + (1 - base) * m

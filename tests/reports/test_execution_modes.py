@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from reports.fig2_success import fig2_success
+from reports.fig2_success import fig2_modes, fig2_success
 from reports.store import execution_order, fmt_pct
 from reports.summary import fmt_ci, summary_frame, summary_markdown
 from reports.table1_safety import table1_frame, table1_latex, table1_markdown
@@ -64,14 +64,17 @@ def test_table1__a_block_per_mode_with_that_modes_numbers(store) -> None:
     assert tex.count(r"\begin{tabular}") == 3 and "tab:safety_reproduced_sample_0_5" in tex
 
 
-def test_fig2__panels_per_mode_and_team_size(store) -> None:
+def test_fig2__a_figure_per_mode_with_the_papers_six_panels(store) -> None:
     _, ev = store
-    built = fig2_success(ev)
-    titles = [ax.get_title() for ax in built.fig.axes if ax.get_title()]
-    assert len(titles) == 3 * 2 * 3
-    assert titles[0] == "N = 40, p = 0.2\nargmax" and titles[-1] == "N = 60, p = 0.6\nsample@0.5"
-    # the argmax and sample panels draw different curves (each from its own mode's rows)
-    ax0, ax_s = built.fig.axes[0], built.fig.axes[2 * 3]
+    assert fig2_modes(ev) == MODES
+    built = {m: fig2_success(ev, m) for m in MODES}
+    for m, b in built.items():
+        titles = [ax.get_title() for ax in b.fig.axes if ax.get_title()]
+        assert titles == [f"N = {n}, p = {p}" for n in (40, 60) for p in (0.2, 0.4, 0.6)]
+        assert b.caption.startswith(f"Fig. 2 ({m} execution)")
+    assert fig2_success(ev).caption == built["argmax"].caption  # the default is the first mode
+    # the argmax and sample figures draw different curves (each from its own mode's rows)
+    ax0, ax_s = built["argmax"].fig.axes[0], built["sample"].fig.axes[0]
     assert not np.allclose(ax0.lines[0].get_ydata(), ax_s.lines[0].get_ydata())
 
 
