@@ -1,5 +1,5 @@
-"""TorchRL's PettingZooWrapper on warehouse_v0, out of the box, and the README's MAPPO recipe
-(tests/interop/recipe_torchrl.py) learning on the tiny layout."""
+"""TorchRL's PettingZooWrapper on warehouse_v0, out of the box, and the MAPPO recipe of
+docs/interop.md (tests/interop/recipe_torchrl.py) learning on the tiny layout."""
 from __future__ import annotations
 
 import pytest
