@@ -30,7 +30,22 @@ def cli_reference() -> str:
     intro = ("Generated from the Typer app when the site is built (`bench COMMAND --help` "
              "prints the same). Guides: [the user guide](guide/run.md).\n\n")
     head, rest = out.split("\n", 1)
-    return f"{head}\n\n{intro}{rest}"
+    return f"{head}\n\n{intro}{_escape_angles(rest)}"
+
+
+def _escape_angles(text: str) -> str:
+    """``<`` and ``>`` outside code as entities: help text such as ``results/<grid>`` would
+    otherwise be read as an HTML tag and vanish from the page."""
+    out, fenced = [], False
+    for line in text.splitlines(keepends=True):
+        if line.startswith("```"):
+            fenced = not fenced
+        if not fenced and not line.startswith("```"):
+            parts = line.split("`")
+            parts[::2] = [p.replace("<", "&lt;").replace(">", "&gt;") for p in parts[::2]]
+            line = "`".join(parts)
+        out.append(line)
+    return "".join(out)
 
 
 def on_files(files: Files, config) -> Files:
