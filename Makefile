@@ -3,7 +3,7 @@ VENV ?= .venv
 BENCH := $(VENV)/bin/bench
 PY := $(VENV)/bin/python
 
-.PHONY: setup smoke test lint anchors clean-venv example-check
+.PHONY: setup smoke test lint docs anchors clean-venv example-check
 
 $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
@@ -28,6 +28,10 @@ lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
 	$(VENV)/bin/hadolint Dockerfile
+
+## Build the documentation site (mkdocs.yml) into site/; --strict fails on a broken link or reference.
+docs: setup
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
 
 ## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1);
 ## bench/perf_env.py drives them through bench/anchors_script.py.

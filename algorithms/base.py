@@ -76,8 +76,8 @@ class MethodParams(BaseModel):
 
 class LearnedParams(MethodParams):
     """Hyperparameters every learned method shares, with one set of defaults (SPEC 3
-    "Equal footing": identical defaults; chosen by the measurement in docs/decisions.md,
-    "Baselines"). Method-specific fields stay in each method's subclass."""
+    "Equal footing": identical defaults; chosen by the measurement in
+    docs/decisions/0126). Method-specific fields stay in each method's subclass."""
 
     hidden: int = Field(64, ge=4, description="hidden width of the method's policy networks")
     critic_hidden: int = Field(64, ge=4, description="width of the centralized critic V_omega")

@@ -89,7 +89,7 @@ class DecentralizedActor(nn.Module):
 
     logit(a) = MLP(o)[a] + ACTION_GAIN v . phi(o, a): the linear, action-aligned path of
     the hierarchical local policy (``ActionPath``, v = 0 at init), so neither method learns
-    the obvious "progress and free target cell" rule more slowly (docs/decisions.md).
+    the obvious "progress and free target cell" rule more slowly (docs/decisions/0136).
     """
 
     def __init__(self, n_in: int, hidden: int, radius: int, action_path: bool = True) -> None:

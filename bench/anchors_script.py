@@ -39,7 +39,7 @@ def timed_episodes(env, case: dict, convert) -> tuple[int, float]:
     return total_steps, total_time
 
 
-COLLISION_SYSTEM = "soft"  # ours = POGEMA soft without lowest-index-wins (docs/decisions.md)
+COLLISION_SYSTEM = "soft"  # ours = POGEMA soft without lowest-index-wins (docs/decisions/0003)
 
 
 def pogema_config(case: dict):

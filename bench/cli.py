@@ -25,6 +25,7 @@ from envs.errors import BenchError
 
 app = typer.Typer(
     name="bench", add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # plain click help: flags show no "<bool>" value (typer 0.29's rich help does)
     help="Warehouse MARL benchmark: run grids of cells on Ray, evaluate, report, profile.",
 )
 

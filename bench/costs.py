@@ -35,7 +35,7 @@ Rates = dict[str, dict[str, dict[int, float]]]
 # your own run's. Methods the reproduction has not finished a cell of fall back to
 # FALLBACK_RATES: PIBT (no training) at its `bench perf --suite pibt` rate of 2026-11-22.
 # Before 2026-12-02 the training rates were evaluation rates times measured speed-ups,
-# which undercounted a paper cell 2-4x (docs/decisions.md).
+# which undercounted a paper cell 2-4x (docs/decisions/0096).
 RATES_FILE = Path(__file__).with_name("cost_rates.json")
 FALLBACK_RATES: Rates = {
     "pibt": {"train": {20: float("inf"), 100: float("inf")}, "eval": {20: 330_000.0, 100: 330_000.0}},

@@ -21,7 +21,7 @@ PAPER_N = (20, 40, 60, 80, 90, 100)  # Sec. IV: "teams of 20, 40, 60, 80, 90, an
 PAPER_P = (0.2, 0.4, 0.6)  # Sec. IV: "p in {0.2, 0.4, 0.6}"
 # Sec. IV: Z=4, L=2, C_max=500, 2000 training episodes, horizon 500, 100 eval episodes.
 # The paper's layouts are unpublished; the bundled MovingAI warehouse map stands in for
-# them at every N (docs/decisions.md: the dense presets freeze the paper's filter).
+# them at every N (docs/decisions/0012: the dense presets freeze the paper's filter).
 PAPER_SETTINGS: dict[str, Any] = dict(
     groups=4, search_radius=2, c_max=500, episodes=2000, horizon=500, eval_episodes=100,
     layout=PAPER_MAP,
@@ -116,7 +116,7 @@ def full(seeds: int = 3) -> Grid:
 @dataclass(frozen=True)
 class Variant:
     """One arm of the ablation: a method with hyperparameter overrides and the paper line
-    it departs from (docs/decisions.md "Variants of the hierarchical method")."""
+    it departs from (docs/decisions/0118)."""
 
     label: str
     method: str

@@ -6,7 +6,7 @@ at other conditions: team sizes N', mean loss probabilities p' and loss models
 (Bernoulli, and Gilbert-Elliott bursts of mean length b with the same mean p', envs/channel.py
 ``LossProcess``), in every execution mode of the cell (argmax, sample, sample@T; planner).
 
-Pairing (docs/decisions.md, "Robustness matrices"): the evaluation seed of a condition is
+Pairing (docs/decisions/0100): the evaluation seed of a condition is
 a hash of its layout and N' alone, never of the cell, and every unit is evaluated in
 chunks of ``MATRIX_CHUNK`` episodes whatever the method's ``eval_chunk``. So episode k at
 N' has the same starts and goals for every method, training condition, training seed,

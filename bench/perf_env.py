@@ -17,7 +17,7 @@ radius 5): the step with every agent's observation, mask, reward, flags and info
 Anchors (one env, B = 1) run on the same grids in ``.anchors-venv`` (``make anchors``):
 POGEMA ``pogema_v0`` (11x11 observations, ``on_target="finish"``, collision system
 ``soft``, the closest to ours: ours is POGEMA soft without its lowest-index-wins rule for
-contested cells, docs/decisions.md), POGEMA's PettingZoo wrapper (mode ``pettingzoo``,
+contested cells, docs/decisions/0003), POGEMA's PettingZoo wrapper (mode ``pettingzoo``,
 same settings) and RWARE's ``Warehouse`` with blocked cells as shelves. ``vs_pogema`` is
 a row's agent-steps/s over POGEMA's on the same layout and N (PettingZoo rows over
 POGEMA's PettingZoo wrapper). Without the anchor venv the table holds our rows and

@@ -9,7 +9,7 @@ from envs.errors import BenchError
 
 
 class RewardWeights(BaseModel):
-    """Positive weights of eq:reward. The paper gives no values; see docs/decisions.md."""
+    """Positive weights of eq:reward. The paper gives no values; see docs/decisions/0005."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 

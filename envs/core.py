@@ -10,7 +10,7 @@ State arrays are shaped (B, N); positions are free-cell indices of the layout. O
   cells (edge conflict). Colliding movers stay where they are; this repeats until no
   conflict remains (cascades). Every robot involved in a conflict in any round has the
   collision indicator of eq:reward set (except a completed robot, whose terms are all 0,
-  docs/decisions.md). Following a robot that leaves is allowed, and so is a rotation
+  docs/decisions/0004). Following a robot that leaves is allowed, and so is a rotation
   of robots each entering the cell the next one leaves around a cycle (a 4-connected grid
   has only even cycles, so it takes four or more robots, e.g. a 2x2 block; two robots
   trading cells is an edge conflict). In POGEMA's terms this is its ``soft`` collision
@@ -164,7 +164,7 @@ class WarehouseCore:
         collision = collision.reshape(self.pos.shape)
         if not self.remove:
             # A completed robot that stays and is bumped into gets no terms
-            # (docs/decisions.md). Under "remove" it is off the floor, and in a finished
+            # (docs/decisions/0004). Under "remove" it is off the floor, and in a finished
             # episode nobody moves: & active would change nothing.
             collision = collision & active
 

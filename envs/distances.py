@@ -1,7 +1,7 @@
 """Shortest-path (BFS) distance fields D(., g) on the grid, computed once per layout.
 
 The paper's distance D in eq:reward is the grid shortest-path length, never Euclidean
-(SPEC 2). Two stores, chosen per layout by size (docs/decisions.md, "distance table"):
+(SPEC 2). Two stores, chosen per layout by size (docs/decisions/0010):
 
 * **all-pairs table** (F, F) int16, ``table[g, c] = D(c, g)``, when it fits the memory
   bound (``WAREHOUSE_BENCH_DIST_TABLE_MB``, default 512 MB; the MovingAI map's 5,699

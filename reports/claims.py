@@ -1,7 +1,7 @@
 """Each claim of the paper's Sec. IV (and two facts about its settings) checked against
 the data, one check per configuration and execution mode.
 
-Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05 in the
+Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 in the
 paper's direction), **contradicted** (significant in the opposite direction),
 **inconclusive** (neither; a contradiction counts at 0.05 / k for a claim of k checks, so
 that its false-contradiction rate is <= 0.05 too), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a

@@ -109,7 +109,7 @@ def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[fl
 def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
     """(mean, lo, hi): the Student t interval of the mean of ``x`` (n,), e.g. seed means.
 
-    Calibrated for normal seed means at any n >= 2 (coverage in docs/decisions.md);
+    Calibrated for normal seed means at any n >= 2 (coverage in docs/decisions/0035);
     one value gives (v, nan, nan), none gives NaNs. NaNs are dropped.
     """
     a = _clean(x)

@@ -7,7 +7,7 @@ schema version checked per file). Per-episode rows are joined with the configura
 cell (method, n_robots, loss_p, seed, groups, ...). Evaluation rows carry their execution
 mode (``execution``: argmax, sample, sample@T, or planner), one row per cell x episode x
 mode; a done cell missing a mode or an episode is listed in ``Store.problems``. Only cells whose status is ``done``
-feed figures, tables and claims; the others are listed as missing (docs/decisions.md).
+feed figures, tables and claims; the others are listed as missing (docs/decisions/0033).
 A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
 """
 from __future__ import annotations

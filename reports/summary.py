@@ -1,7 +1,7 @@
 """Summary of every configuration group (method x N x p x execution mode) with CIs.
 
 One row per configuration and execution mode (argmax, sample, sample@T; planner for PIBT;
-every mode ran on the same evaluation scenarios, docs/decisions.md). For each row: number of cells (all statuses) and of done seeds, evaluation episodes,
+every mode ran on the same evaluation scenarios, docs/decisions/0068). For each row: number of cells (all statuses) and of done seeds, evaluation episodes,
 and for success rate, team return, collision rate, correction rate and payload the mean
 over seeds of per-seed evaluation means with a 95% Student t CI over seeds (a bootstrap CI
 over evaluation episodes when a group has a single seed: the column ``ci_over`` says which).

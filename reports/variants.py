@@ -13,8 +13,7 @@ configuration, and the seed is the statistical unit of every interval and test. 
   whose cells agree on everything has one variant, labelled ``""``, whatever its settings.
 * The summary and the success table give each variant its own row (``variant_suffix``);
   the figures, Table I and the claims use the default variant only (``default_rows``):
-  the paper's method at the method's defaults, the others' own defaults (docs/decisions.md
-  "Variants are never pooled").
+  the paper's method at the method's defaults, the others' own defaults (docs/decisions/0048).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Claim tests: per-seed arrays in, a verdict, its numbers and the test's name out.
 
-Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05 in the
+Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 in the
 paper's direction), **contradicted** (significant in the opposite direction),
 **inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side). Two checks are not statistical: **verified by construction** (the payload ratio)

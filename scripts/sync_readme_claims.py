@@ -1,23 +1,31 @@
-"""Copy the committed reproduction's claims, success and status tables into the README (issue 13).
+"""Copy the committed reproduction's tables into docs/reproduction.md and the README.
 
     .venv/bin/python scripts/sync_readme_claims.py [reproduction/paper]
 
-Replaces the text between ``<!-- claims_table:begin -->`` and ``<!-- claims_table:end -->``
-in README.md with ``<run>/report/claims_table.md``, between ``<!-- progress:begin -->``
-and ``<!-- progress:end -->`` with ``<run>/report/progress.md``, and between
-``<!-- success:begin -->`` and ``<!-- success:end -->`` with
-``<run>/report/success_by_mode.md`` (all written by ``bench report``), so the README's
-verdicts, success rates and status are the committed report's; ``tests/reproduction``
-checks they agree.
+Replaces the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``:
+
+* in ``docs/reproduction.md``: ``claims_table`` with ``<run>/report/claims_table.md``,
+  ``progress`` with ``<run>/report/progress.md`` and ``success`` with
+  ``<run>/report/success_by_mode.md`` (all written by ``bench report``), verbatim;
+* in ``README.md``: ``headline`` with the header and the rows of ``success_by_mode.md`` at
+  the configurations of ``HEADLINE``, and ``verdicts`` with the count of each verdict per
+  claim in ``claims_table.md``.
+
+So no verdict, success rate or status on either page is typed by hand; ``tests/reproduction``
+checks that both pages agree with the committed report.
 """
 from __future__ import annotations
 
 import sys
+from collections import Counter
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md",  # README marker -> report file
+BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md",  # page marker -> report file
           "success": "success_by_mode.md"}
+PAGE = "docs/reproduction.md"  # where BLOCKS go, verbatim
+README = "README.md"
+HEADLINE = ("| 40 | 0.2 |", "| 100 | 0.2 |")  # success_by_mode.md rows (N, p) the README shows
 
 
 def markers(name: str) -> tuple[str, str]:
@@ -25,25 +33,55 @@ def markers(name: str) -> tuple[str, str]:
 
 
 def readme_block(text: str, name: str = "claims_table") -> str:
-    """The README's block ``name`` (between its markers); ValueError without them."""
+    """The page's block ``name`` (between its markers); ValueError without them."""
     begin, end = markers(name)
     if begin not in text or end not in text:
-        raise ValueError(f"README.md has no {begin} ... {end} block")
+        raise ValueError(f"no {begin} ... {end} block")
     return text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
+
+
+def headline(success: str) -> str:
+    """The success table's two header lines and its rows at the HEADLINE configurations."""
+    lines = success.splitlines()
+    return "\n".join(lines[:2] + [ln for ln in lines[2:] if ln.startswith(HEADLINE)]) + "\n"
+
+
+def verdicts(claims_table: str) -> str:
+    """One row per claim of ``claims_table.md``: how many of its checks got each verdict."""
+    counts: dict[str, Counter[str]] = {}
+    claim = ""
+    for line in claims_table.splitlines()[2:]:
+        if not line.startswith("|"):
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        claim = cells[0].strip("*") or claim
+        counts.setdefault(claim, Counter())[cells[-1].strip("*")] += 1
+    rows = ["| claim | checks | verdicts |", "|---|---|---|"]
+    for claim, c in counts.items():
+        rows.append(f"| {claim} | {sum(c.values())} | "
+                    + ", ".join(f"{v} {k}" for k, v in c.most_common()) + " |")
+    return "\n".join(rows) + "\n"
+
+
+def expected_blocks(run: Path) -> dict[str, dict[str, str]]:
+    """page (relative to the repository) -> marker name -> the text its block must hold."""
+    report = {name: (run / "report" / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
+    return {PAGE: report,
+            README: {"headline": headline(report["success"]), "verdicts": verdicts(report["claims_table"])}}
 
 
 def main() -> int:
     run = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "reproduction" / "paper"
-    readme = ROOT / "README.md"
-    text = readme.read_text(encoding="utf-8")
-    for name, file in BLOCKS.items():
-        table = (run / "report" / file).read_text(encoding="utf-8")
-        readme_block(text, name)  # the markers exist
-        begin, end = markers(name)
-        head, rest = text.split(begin, 1)
-        text = f"{head}{begin}\n{table}{end}{rest.split(end, 1)[1]}"
-        print(f"README.md: {name} from {run / 'report' / file}")
-    readme.write_text(text, encoding="utf-8")
+    for page, blocks in expected_blocks(run).items():
+        path = ROOT / page
+        text = path.read_text(encoding="utf-8")
+        for name, table in blocks.items():
+            readme_block(text, name)  # the markers exist
+            begin, end = markers(name)
+            head, rest = text.split(begin, 1)
+            text = f"{head}{begin}\n{table}{end}{rest.split(end, 1)[1]}"
+            print(f"{page}: {name} from {run / 'report'}")
+        path.write_text(text, encoding="utf-8")
     return 0
 
 

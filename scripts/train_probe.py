@@ -3,7 +3,7 @@
 Prints one JSON line every ``--every`` updates (mean training success and team return
 over that window) and a final line (optionally with an evaluation in each ``--execution``
 mode, on the same scenarios). Used for the shared-defaults measurement and the
-IC3Net N = 40 before/after numbers in docs/decisions.md ("Baselines"), e.g.
+IC3Net N = 40 before/after numbers in docs/findings/ (IC3Net at N = 40), e.g.
 
     nice -n 10 python scripts/train_probe.py --method ic3net --n 30 --horizon 200 \\
         --updates 40 --seed 0 --eval-chunks 0 --params '{"lr": 0.003}'

@@ -1,44 +1,13 @@
-"""Every command the README shows parses as written (options and choices exist)."""
+"""The README is a short introduction: the two quick-start commands, a headline result, links
+that resolve, nothing dated and no internal issue numbers (the docs pages hold the rest;
+tests/test_docs_snippets.py runs or parses every code block of both)."""
 from __future__ import annotations
 
 import re
-import shlex
 from pathlib import Path
-
-import pytest
-import typer
-
-from bench.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
-
-
-def _commands() -> list[list[str]]:
-    """`bench ...` invocations inside the README's fenced code blocks (comments dropped)."""
-    out = []
-    for block in re.findall(r"```bash\n(.*?)```", README, flags=re.S):
-        for line in block.splitlines():
-            line = line.split("#", 1)[0].strip()
-            if re.match(r"^(\.venv/bin/)?bench\b", line):
-                out.append(shlex.split(line)[1:])
-    return out
-
-
-COMMANDS = _commands()
-
-
-def test_readme__shows_the_main_commands():
-    shown = {c[0] for c in COMMANDS if c}
-    assert {"run", "report", "grids", "tune", "replay", "eval", "perf"} <= shown
-
-
-@pytest.mark.parametrize("argv", COMMANDS, ids=[" ".join(c) for c in COMMANDS])
-def test_readme__command_parses(argv):
-    group = typer.main.get_command(app)
-    assert argv[0] in group.commands, f"README uses unknown command {argv[0]!r}"
-    # Parsing (not invoking) raises on an unknown option, a missing value or a bad choice.
-    group.commands[argv[0]].make_context(argv[0], list(argv[1:]))
 
 
 def test_readme__quick_start_is_two_make_targets_that_exist():
@@ -50,3 +19,26 @@ def test_readme__quick_start_is_two_make_targets_that_exist():
     assert re.search(r"^smoke:", makefile, flags=re.M) and re.search(r"^test:", makefile, flags=re.M)
     ci = (ROOT / ".ci" / "run").read_text()
     assert "make test" in ci
+
+
+def test_readme__fits_a_newcomers_five_minutes():
+    assert len(README.splitlines()) < 200
+    for heading in ("## Quick start", "## Headline result", "## Running the paper and full grids",
+                    "## Bring your own method", "## Citing", "## Documentation"):
+        assert heading in README, heading
+    assert "reproduction/paper/report/fig1_training.png" in README
+
+
+def test_readme__nothing_dated_and_no_internal_issue_numbers():
+    assert not re.search(r"\b20\d\d-\d\d-\d\d\b", README), "a date in the README"
+    assert not re.search(r"\bissues? #?\d+", README, flags=re.I), "an internal issue number in the README"
+    commits = [h for h in re.findall(r"\b[0-9a-f]{7,40}\b", README)
+               if re.search(r"\d", h) and re.search(r"[a-f]", h)]
+    assert not commits, f"commit ids in the README: {commits}"
+
+
+def test_readme__links_to_files_that_exist():
+    targets = re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", README)
+    assert targets
+    missing = [t for t in targets if "://" not in t and not (ROOT / t).exists()]
+    assert not missing, f"README links to missing files: {missing}"

@@ -7,7 +7,7 @@ RMSprop move it an order of magnitude faster than the MLP weights. With one team
 over many robots the policy gradient is weak; this path lets a policy learn the obvious
 "make progress, avoid occupied cells" rule early. The hierarchical local policy has the
 same path (per group); the baselines use this module so all learned methods get it alike
-(docs/decisions.md).
+(docs/decisions/0136, 0137).
 """
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """Execution modes: how a method picks its controls from its policy's logits.
 
-Every learned cell is evaluated in every mode on the same scenarios (docs/decisions.md):
+Every learned cell is evaluated in every mode on the same scenarios (docs/decisions/0068):
 
 * ``argmax``: the most probable action at every level (the paper's execution, Sec. III-B
   "a deterministic reference can be selected" and eq:local_deterministic_control);
@@ -30,7 +30,7 @@ import torch
 from envs.errors import BenchError
 
 ARGMAX, SAMPLE, PLANNER, TRAIN = "argmax", "sample", "planner", "train"
-HEADLINE = ARGMAX  # the mode headline numbers quote (docs/decisions.md: the paper's execution)
+HEADLINE = ARGMAX  # the mode headline numbers quote (docs/decisions/0069: the paper's execution)
 DEFAULT_TEMPERATURES = (0.5,)
 ACTION_STREAM = 2  # after TRAIN_STREAM = 0 and EVAL_STREAM = 1 (algorithms/common/episodes.py)
 

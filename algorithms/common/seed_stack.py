@@ -1,7 +1,7 @@
 """Seed stacking: the training rollouts of S cells that differ only in their seed, as one batch.
 
 A hierarchical rollout step costs about as much for 1 episode as for 8: most of it is a fixed
-per-step cost of a few hundred small numpy and torch calls (docs/decisions.md, "Where the
+per-step cost of a few hundred small numpy and torch calls (docs/findings/, "Where the
 hierarchical rollout's time goes"). The cells of one configuration (the paper grid runs 3
 seeds of each) can share those calls: ``train_stacked`` runs one training iteration of every
 method in ``methods`` with their episodes in one batch, seed-major (seed s's B episodes are

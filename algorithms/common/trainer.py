@@ -130,7 +130,7 @@ def policy_gradient_losses(
     reference and joint control, or every robot's action); values (T, B): V(X_t);
     rewards, running (T, B). Steps after an episode ended are masked out. With
     ``normalize`` the advantage is scaled by its batch standard deviation (a constant
-    factor per batch; see docs/decisions.md).
+    factor per batch; see docs/decisions/0113).
     """
     adv, g, mask, n = team_advantage(values, rewards, running, normalize)
     actor = -(adv * logp * mask).sum() / n

@@ -10,7 +10,7 @@ Training (``update``, see ``training.py``): the centralized critic V_omega on th
 state gives the team advantage, used for both policy levels (eq:losses), Adam; the GRU
 predictors are trained with their own supervised loss and optimizer (eq:gru_pred_loss).
 
-Variants (parameters, defaults are the paper's; docs/decisions.md "Variants"): what fills
+Variants (parameters, defaults are the paper's; docs/decisions/0118): what fills
 lost links (``messages``), the fallback (``fallback``), resampling a fallen-back group at
 argmax execution (``resample_on_fallback``) and the reference layer's open choices
 (``ref_hold``, ``ref_lr``, ``ref_entropy_coef``, ``ref_embed_scale``). For probes and
@@ -62,7 +62,7 @@ from envs.observations import PatchExtractor, feature_size, robot_features
 
 
 class HierarchicalParams(LearnedParams):
-    """Hyperparameters of the hierarchical method (defaults: docs/decisions.md)."""
+    """Hyperparameters of the hierarchical method (defaults: docs/decisions/0101-0118, 0126)."""
 
     batch_episodes: int = Field(8, ge=1, description="episodes per update, batched in one process")
     ref_size: int = Field(8, ge=1, description="|R_z|, size of the abstract reference space")
@@ -75,7 +75,7 @@ class HierarchicalParams(LearnedParams):
     predictor_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the GRU predictors")
     share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
     update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
-    # Variants beyond the paper (docs/decisions.md "Variants"; defaults are the paper's).
+    # Variants beyond the paper (docs/decisions/0118; defaults are the paper's).
     messages: Literal["predicted", "oracle", "last"] = Field(
         "predicted", description="S-hat on lost links: GRU prediction (paper), ground truth "
         "(oracle upper bound) or the last received message (no predictor)")

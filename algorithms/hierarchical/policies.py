@@ -17,7 +17,7 @@ mask). These depend on X^z and G^z (and the static map) only.
 
 Both pool over sets with masks, so any group size uses the same weights. All tensors are
 group-major (Z, M, n, ...), M = batch rows; weights are per group (see ``group_layers``).
-Shelf moves are masked in pi (they are invalid and never admissible; docs/decisions.md).
+Shelf moves are masked in pi (they are invalid and never admissible; docs/decisions/0108).
 """
 from __future__ import annotations
 
@@ -92,7 +92,7 @@ class LocalPolicy(nn.Module):
     logit(i, a) = head(h_i, group encoding, reference embedding)[a] + v_z . phi(i, a),
     where phi(i, a) are action-aligned features of robot i (``action_feature_index``) and
     v_z a per-group weight vector initialized at zero and scaled by ``ACTION_GAIN`` (a
-    linear, action-aligned path the policy gradient can move quickly; docs/decisions.md).
+    linear, action-aligned path the policy gradient can move quickly; docs/decisions/0107).
     """
 
     seeds = 1  # S > 1: parameters stacked for S seeds (see ``group_layers``)

@@ -14,7 +14,7 @@ For each (episode, group) pair g of a step, with the group's robot slots padded 
   lexicographic order (changed robot slots ascending, then their controls ascending).
 * eq:safety_prediction / eq:safety_conditions: U is admissible iff every controlled robot
   (1) makes a valid move (a move into a shelf or off the grid counts as leaving P, see
-  docs/decisions.md), (4) ends outside every neighbour's reachable set, and no two robots
+  docs/decisions/0110), (4) ends outside every neighbour's reachable set, and no two robots
   of the group (2) end on the same cell or (3) swap cells.
 * First admissible wins; if none is found the group executes joint Wait (the fallback).
 

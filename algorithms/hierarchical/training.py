@@ -12,7 +12,7 @@
   predicted messages on lost links only is minimized with its own Adam optimizer.
   The encoder and the decoder run in time chunks; no activation checkpointing: the
   recomputation made the update 1.7x slower and did not lower the process's peak memory,
-  which the policy update sets (measured at N = 100, horizon 500; docs/decisions.md).
+  which the policy update sets (measured at N = 100, horizon 500; docs/decisions/0104).
 """
 from __future__ import annotations
 

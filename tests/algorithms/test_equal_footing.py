@@ -1,7 +1,7 @@
 """Equal footing between the learned methods: what one gets by default, every one gets.
 
-The action-aligned logit path (``ActionPath``; docs/decisions.md "Decentralized action
-path", "IC3Net action path") lets a policy learn "make progress, avoid the robot on the
+The action-aligned logit path (``ActionPath``; docs/decisions/0136,
+0137) lets a policy learn "make progress, avoid the robot on the
 target cell" early; on the validation configurations a method without it did not learn
 (IC3Net: 2% training success without, 21-79% with). A method that silently lost it would
 be compared on a missing inductive bias, not on coordination."""

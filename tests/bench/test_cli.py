@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+import tomllib
 
 from algorithms.common.episodes import EVAL_METRICS
 from bench import costs
@@ -27,6 +28,7 @@ from tests.bench.conftest import (
 )
 
 BENCH = str(Path(sys.executable).with_name("bench"))
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def printed_scenarios(episodes: pd.DataFrame) -> list[str]:
@@ -145,7 +147,8 @@ def test_console_script__unknown_grid_exits_2_and_version_names_the_commit() -> 
     proc = subprocess.run([BENCH, "run", "--grid", "nope"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2 and proc.stderr.startswith("bench: error: ") and proc.stderr.count("\n") == 1
     ver = subprocess.run([BENCH, "--version"], capture_output=True, text=True, timeout=60)
-    assert ver.returncode == 0 and ver.stdout.startswith("warehouse-marl-bench 0.1.0 (git ")
+    version = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"]
+    assert ver.returncode == 0 and ver.stdout.startswith(f"warehouse-marl-bench {version} (git ")
 
 
 @pytest.mark.parametrize("method", ["toy", "decentralized"])

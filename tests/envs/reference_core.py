@@ -1,6 +1,6 @@
 """A slow, per-robot reference of the warehouse step, written to be read, not to be fast.
 
-It restates the semantics of ``envs/core.py`` (SPEC 2, eq:reward, docs/decisions.md) with
+It restates the semantics of ``envs/core.py`` (SPEC 2, eq:reward, docs/decisions/0002, 0004) with
 plain Python lists of ``(row, col)`` tuples, its own BFS and an explicit loop over
 conflict rounds, so that ``test_core_reference.py`` can check the vectorized core against
 it robot by robot. Nothing here is imported by the package.
@@ -141,7 +141,7 @@ class ReferenceCore:
         floor_cells = [new_pos[i] for i in on_floor]
         assert len(set(floor_cells)) == len(floor_cells), "two robots share a cell"
 
-        # eq:reward. A completed robot's terms are all zero (docs/decisions.md).
+        # eq:reward. A completed robot's terms are all zero (docs/decisions/0004).
         collision = [involved[i] and active[i] for i in robots]
         reached = [active[i] and new_pos[i] == ep.goal[i] for i in robots]
         done = [ep.done[i] or reached[i] for i in robots]

@@ -63,7 +63,7 @@ def test_entering_the_cell_of_a_robot_that_stays_is_blocked() -> None:
     core = make_core(OPEN_3X4, [(0, 0), (0, 1)], FAR[:2])
     out = step(core, R, W)
     assert positions(core) == [(0, 0), (0, 1)]
-    # Both are involved in the conflict (docs/decisions.md: "who is in collision").
+    # Both are involved in the conflict (docs/decisions/0002).
     assert out.collision[0].tolist() == [True, True]
 
 

@@ -87,7 +87,7 @@ def test_presets_have_room_for_their_robots(name: str) -> None:
     n = int(name[2:])
     assert layout.n_free == PRESET_FREE_CELLS[name]
     assert len(main_region(layout)) == layout.n_free  # no sealed-off pockets
-    assert layout.n_free >= 5 * n  # about 6 free cells per robot (docs/decisions.md)
+    assert layout.n_free >= 5 * n  # about 6 free cells per robot (docs/decisions/0008)
     starts, goals = sample_scenarios(layout, n, 2, np.random.default_rng(1))
     assert starts.shape == goals.shape == (2, n)
 

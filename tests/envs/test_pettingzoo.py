@@ -196,7 +196,7 @@ def test_warehouse_v0__horizon_truncates_every_remaining_agent():
 @pytest.mark.parametrize(("on_goal", "robot_0_terminated"), [("remove", True), ("stay", False)])
 def test_warehouse_v0__a_robot_arriving_at_the_horizon(on_goal: str, robot_0_terminated: bool):
     # "remove": the arriving robot is terminated, the other truncated; "stay": nobody is
-    # terminated alone, so both are truncated (docs/decisions.md, PettingZoo adapter).
+    # terminated alone, so both are truncated (docs/decisions/0016).
     env = parallel_env(layout="tiny", n_robots=2, groups=1, horizon=1, on_goal=on_goal)
     env.reset(seed=0, options={"starts": [(1, 1), (7, 9)], "goals": [(1, 2), (1, 5)]})
     _, _, term, trunc, infos = env.step({"robot_0": 3, "robot_1": 4})

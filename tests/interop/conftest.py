@@ -1,4 +1,4 @@
-"""Interop tests run the README's recipes; the libraries are in the dev extra."""
+"""Interop tests run the recipes of docs/interop.md; the libraries are in the dev extra."""
 from __future__ import annotations
 
 import torch

@@ -1,5 +1,5 @@
 """Stable-Baselines3 PPO on warehouse_v0 through SuperSuit (PettingZoo's SB3 tutorial recipe;
-README, "The environment from other code"; tests/interop/test_sb3.py runs exactly this file)."""
+docs/interop.md; tests/interop/test_sb3.py runs exactly this file)."""
 import numpy as np
 import supersuit as ss
 from stable_baselines3 import PPO

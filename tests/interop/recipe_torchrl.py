@@ -1,5 +1,5 @@
-"""TorchRL: MAPPO on warehouse_v0 through PettingZooWrapper (README, "The environment from
-other code"; tests/interop/test_torchrl.py runs exactly this file)."""
+"""TorchRL: MAPPO on warehouse_v0 through PettingZooWrapper (docs/interop.md;
+tests/interop/test_torchrl.py runs exactly this file)."""
 import torch
 from tensordict.nn import TensorDictModule
 from torchrl.collectors import Collector

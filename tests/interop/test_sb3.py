@@ -1,4 +1,4 @@
-"""SuperSuit + Stable-Baselines3 on warehouse_v0, and the README's PPO recipe
+"""SuperSuit + Stable-Baselines3 on warehouse_v0, and the PPO recipe of docs/interop.md
 (tests/interop/recipe_sb3.py) learning on the tiny layout."""
 from __future__ import annotations
 

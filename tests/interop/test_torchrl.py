@@ -1,5 +1,5 @@
-"""TorchRL's PettingZooWrapper on warehouse_v0, out of the box, and the README's MAPPO recipe
-(tests/interop/recipe_torchrl.py) learning on the tiny layout."""
+"""TorchRL's PettingZooWrapper on warehouse_v0, out of the box, and the MAPPO recipe of
+docs/interop.md (tests/interop/recipe_torchrl.py) learning on the tiny layout."""
 from __future__ import annotations
 
 import pytest
@@ -47,7 +47,7 @@ def test_torchrl__done_on_any_default_ends_at_the_first_arrival():
 @pytest.mark.parametrize("seed", [0])
 def test_torchrl__mappo_recipe_learns_on_tiny(seed):
     # Budget 3,000 env steps (12,000 agent-steps), about a minute on one loaded core.
-    # Measured (fraction of robots arriving, 20 sampled episodes): see docs/decisions.md.
+    # Measured (fraction of robots arriving, 20 sampled episodes): see docs/decisions/0019.
     torch.manual_seed(seed)
     env = make_env(seed, **TINY)
     actor, critic = make_agents(env)

@@ -11,6 +11,6 @@ from reports.calibrate import FAMILIES, calibrate
 @pytest.mark.slow
 def test_calibrate__whole_claims_are_falsely_contradicted_at_most_at_five_percent():
     # Without the Bonferroni level the 15-check family was contradicted 22-54% of the
-    # time at its boundary (docs/decisions.md, "False contradictions are controlled too").
+    # time at its boundary (docs/decisions/0041).
     cal = calibrate(sims=100, seed=7, seed_counts=(3,), scenarios=FAMILIES)
     assert cal["contra_ok"].all() and cal["null_ok"].all(), cal
