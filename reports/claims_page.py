@@ -12,14 +12,17 @@ import pandas as pd
 from reports.claims import Claim
 from reports.verdicts import NOT_ENOUGH, VERDICTS
 
-CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test"]
+CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test",
+                 "power", "power_note"]
 
 
 def claims_frame(claims: Sequence[Claim]) -> pd.DataFrame:
     """One row per check: claim key, readable name, scope ("paper" or "run"),
-    configuration, execution mode, verdict, numbers and test."""
+    configuration, execution mode, verdict, numbers, test, power (NaN for checks without
+    one) and its note (the stated effect, the seeds 80% power would need)."""
     rows = [{"claim": c.key, "name": c.name, "scope": k.scope, "configuration": k.config,
-             "execution": k.execution, "verdict": k.verdict, "numbers": k.numbers, "test": k.test}
+             "execution": k.execution, "verdict": k.verdict, "numbers": k.numbers, "test": k.test,
+             "power": k.power, "power_note": k.power_text}
             for c in claims for k in c.checks]
     return pd.DataFrame(rows, columns=CHECK_COLUMNS)
 
@@ -80,7 +83,9 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
              "side is **not enough seeds**, whatever the data. A claim is supported when every "
              "check is (each at 0.05), and contradicted when one check is at 0.05 / k, k being the "
              "claim's number of checks (Bonferroni), so neither verdict is wrong more than 5% of "
-             "the time.", ""]
+             "the time. Beside each check: its power, at its own seed counts and observed spread, to detect "
+             "a stated effect, and the seeds per side that 80% power would need; an inconclusive check "
+             "with power under 50% reads *inconclusive: this design could not have decided it*.", ""]
     if calibration_link:
         lines += [f"How often each test says *supported* when the claim is false, its power, and how "
                   f"often it says *contradicted* when the claim holds: [calibration]({calibration_link}).", ""]
@@ -93,10 +98,10 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
     for c in claims:
         lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*Paper:* {c.statement}", "",
                   f"*Test:* {c.criterion}", "", f"**Verdict: {c.verdict}**", "",
-                  "| scope | configuration | execution | verdict | numbers | test |",
-                  "|---|---|---|---|---|---|"]
-        lines += [f"| {k.scope} | {_esc(k.config)} | {_esc(k.execution)} | {k.verdict} | "
-                  f"{_esc(k.numbers)} | {_esc(k.test)} |" for k in c.checks]
+                  "| scope | configuration | execution | verdict | numbers | test | power |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {k.scope} | {_esc(k.config)} | {_esc(k.execution)} | {k.verdict_words} | "
+                  f"{_esc(k.numbers)} | {_esc(k.test)} | {_esc(k.power_text)} |" for k in c.checks]
     return "\n".join(lines) + "\n"
 
 
@@ -106,8 +111,8 @@ def claims_table_markdown(claims: Sequence[Claim]) -> str:
     paper's configurations (claim, the paper's statement, configuration, mode, our numbers
     with their 95% CI, verdict), the claim's name and statement on its first row only;
     configurations without enough seeds are counted under the table instead of listed."""
-    lines = ["| claim | paper | configuration | execution | our numbers (95% CI) | verdict |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| claim | paper | configuration | execution | our numbers (95% CI) | verdict | power |",
+             "|---|---|---|---|---|---|---|"]
     missing: dict[str, int] = {}
     for c in claims:
         first = True
@@ -119,7 +124,7 @@ def claims_table_markdown(claims: Sequence[Claim]) -> str:
                 continue
             who = f"**{_esc(c.name)}** | {_esc(c.statement)}" if first else " | "  # once per claim
             lines.append(f"| {who} | {_esc(k.config)} | {_esc(k.execution)} | {_esc(k.numbers)} | "
-                         f"**{k.verdict}** |")
+                         f"**{k.verdict_words}** | {_esc(k.power_text)} |")
             first = False
     if missing:
         lines += ["", "Not enough seeds yet (checks per claim): "

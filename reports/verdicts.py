@@ -4,7 +4,7 @@ Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05
 paper's direction), **contradicted** (significant in the opposite direction),
 **inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side). Two checks are not statistical: **verified by construction** (the payload ratio)
-and Lemma 1's arithmetic. Each kernel takes one number (or one array of episodes) per
+and Lemma 1's arithmetic (**condition not met** when its premise fails). Each kernel takes one number (or one array of episodes) per
 seed and decides with a Welch / one-sample t test from ``reports.stats``; ``bench
 calibrate`` measures how often each says *supported* when the claim is false, and how
 often *contradicted* when it holds.
@@ -40,7 +40,8 @@ from reports.stats import (
 SUPPORTED, INCONCLUSIVE, CONTRADICTED = "supported", "inconclusive", "contradicted"
 NOT_ENOUGH = "not enough seeds"
 BY_CONSTRUCTION = "verified by construction"
-VERDICTS = (SUPPORTED, INCONCLUSIVE, CONTRADICTED, NOT_ENOUGH, BY_CONSTRUCTION)
+CONDITION_NOT_MET = "condition not met"  # a lemma's premise fails on the settings (no data tested)
+VERDICTS = (SUPPORTED, INCONCLUSIVE, CONTRADICTED, NOT_ENOUGH, BY_CONSTRUCTION, CONDITION_NOT_MET)
 MIN_SEEDS = 3
 FINAL_FRAC = 0.2
 CONV_REL_TOL = 0.2
@@ -51,13 +52,16 @@ N_CONTROLS = 5  # |U| = {Up, Down, Left, Right, Wait}
 
 
 def combine(verdicts: Sequence[str]) -> str:
-    """Contradicted dominates; all supported (or by construction) supports; then
-    inconclusive; else not enough seeds. All "by construction" stays so."""
+    """Contradicted dominates, then "condition not met"; all supported (or by
+    construction) supports; then inconclusive; else not enough seeds. All "by
+    construction" stays so."""
     vs = list(verdicts)
     if not vs:
         return NOT_ENOUGH
     if CONTRADICTED in vs:
         return CONTRADICTED
+    if CONDITION_NOT_MET in vs:
+        return CONDITION_NOT_MET
     if all(v == BY_CONSTRUCTION for v in vs):
         return BY_CONSTRUCTION
     if all(v in (SUPPORTED, BY_CONSTRUCTION) for v in vs):

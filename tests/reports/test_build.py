@@ -64,7 +64,7 @@ def test_build_report__index_links_everything_with_the_manifest(paper_run):
     assert "deadbeef" in md and "deadbeef" in html  # git sha of the manifest
     assert "bench run --grid synthetic" in html
     assert "Every cell of the store is done." in md
-    assert md.count("**not enough seeds**") == 6  # 2 seeds per configuration
+    assert md.count("**not enough seeds**") == 10  # 2 seeds per configuration: every statistical claim
     assert "**supported**" not in md
 
 

@@ -36,6 +36,7 @@ from reports.stats import TTest, curve_shape, quantile_curve, simultaneous_band,
 from reports.verdicts import (
     BAND_PCT,
     BY_CONSTRUCTION,
+    CONDITION_NOT_MET,
     CONTRADICTED,
     INCONCLUSIVE,
     NOT_ENOUGH,
@@ -53,8 +54,9 @@ from reports.verdicts import (
 from tests.reports.synthetic import frames, joined, smoke_specs
 
 KEYS = ["hier_above_dec", "gap_widens", "convergence", "above_ic3net", "no_collisions",
-        "few_corrections", "payload_ratio", "lemma1_budget"]
-STATISTICAL = KEYS[:6]
+        "collisions_printed", "few_corrections", "table1_candidates", "searches_grow", "normal_search",
+        "payload_ratio", "lemma1_budget"]
+STATISTICAL = KEYS[:10]
 
 
 def _tables(seeds: int, hold: bool, seed: int = 0, **kw) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -88,17 +90,18 @@ def test_decide__direction_of_significance():
 def test_claims__supported_on_tables_built_to_hold_with_three_seeds(holding):
     claims = all_claims(*holding)
     assert [c.key for c in claims] == KEYS
-    for c in claims[:6]:
+    for c in claims[:10]:
         assert c.verdict == SUPPORTED, (c.key, [k.numbers for k in c.checks])
-    assert claims[6].verdict == BY_CONSTRUCTION
-    assert claims[7].verdict == CONTRADICTED  # Lemma 1 fails from N = 40 at the paper's settings
+    assert claims[10].verdict == BY_CONSTRUCTION
+    assert claims[11].verdict == CONDITION_NOT_MET  # Lemma 1's premise fails from N = 40 at the paper's settings
 
 
 def test_claims__contradicted_on_tables_built_to_fail():
     for c in all_claims(*_tables(3, False, seed=1)):
         # the failing tables give the decentralized method the same level at every N:
         # equal gaps, so "the gap widens" is neither shown nor refuted
-        want = INCONCLUSIVE if c.key == "gap_widens" else CONTRADICTED
+        want = (INCONCLUSIVE if c.key == "gap_widens" else CONDITION_NOT_MET if c.key == "lemma1_budget"
+                else CONTRADICTED)
         assert c.verdict == want, (c.key, [k.numbers for k in c.checks])
 
 
@@ -259,7 +262,7 @@ def test_lemma1__bound_per_n_at_the_papers_settings():
     c = claim_lemma1()
     got = [(k.config, k.verdict) for k in c.checks]
     assert got[0] == ("N = 20, Z = 4, L = 2, C_max = 500", BY_CONSTRUCTION)
-    assert all(v == CONTRADICTED for _, v in got[1:])
+    assert all(v == CONDITION_NOT_MET for _, v in got[1:])
     assert "n_z = 10: bound 761 > C_max = 500" in c.checks[1].numbers
     assert "n_z = 23: bound 4,141" in c.checks[4].numbers  # N = 90: groups of 23 and 22
     assert "bound 4,901" in c.checks[5].numbers
@@ -271,7 +274,7 @@ def test_lemma1__a_budget_equal_to_the_bound_is_enough_and_the_row_says_so():
     assert (at.config, at.execution, at.verdict, at.numbers, at.test) == (
         "N = 20, Z = 4, L = 2, C_max = 181", "-", BY_CONSTRUCTION, "n_z = 5: bound 181 <= C_max = 181",
         "arithmetic (no data)")
-    assert (below.verdict, below.numbers) == (CONTRADICTED, "n_z = 5: bound 181 > C_max = 180")
+    assert (below.verdict, below.numbers) == (CONDITION_NOT_MET, "n_z = 5: bound 181 > C_max = 180")
 
 
 def _payload_rows(c_hier: float, n: int = 40, z: int = 4) -> pd.DataFrame:
@@ -293,8 +296,9 @@ def test_payload_ratio__one_episode_above_the_bound_contradicts_and_the_numbers_
     and ratios; N = 1 or no rows have no ratio."""
     ok = _payload_rows(40 * 3 * 3.0)
     c = claim_payload_ratio(ok).checks[0]
-    assert (c.config, c.verdict, c.test) == ("N = 40, Z = 4", BY_CONSTRUCTION, "exact count over 5 episodes")
-    assert c.numbers == ("C_hier = 360, C_dec = 4.68e+03 (reference); ratio 0.0769 vs bound 0.0769 "
+    assert (c.config, c.verdict, c.test) == ("N = 40, Z = 4", BY_CONSTRUCTION,
+                                             "the formula's count over 5 episodes (not measured from messages)")
+    assert c.numbers == ("formula count C_hier = 360, C_dec = 4.68e+03 (reference); ratio 0.0769 vs bound 0.0769 "
                          "(relative difference 0.00%); largest episode ratio 0.0769")
     spike = ok.copy()
     spike.loc[0, "payload_scalars_per_step"] *= 1.04  # one episode 4% above, the mean 0.8%
@@ -392,17 +396,17 @@ def test_claims_page__frame_summary_and_markdown(holding):
     claims = all_claims(*holding)
     f = claims_frame(claims)
     assert list(f.columns) == ["claim", "name", "scope", "configuration", "execution", "verdict",
-                               "numbers", "test"]
+                               "numbers", "test", "power", "power_note"]
     assert set(f["claim"]) == set(KEYS) and set(f["scope"]) == {"paper"}
     assert f.loc[f["claim"] == "hier_above_dec", "execution"].unique().tolist() == ["training (sampled)"]
     s = claims_summary(claims)
-    assert s["verdict"].tolist()[:6] == [SUPPORTED] * 6 and (s["verdict_run"] == "").all()
+    assert s["verdict"].tolist()[:10] == [SUPPORTED] * 10 and (s["verdict_run"] == "").all()
     assert s["by_mode"].tolist()[0] == "training (sampled): supported"
     assert s["by_mode"].tolist()[3] == "argmax: supported"
     md = claims_markdown(claims, "calibration.md")
     for key in KEYS:
         assert f"## {key}" in md
-    assert md.count("**Verdict: supported**") == 6
+    assert md.count("**Verdict: supported**") == 10
     assert "[calibration](calibration.md)" in md
     assert "bound 761 > C_max = 500" in md
 
@@ -439,10 +443,10 @@ def test_claims_table__lists_checked_configurations_and_counts_the_rest():
     other = Claim("j", "Other", "More.", "crit", [Check("N = 90", NOT_ENOUGH, "0 seeds", "-", "argmax")])
     lines = claims_table_markdown([c, other]).splitlines()
     assert lines[:4] == [
-        "| claim | paper | configuration | execution | our numbers (95% CI) | verdict |",
-        "|---|---|---|---|---|---|",
-        "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |",
-        "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"]
+        "| claim | paper | configuration | execution | our numbers (95% CI) | verdict | power |",
+        "|---|---|---|---|---|---|---|",
+        "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** | - |",
+        "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** | - |"]
     assert lines[4:] == ["", "Not enough seeds yet (checks per claim): `k` 2, `j` 1."]
 
 
