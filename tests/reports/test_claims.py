@@ -673,3 +673,84 @@ def test_check_convergence__its_three_ways_to_contradict_share_the_level():
     assert check_convergence(curves)[0] == INCONCLUSIVE
     far = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-30.2, -30.0, -29.8)]
     assert check_convergence(far)[0] == CONTRADICTED
+
+
+# ------------------------------------------- pins of the contradiction levels (mutmut)
+def test_check_gap__contradicts_only_at_its_contradiction_level():
+    three = np.array([0.0, 1.0, 2.0])
+    gs = [three, three + 2.04 * np.sqrt(2), three, three]  # the contrast -2.89, se sqrt(2) x that of one pair
+    t = t_test(gs, [1.0, -1.0, -1.0, 1.0])
+    assert 0.05 / 3 < t.p_less < 0.05
+    assert check_gap(gs, 60, 20)[0] == CONTRADICTED
+    v, _, test = check_gap(gs, 60, 20, contra_alpha=0.05 / 3)
+    assert v == INCONCLUSIVE and "0.017 (Bonferroni)" in test
+
+
+def _two_level(low: float, high: float) -> np.ndarray:
+    """20 episodes, half at ``low``, half at ``high``: quantiles 10, 30 -> low; 70, 90 -> high."""
+    return np.repeat([low, high], 10)
+
+
+def _crossing(x: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Hierarchical ``x`` below IC3Net on its worse half and ``x`` above on its better half:
+    equal per-seed means (the mean test has p = 0.5), the band decided at percentiles 10, 30."""
+    d = (-0.02, 0.0, 0.02)
+    return ([_two_level(0.3 - x + s, 0.7 + x + s) for s in d], [_two_level(0.3 + s, 0.7 + s) for s in d])
+
+
+def _band_top(alpha: float) -> float:
+    """The upper simultaneous bound at the 10th percentile of ``_crossing(0)`` at ``alpha``."""
+    h, i = _crossing(0.0)
+    qh = np.stack([quantile_curve(v, BAND_PCT) for v in h])
+    qi = np.stack([quantile_curve(v, BAND_PCT) for v in i])
+    return float(simultaneous_band(qh, qi, alpha=alpha)[2][0])
+
+
+def test_check_curves__the_contradicting_band_is_at_half_the_checks_level():
+    # x = tolerance + the band's half-width at level a: contradicted iff the band's level >= a
+    between_2_and_3 = 0.05 + (_band_top(0.05 / 2) + _band_top(0.05 / 3)) / 2
+    assert check_curves(*_crossing(between_2_and_3))[0] == CONTRADICTED  # at / 2, not at / 3
+    between_1_and_2 = 0.05 + (_band_top(0.05) + _band_top(0.05 / 2)) / 2
+    assert check_curves(*_crossing(between_1_and_2))[0] == INCONCLUSIVE  # not at / 1 (or * 2)
+    h, i = _crossing(between_2_and_3)
+    assert check_curves(h, i, contra_alpha=0.05 / 2)[0] == INCONCLUSIVE  # the level is the check's
+
+
+def test_check_curves__the_contradicting_mean_is_at_half_the_checks_level():
+    base = np.array([0.30, 0.40, 0.50])
+    for s in np.linspace(0.2, 0.4, 401):  # mean lower with one-sided p in (0.05 / 3, 0.05 / 2)
+        p_less = t_test([base, base + s], [1.0, -1.0]).p_less
+        if 0.05 / 3 < p_less < 0.05 / 2:
+            break
+    assert 0.05 / 3 < p_less < 0.05 / 2
+    h = [np.full(20, v) for v in base]
+    assert check_curves(h, [x + s for x in h])[0] == CONTRADICTED
+
+
+def test_check_convergence__contradicts_at_a_third_of_the_checks_level():
+    for c in np.linspace(1.0, 4.0, 601):  # gains -c + (-1, 0, 1): one-sided p in (0.05 / 4, 0.05 / 3)
+        p_less = t_test([np.array([-c - 1, -c, -c + 1])], [1.0]).p_less
+        if 0.05 / 4 < p_less < 0.05 / 3:
+            break
+    assert 0.05 / 4 < p_less < 0.05 / 3
+    curves = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-c - 1, -c, -c + 1)]
+    assert check_convergence(curves)[0] == CONTRADICTED
+
+
+def _drifting(drift_frac: float) -> list[np.ndarray]:
+    """Gains 4.9, 5, 5.1; the last window rises by ``drift_frac`` x gain across it."""
+    out = []
+    for g in (4.9, 5.0, 5.1):
+        last = g + drift_frac * g * (np.arange(10) - 4.5) / 10
+        out.append(np.concatenate([np.zeros(10), np.linspace(0, g, 30), last]))
+    return out
+
+
+def test_check_convergence__uses_its_tolerance_and_the_modules_final_fraction(monkeypatch):
+    curves = _drifting(0.3)
+    assert check_convergence(curves)[0] == CONTRADICTED  # rising 0.3 gain > 0.2 gain
+    v, nums, test = check_convergence(curves, rel_tol=0.5)
+    assert v == SUPPORTED and "vs tolerance +-2.5" in nums and "|drift| < 0.5 gain" in test
+    import reports.verdicts as verdicts
+    monkeypatch.setattr(verdicts, "FINAL_FRAC", 0.4)
+    assert "(windows of 20 episodes)" in verdicts.check_convergence(curves)[2]
