@@ -15,8 +15,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from reports.power import Power, power_of, weakest
-from reports.stats import ALPHA, curve_shape, quantile_curve
-from reports.verdicts import BAND_PCT, BAND_TOL, per_seed_means
+from reports.stats import curve_shape, quantile_curve
+from reports.verdicts import BAND_PCT, BAND_TOL, TEST_ALPHA, per_seed_means
 from reports.verdicts_bounds import NEAR_TOL, trend_weights
 
 EFFECT_SUCCESS = 0.10
@@ -46,14 +46,14 @@ def power_gap(groups: Sequence[np.ndarray]) -> Power:
 
 def power_curves(h: list[np.ndarray], i: list[np.ndarray]) -> Power:
     """``check_curves``: hierarchical +0.1 success at every percentile; the mean test and
-    each percentile's band bound (margin 0.1 + ``BAND_TOL`` at ALPHA / G) must all pass."""
+    each percentile's band bound (margin 0.1 + ``BAND_TOL`` at TEST_ALPHA / G) must all pass."""
     words = f"+{EFFECT_SUCCESS:g} success at every percentile"
     parts = [power_of([per_seed_means(h), per_seed_means(i)], [1.0, -1.0], EFFECT_SUCCESS, words)]
     qh = np.stack([quantile_curve(x, BAND_PCT) for x in h])
     qi = np.stack([quantile_curve(x, BAND_PCT) for x in i])
     for g in range(BAND_PCT.size):
         parts.append(power_of([qh[:, g], qi[:, g]], [1.0, -1.0], EFFECT_SUCCESS + BAND_TOL, words,
-                              alpha=ALPHA / BAND_PCT.size))
+                              alpha=TEST_ALPHA / BAND_PCT.size))
     return weakest(words, *parts)
 
 

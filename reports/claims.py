@@ -1,9 +1,9 @@
 """Each claim of the paper's Sec. IV (and two facts about its settings) checked against
 the data, one check per configuration and execution mode.
 
-Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.05 in the
+Verdicts (docs/decisions.md "Reports"): **supported** (significant at level 0.0125 in the
 paper's direction), **contradicted** (significant in the opposite direction),
-**inconclusive** (neither; a contradiction counts at 0.05 / k for a claim of k checks, so
+**inconclusive** (neither; a contradiction counts at 0.0125 / k for a claim of k checks, so
 that its false-contradiction rate is <= 0.05 too), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side, or the configuration is missing). Two checks are not statistical: the payload
 ratio is **verified by construction** (the bench counts the scalars with the paper's
@@ -16,8 +16,8 @@ and is a Welch / one-sample t test (``reports.stats``). Its rate of
 ``supported`` under the null and its power are measured by ``bench calibrate``
 (``reports.calibrate``), which feeds simulated tables through these same functions.
 A claim's verdict combines its checks: any contradicted -> contradicted (each check
-decided at 0.05 / k, Bonferroni over the claim's k checks); all supported -> supported
-(each at 0.05, an intersection-union test); else inconclusive if any check is, else not
+decided at 0.0125 / k, Bonferroni over the claim's k checks); all supported -> supported
+(each at 0.0125, an intersection-union test); else inconclusive if any check is, else not
 enough seeds.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ from reports.power import COULD_NOT, LOW, NO_POWER
 from reports.store import fmt_p, select
 from reports.table1_safety import PAPER_TABLE1
 from reports.verdicts import (
-    ALPHA,
+    TEST_ALPHA,
     BAND_TOL,
     BY_CONSTRUCTION,
     CONDITION_NOT_MET,
@@ -194,12 +194,12 @@ def _each(claim: Claim, paper: Configs, run: Configs,
     that has seeds); run configurations that are paper ones are not repeated.
 
     A scope's k checks decide one claim, and one contradicted check contradicts it, so
-    each check may contradict only at ALPHA / k (Bonferroni; ``reports.verdicts``): a
-    first pass counts the checks, the second decides at that level."""
+    each check may contradict only at TEST_ALPHA / k (Bonferroni; ``reports.verdicts``):
+    a first pass counts the checks, the second decides at that level."""
     for scope, configs in (("paper", paper), ("run", [c for c in run if c not in paper])):
-        first = [fn(c, ALPHA) for c in configs]
+        first = [fn(c, TEST_ALPHA) for c in configs]
         k = sum(len(rows) for rows in first)
-        decided = first if k <= 1 else [fn(c, ALPHA / k) for c in configs]  # one check: already at ALPHA
+        decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
         for rows in decided:
             for label, ex, v, nums, test, *power in rows:
                 pw = power[0] if power and v != NOT_ENOUGH else NO_POWER
@@ -220,7 +220,7 @@ def claim_hier_above_dec(train: pd.DataFrame, configs: Configs = PAPER["fig1a"],
         "Fig. 1(a): for 20, 40, 60 robots at p = 0.2 the hierarchical method reaches a higher final "
         "episode reward than the fully decentralized baseline.",
         f"Per seed, the mean team return over the last {FINAL_FRAC:.0%} of training; Welch t over "
-        "seeds, one-sided, level 0.05.")
+        "seeds, one-sided, level 0.0125.")
 
     def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
@@ -236,7 +236,7 @@ def claim_gap_widens(train: pd.DataFrame, configs: Configs = PAPER["gap"], run: 
         "Fig. 1(a): at 60 robots the decentralized baseline stays considerably lower: the gap "
         "(hierarchical - decentralized final reward) is larger than at 20 and 40.",
         "Gap(N) = mean final reward hierarchical - decentralized; Welch t on the contrast "
-        "Gap(large) - Gap(small) of four groups of per-seed means, one-sided, level 0.05.")
+        "Gap(large) - Gap(small) of four groups of per-seed means, one-sided, level 0.0125.")
 
     def one(c: tuple, contra_alpha: float) -> list:
         large, small, p = c
@@ -254,7 +254,7 @@ def claim_convergence(train: pd.DataFrame, configs: Configs = PAPER["fig1b"], ru
         "increases and stabilises (converges at around 1600 of 2000 episodes).",
         f"Per seed: gain = mean(last {FINAL_FRAC:.0%}) - mean(first {FINAL_FRAC:.0%}) of training, "
         "drift = OLS slope over the last window x its length. Supported when, over seeds, the gain "
-        f"is > 0 and |drift| < {CONV_REL_TOL:g} x gain (equivalence), each by a one-sample t at 0.05; "
+        f"is > 0 and |drift| < {CONV_REL_TOL:g} x gain (equivalence), each by a one-sample t at 0.0125; "
         "contradicted when the gain is < 0 or the drift is beyond the tolerance (still rising or "
         "collapsing) significantly.")
 
@@ -320,7 +320,7 @@ def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"
         f"Table I: for 40..100 robots at p = 0.2 the filter modifies fewer than {MAX_CORRECTION:.0%} "
         "of the proposed robot controls.",
         f"One-sample t over per-seed mean correction rates against {MAX_CORRECTION:.0%}, one-sided, "
-        "level 0.05, per execution mode.")
+        "level 0.0125, per execution mode.")
     ev = with_execution(evals)
 
     def one(c: tuple, contra_alpha: float) -> list:

@@ -30,7 +30,7 @@ def claim_collisions_printed(evals: pd.DataFrame, configs: C.Configs = C.PAPER["
         "Table I prints a collision rate of 0.00% for 40..100 robots at p = 0.2: a rate below "
         f"{100 * PRINT_BOUND:g}% of robot-steps (the literal zero is `no_collisions`).",
         f"One-sample t over per-seed mean collision rates against {100 * PRINT_BOUND:g}%, one-sided, "
-        "level 0.05, per execution mode.")
+        "level 0.0125, per execution mode.")
 
     def check(rows: pd.DataFrame, contra_alpha: float) -> tuple:
         m = C.seed_means(rows, "collision_rate")
@@ -45,7 +45,7 @@ def claim_mean_candidates(evals: pd.DataFrame, configs: C.Configs = C.PAPER["tab
         "table1_candidates", "Mean candidates as in Table I",
         "Table I: mean candidates examined per group-step 3.79, 16.44, 24.15, 35.63, 24.68 for "
         "40, 60, 80, 90, 100 robots at p = 0.2.",
-        f"Equivalence (two one-sided t over per-seed means, level 0.05) to the paper's value "
+        f"Equivalence (two one-sided t over per-seed means, level 0.0125) to the paper's value "
         f"within +-{NEAR_TOL:.0%} of it, per execution mode; team sizes the paper does not print "
         "are not judged.")
     ev = C.with_execution(evals)
@@ -69,7 +69,7 @@ def claim_searches_grow(evals: pd.DataFrame, configs: C.Configs = C.PAPER["table
         "Sec. IV: \"the mean number of searches generally increases for larger teams\" (Table I, "
         "40..100 robots at p = 0.2).",
         "Welch t on the OLS slope of the per-seed mean candidates on N over the team sizes, "
-        "one-sided, level 0.05, per execution mode.")
+        "one-sided, level 0.0125, per execution mode.")
     ev = C.with_execution(evals)
     ns = [int(n) for n, _ in configs]
     p = float(configs[0][1]) if configs else 0.2
@@ -96,7 +96,7 @@ def claim_normal_search(evals: pd.DataFrame, configs: C.Configs = C.PAPER["table
         "Sec. IV: \"an admissible control can be identified within the normal safety search\" "
         "(Table I, 40..100 robots at p = 0.2): the filter seldom falls back to the joint Wait.",
         f"One-sample t over per-seed mean fallback rates (group-steps that fell back) against "
-        f"{FALLBACK_BOUND:.0%}, one-sided, level 0.05, per execution mode.")
+        f"{FALLBACK_BOUND:.0%}, one-sided, level 0.0125, per execution mode.")
 
     def check(rows: pd.DataFrame, contra_alpha: float) -> tuple:
         m = C.seed_means(rows, "fallback_rate")

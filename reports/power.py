@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as sps
 
-from reports.stats import ALPHA, welch_parts
-from reports.verdicts import MIN_SEEDS
+from reports.stats import welch_parts
+from reports.verdicts import MIN_SEEDS, TEST_ALPHA
 
 TARGET = 0.8  # the power whose seed count is reported
 LOW = 0.5  # below this an inconclusive verdict says the design could not decide it
@@ -51,8 +51,8 @@ NO_POWER = Power(float("nan"), None, "-")
 
 
 def contrast_power(sds: Sequence[float], counts: Sequence[int] | np.ndarray, weights: Sequence[float],
-                   effect: float, alpha: float = ALPHA) -> np.ndarray:
-    """Power of the one-sided level-``alpha`` Welch t test of sum_k w_k mean_k > 0 when
+                   effect: float, alpha: float = TEST_ALPHA) -> np.ndarray:
+    """Power of the one-sided level-``alpha`` (default: the checks' ``TEST_ALPHA``) Welch t test of sum_k w_k mean_k > 0 when
     the true contrast is ``effect``; ``sds`` (K,) per-group seed standard deviations,
     ``counts`` (K,) or (K, M) seed counts (M designs at once). Returns () or (M,).
     A contrast without variance is decided exactly: power 1 if ``effect`` > 0, else 0."""
@@ -69,7 +69,7 @@ def contrast_power(sds: Sequence[float], counts: Sequence[int] | np.ndarray, wei
 
 
 def seeds_for(sds: Sequence[float], weights: Sequence[float], effect: float,
-              alpha: float = ALPHA, target: float = TARGET) -> int | None:
+              alpha: float = TEST_ALPHA, target: float = TARGET) -> int | None:
     """Smallest equal seed count n per group (``MIN_SEEDS``..``MAX_SEEDS``: fewer seeds
     are never decided) whose power is >= ``target``."""
     ns = np.arange(MIN_SEEDS, MAX_SEEDS + 1)
@@ -86,7 +86,7 @@ def sd(x: np.ndarray) -> float:
 
 
 def power_of(samples: Sequence[np.ndarray], weights: Sequence[float], effect: float,
-             words: str, alpha: float = ALPHA) -> Power:
+             words: str, alpha: float = TEST_ALPHA) -> Power:
     """``Power`` of the contrast test over ``samples`` (one per-seed array per group) at
     their own counts and spreads, for a true contrast ``effect`` (described by ``words``)."""
     sds = [sd(s) for s in samples]

@@ -4,10 +4,10 @@ team size. Per-seed arrays in, (verdict, numbers, test) out, like ``reports.verd
 each a one-sample / Welch t over per-seed means (``reports.stats.t_test``).
 
 - ``check_below``: supported when the per-seed mean is significantly below ``bound``
-  (at ``ALPHA``), contradicted when significantly above it (at ``contra_alpha``).
+  (at ``TEST_ALPHA``), contradicted when significantly above it (at ``contra_alpha``).
 - ``check_near``: an equivalence test (two one-sided t tests) of the mean against the
   paper's value within +-``NEAR_TOL`` of it: supported when both sides reject at
-  ``ALPHA``; contradicted when the mean is significantly outside the band on either
+  ``TEST_ALPHA``; contradicted when the mean is significantly outside the band on either
   side, each side at ``contra_alpha`` / 2 (a union of two tests).
 - ``check_trend``: the OLS slope of the group means on N (a Welch contrast of the K
   groups' per-seed means, weights (N_k - mean N) / sum (N_k - mean N)^2) is > 0.
@@ -18,9 +18,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from reports.stats import ALPHA, t_test
+from reports.stats import t_test
 from reports.verdicts import (
     CONTRADICTED,
+    TEST_ALPHA,
     INCONCLUSIVE,
     NOT_ENOUGH,
     SUPPORTED,
@@ -42,7 +43,7 @@ def _finite(x: np.ndarray) -> np.ndarray:
     return a[np.isfinite(a)]
 
 
-def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = ALPHA,
+def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = TEST_ALPHA,
                 pct: bool = True) -> tuple[str, str, str]:
     """Per-seed ``m`` (S,) below ``bound``: one-sample t against it (``pct``: show rates in %)."""
     m = _finite(m)
@@ -56,7 +57,7 @@ def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = AL
             f"one-sample t over {m.size} seeds against {f(bound)}{contra_note(contra_alpha)}")
 
 
-def check_near(m: np.ndarray, target: float, what: str, contra_alpha: float = ALPHA,
+def check_near(m: np.ndarray, target: float, what: str, contra_alpha: float = TEST_ALPHA,
                tol: float = NEAR_TOL) -> tuple[str, str, str]:
     """Per-seed ``m`` (S,) within +-``tol`` x ``target`` of the paper's ``target`` (TOST)."""
     m = _finite(m)
@@ -69,7 +70,7 @@ def check_near(m: np.ndarray, target: float, what: str, contra_alpha: float = AL
         return NOT_ENOUGH, "no finite values", "-"
     if above.p_less < contra_alpha / 2 or below.p_greater < contra_alpha / 2:
         verdict = CONTRADICTED
-    elif above.p_greater < ALPHA and below.p_less < ALPHA:
+    elif above.p_greater < TEST_ALPHA and below.p_less < TEST_ALPHA:
         verdict = SUPPORTED
     else:
         verdict = INCONCLUSIVE
@@ -88,7 +89,7 @@ def trend_weights(ns: Sequence[float]) -> np.ndarray:
 
 
 def check_trend(groups: Sequence[np.ndarray], ns: Sequence[int], what: str,
-                contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+                contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """``groups``: one per-seed array per team size ``ns`` (K >= 2): slope > 0?"""
     gs = [_finite(g) for g in groups]
     if min(g.size for g in gs) < MIN_SEEDS:

@@ -27,22 +27,24 @@ from reports.power import (
     weakest,
 )
 from reports.stats import t_test
-from reports.verdicts import INCONCLUSIVE, MIN_SEEDS, SUPPORTED
+from reports.verdicts import INCONCLUSIVE, MIN_SEEDS, SUPPORTED, TEST_ALPHA
 
 
 def test_contrast_power__one_sample_is_the_noncentral_t_by_hand():
     # sd 1, n 4, effect 1: se 1/2, ncp 2, df 3
     want = sps.nct.sf(sps.t.isf(0.05, 3), 3, 2.0)
-    assert float(contrast_power([1.0], [4], [1.0], 1.0)) == pytest.approx(want, rel=1e-12)
+    assert float(contrast_power([1.0], [4], [1.0], 1.0, alpha=0.05)) == pytest.approx(want, rel=1e-12)
     assert float(contrast_power([1.0], [4], [1.0], 1.0, alpha=0.01)) < want  # a stricter level
-    assert float(contrast_power([1.0], [4], [-1.0], 1.0)) == pytest.approx(want, rel=1e-12)  # sign of w
+    assert float(contrast_power([1.0], [4], [-1.0], 1.0, alpha=0.05)) == pytest.approx(want, rel=1e-12)
+    at_checks = sps.nct.sf(sps.t.isf(TEST_ALPHA, 3), 3, 2.0)  # the default: the checks' level
+    assert float(contrast_power([1.0], [4], [1.0], 1.0)) == pytest.approx(at_checks, rel=1e-12)
 
 
 def test_contrast_power__matches_the_rejection_rate_of_the_t_test_it_describes():
     rng = np.random.default_rng(3)
     x = rng.normal(0.8, 1.0, (3000, 5))
     rate = np.mean([t_test([r], [1.0]).p_greater < 0.05 for r in x])
-    assert float(contrast_power([1.0], [5], [1.0], 0.8)) == pytest.approx(rate, abs=0.03)
+    assert float(contrast_power([1.0], [5], [1.0], 0.8, alpha=0.05)) == pytest.approx(rate, abs=0.03)
 
 
 def test_contrast_power__welch_df_from_each_groups_spread_and_count():
@@ -50,7 +52,7 @@ def test_contrast_power__welch_df_from_each_groups_spread_and_count():
     c1, c2 = 1 / 5, 4 / 3
     df = (c1 + c2) ** 2 / (c1 * c1 / 4 + c2 * c2 / 2)
     want = sps.nct.sf(sps.t.isf(0.05, df), df, 1.5 / np.sqrt(c1 + c2))
-    assert float(contrast_power([1.0, 2.0], [5, 3], [1.0, -1.0], 1.5)) == pytest.approx(want, rel=1e-12)
+    assert float(contrast_power([1.0, 2.0], [5, 3], [1.0, -1.0], 1.5, alpha=0.05)) == pytest.approx(want, rel=1e-12)
 
 
 def test_contrast_power__no_variance_is_decided_exactly():
@@ -119,7 +121,7 @@ def test_power_curves__the_mean_test_and_each_percentile_band_at_its_level():
     assert p.bound and p.power <= mean_only.power
     # the band at level 0.05 / 5 with margin 0.15 is the weaker part here
     band = power_of([np.array([0.2, 0.25, 0.3]) + 0.03, np.array([0.2, 0.3, 0.4]) + 0.03], [1.0, -1.0],
-                    0.15, "", alpha=0.01)
+                    0.15, "", alpha=TEST_ALPHA / 5)
     assert p.power == pytest.approx(min(mean_only.power, band.power), rel=0.2)
 
 

@@ -16,23 +16,27 @@ from reports.claims_table1 import (
     claim_searches_grow,
 )
 from reports.stats import t_test
-from reports.verdicts import CONTRADICTED, INCONCLUSIVE, NOT_ENOUGH, SUPPORTED
+from reports.verdicts import CONTRADICTED, INCONCLUSIVE, NOT_ENOUGH, SUPPORTED, TEST_ALPHA
 from reports.verdicts_bounds import NEAR_TOL, check_below, check_near, check_trend, trend_weights
 
 
 def test_check_below__direction_numbers_and_its_contradiction_level():
-    v, nums, test = check_below(np.array([0.01, 0.02, 0.03]), 0.05, "fallback rate")
+    v, nums, test = check_below(np.array([0.01, 0.02, 0.03]), 0.07, "fallback rate")
     assert v == SUPPORTED
-    assert nums.startswith("fallback rate 2% [95% CI -0.484%, 4.48%] vs 5%; one-sided p = ")
-    assert test == "one-sample t over 3 seeds against 5%"
-    assert check_below(np.array([0.07, 0.08, 0.09]), 0.05, "x")[0] == CONTRADICTED
+    assert nums.startswith("fallback rate 2% [95% CI -0.484%, 4.48%] vs 7%; one-sided p = ")
+    assert test == "one-sample t over 3 seeds against 7%"
+    assert check_below(np.array([0.07, 0.08, 0.09]), 0.03, "x")[0] == CONTRADICTED
     assert check_below(np.array([0.0, 0.05, 0.1]), 0.05, "x")[0] == INCONCLUSIVE
-    m = np.array([0.0, 1.0, 2.0]) + 2.04  # above 1 with one-sided p ~ 0.03
-    p = t_test([m], [1.0], null=1.0).p_greater
-    assert 0.05 / 3 < p < 0.05
+    base = np.array([0.0, 1.0, 2.0])
+    for s in np.linspace(0.0, 40.0, 40001):  # above 1 with one-sided p in (TEST_ALPHA / 3, TEST_ALPHA)
+        p = t_test([base + s], [1.0], null=1.0).p_greater
+        if TEST_ALPHA / 3 < p < TEST_ALPHA:
+            break
+    m = base + s
+    assert TEST_ALPHA / 3 < p < TEST_ALPHA
     assert check_below(m, 1.0, "x", pct=False)[0] == CONTRADICTED
-    v, nums, test = check_below(m, 1.0, "x", contra_alpha=0.05 / 3, pct=False)
-    assert v == INCONCLUSIVE and "0.017 (Bonferroni)" in test and nums.startswith("x 3.04 [95% CI")
+    v, nums, test = check_below(m, 1.0, "x", contra_alpha=TEST_ALPHA / 3, pct=False)
+    assert v == INCONCLUSIVE and "0.0042 (Bonferroni)" in test and nums.startswith("x ")
     assert check_below(np.array([0.01, np.nan, 0.02]), 0.05, "x") == (NOT_ENOUGH, "2 seeds (need >= 3 per side)", "-")
 
 
@@ -49,27 +53,24 @@ def test_check_near__inside_outside_and_between_the_band():
 
 
 def test_check_near__each_side_contradicts_at_half_the_level():
-    # above the upper edge 6 with one-sided p between 0.025 and 0.05: not a contradiction
-    m = np.array([0.0, 1.0, 2.0]) + 6.0 + 1.02 + 0.0
-    p = t_test([m], [1.0], null=6.0).p_greater
-    if not 0.025 < p < 0.05:  # tune the shift to land in the window
-        for s in np.linspace(0.5, 3.0, 251):
-            m = np.array([0.0, 1.0, 2.0]) + 6.0 + s
-            p = t_test([m], [1.0], null=6.0).p_greater
-            if 0.025 < p < 0.05:
-                break
-    assert 0.025 < p < 0.05
+    # above the upper edge 6 with one-sided p between T / 2 and T: not a contradiction
+    for s in np.linspace(0.0, 40.0, 40001):
+        m = np.array([0.0, 1.0, 2.0]) + 6.0 + s
+        p = t_test([m], [1.0], null=6.0).p_greater
+        if TEST_ALPHA / 2 < p < TEST_ALPHA:
+            break
+    assert TEST_ALPHA / 2 < p < TEST_ALPHA
     assert check_near(m, 4.0, "x")[0] == INCONCLUSIVE
     lo = 2.0 - (m - 6.0)  # mirrored below the lower edge 2: the same p
     assert check_near(lo, 4.0, "x")[0] == INCONCLUSIVE
-    for s in np.linspace(0.5, 3.0, 251):  # p in (0.05/3, 0.025): contradicted at / 2, not at / 3
+    for s in np.linspace(0.0, 40.0, 40001):  # p in (T / 3, T / 2): contradicted at / 2, not at / 3
         m2 = np.array([0.0, 1.0, 2.0]) + 6.0 + s
         p2 = t_test([m2], [1.0], null=6.0).p_greater
-        if 0.05 / 3 < p2 < 0.025:
+        if TEST_ALPHA / 3 < p2 < TEST_ALPHA / 2:
             break
     assert check_near(m2, 4.0, "x")[0] == CONTRADICTED
     assert check_near(2.0 - (m2 - 6.0), 4.0, "x")[0] == CONTRADICTED
-    assert check_near(m2, 4.0, "x", contra_alpha=0.05 / 3)[0] == INCONCLUSIVE
+    assert check_near(m2, 4.0, "x", contra_alpha=TEST_ALPHA / 3)[0] == INCONCLUSIVE
 
 
 def test_trend_weights__the_ols_slope_of_group_means():
