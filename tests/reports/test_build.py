@@ -84,7 +84,7 @@ def test_build_report__claims_page_links_the_calibration_table(paper_run):
     _, out = paper_run
     assert "[calibration](calibration.md)" in (out / "claims.md").read_text()
     cal = (out / "calibration.md").read_text()
-    assert "| no_collisions | null |" in cal and "**NO**" not in cal
+    assert "| no_collisions | 300 episodes | null | binomial |" in cal and "**NO**" not in cal
     assert (out / "calibration.json").exists()
 
 
