@@ -1,9 +1,9 @@
 """Each claim of the paper's Sec. IV (and two facts about its settings) checked against
 the data, one check per configuration and execution mode.
 
-Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 in the
+Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.0125 in the
 paper's direction), **contradicted** (significant in the opposite direction),
-**inconclusive** (neither; a contradiction counts at 0.05 / k for a claim of k checks, so
+**inconclusive** (neither; a contradiction counts at 0.0125 / k for a claim of k checks, so
 that its false-contradiction rate is <= 0.05 too), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side, or the configuration is missing). Two checks are not statistical: the payload
 ratio is **verified by construction** (the bench counts the scalars with the paper's
@@ -16,8 +16,8 @@ and is a Welch / one-sample t test (``reports.stats``). Its rate of
 ``supported`` under the null and its power are measured by ``bench calibrate``
 (``reports.calibrate``), which feeds simulated tables through these same functions.
 A claim's verdict combines its checks: any contradicted -> contradicted (each check
-decided at 0.05 / k, Bonferroni over the claim's k checks); all supported -> supported
-(each at 0.05, an intersection-union test); else inconclusive if any check is, else not
+decided at 0.0125 / k, Bonferroni over the claim's k checks); all supported -> supported
+(each at 0.0125, an intersection-union test); else inconclusive if any check is, else not
 enough seeds.
 """
 from __future__ import annotations
@@ -28,15 +28,20 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from reports.claim_power import power_below, power_convergence, power_curves, power_gap, power_greater
 from reports.fig3_payload import payload_points
+from reports.power import COULD_NOT, LOW, NO_POWER
 from reports.store import fmt_p, select
+from reports.table1_safety import PAPER_TABLE1
 from reports.verdicts import (
-    ALPHA,
+    TEST_ALPHA,
     BAND_TOL,
     BY_CONSTRUCTION,
+    CONDITION_NOT_MET,
     CONTRADICTED,
     CONV_REL_TOL,
     FINAL_FRAC,
+    INCONCLUSIVE,
     MAX_CORRECTION,
     NOT_ENOUGH,
     check_collisions,
@@ -75,6 +80,14 @@ class Check:
     test: str
     execution: str = "-"
     scope: str = "paper"
+    power: float = float("nan")  # power to detect the stated effect (reports.claim_power)
+    power_text: str = "-"  # that power, its effect and the seeds 80% power would need
+
+    @property
+    def verdict_words(self) -> str:
+        """The verdict as the page prints it: an inconclusive check whose power was below
+        50% says the design could not have decided it."""
+        return COULD_NOT if self.verdict == INCONCLUSIVE and self.power < LOW else self.verdict
 
 
 @dataclass
@@ -177,18 +190,20 @@ Configs = Sequence[tuple]
 def _each(claim: Claim, paper: Configs, run: Configs,
           fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
     """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
-    test)] per scope; run configurations that are paper ones are not repeated.
+    test[, power])] per scope (``power`` a ``reports.power.Power``, only with a verdict
+    that has seeds); run configurations that are paper ones are not repeated.
 
     A scope's k checks decide one claim, and one contradicted check contradicts it, so
-    each check may contradict only at ALPHA / k (Bonferroni; ``reports.verdicts``): a
-    first pass counts the checks, the second decides at that level."""
+    each check may contradict only at TEST_ALPHA / k (Bonferroni; ``reports.verdicts``):
+    a first pass counts the checks, the second decides at that level."""
     for scope, configs in (("paper", paper), ("run", [c for c in run if c not in paper])):
-        first = [fn(c, ALPHA) for c in configs]
+        first = [fn(c, TEST_ALPHA) for c in configs]
         k = sum(len(rows) for rows in first)
-        decided = first if k <= 1 else [fn(c, ALPHA / k) for c in configs]  # one check: already at ALPHA
+        decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
         for rows in decided:
-            for label, ex, v, nums, test in rows:
-                claim.checks.append(Check(label, v, nums, test, ex, scope))
+            for label, ex, v, nums, test, *power in rows:
+                pw = power[0] if power and v != NOT_ENOUGH else NO_POWER
+                claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text()))
     return claim
 
 
@@ -205,14 +220,13 @@ def claim_hier_above_dec(train: pd.DataFrame, configs: Configs = PAPER["fig1a"],
         "Fig. 1(a): for 20, 40, 60 robots at p = 0.2 the hierarchical method reaches a higher final "
         "episode reward than the fully decentralized baseline.",
         f"Per seed, the mean team return over the last {FINAL_FRAC:.0%} of training; Welch t over "
-        "seeds, one-sided, level 0.05.")
+        "seeds, one-sided, level 0.0125.")
 
     def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
-        v, nums, test = check_greater(final_means(select(train, "hierarchical", n, p)),
-                                      final_means(select(train, "decentralized", n, p)), "final reward",
-                                      contra_alpha)
-        return [(_cfg(n, p), TRAINING, v, nums, test)]
+        a, b = final_means(select(train, "hierarchical", n, p)), final_means(select(train, "decentralized", n, p))
+        v, nums, test = check_greater(a, b, "final reward", contra_alpha)
+        return [(_cfg(n, p), TRAINING, v, nums, test, power_greater(a, b))]
     return _each(claim, configs, run, one)
 
 
@@ -222,14 +236,14 @@ def claim_gap_widens(train: pd.DataFrame, configs: Configs = PAPER["gap"], run: 
         "Fig. 1(a): at 60 robots the decentralized baseline stays considerably lower: the gap "
         "(hierarchical - decentralized final reward) is larger than at 20 and 40.",
         "Gap(N) = mean final reward hierarchical - decentralized; Welch t on the contrast "
-        "Gap(large) - Gap(small) of four groups of per-seed means, one-sided, level 0.05.")
+        "Gap(large) - Gap(small) of four groups of per-seed means, one-sided, level 0.0125.")
 
     def one(c: tuple, contra_alpha: float) -> list:
         large, small, p = c
         groups = [final_means(select(train, m, n, p))
                   for n in (large, small) for m in ("hierarchical", "decentralized")]
         v, nums, test = check_gap(groups, large, small, contra_alpha)
-        return [(f"Gap({large}) vs Gap({small}), p = {fmt_p(p)}", TRAINING, v, nums, test)]
+        return [(f"Gap({large}) vs Gap({small}), p = {fmt_p(p)}", TRAINING, v, nums, test, power_gap(groups))]
     return _each(claim, configs, run, one)
 
 
@@ -240,15 +254,16 @@ def claim_convergence(train: pd.DataFrame, configs: Configs = PAPER["fig1b"], ru
         "increases and stabilises (converges at around 1600 of 2000 episodes).",
         f"Per seed: gain = mean(last {FINAL_FRAC:.0%}) - mean(first {FINAL_FRAC:.0%}) of training, "
         "drift = OLS slope over the last window x its length. Supported when, over seeds, the gain "
-        f"is > 0 and |drift| < {CONV_REL_TOL:g} x gain (equivalence), each by a one-sample t at 0.05; "
+        f"is > 0 and |drift| < {CONV_REL_TOL:g} x gain (equivalence), each by a one-sample t at 0.0125; "
         "contradicted when the gain is < 0 or the drift is beyond the tolerance (still rising or "
         "collapsing) significantly.")
 
     def one(c: tuple, contra_alpha: float) -> list:
         n, p = c
-        rows = select(train, "hierarchical", n, p)
-        return [(_cfg(n, p), TRAINING, *check_convergence(per_cell(rows, "team_return"),
-                                                          contra_alpha=contra_alpha))]
+        curves = per_cell(select(train, "hierarchical", n, p), "team_return")
+        v, nums, test = check_convergence(curves, contra_alpha=contra_alpha)
+        pw = power_convergence(curves, CONV_REL_TOL, FINAL_FRAC) if v != NOT_ENOUGH else NO_POWER
+        return [(_cfg(n, p), TRAINING, v, nums, test, pw)]
     return _each(claim, configs, run, one)
 
 
@@ -271,8 +286,10 @@ def claim_above_ic3net(evals: pd.DataFrame, configs: Configs = PAPER["fig2"], ru
                                                              i["cell_id"].nunique()), "-")]
         out = []
         for mode, hh, ii in pairs:
-            out.append((_cfg(n, p), mode, *check_curves(per_cell(hh, "success_rate"),
-                                                        per_cell(ii, "success_rate"), contra_alpha)))
+            hs, is_ = per_cell(hh, "success_rate"), per_cell(ii, "success_rate")
+            v, nums, test = check_curves(hs, is_, contra_alpha)
+            out.append((_cfg(n, p), mode, v, nums, test,
+                        power_curves(hs, is_) if v != NOT_ENOUGH else NO_POWER))
         return out
     return _each(claim, configs, run, one)
 
@@ -286,12 +303,13 @@ def _hier_modes(evals: pd.DataFrame, n: int, p: float) -> list[tuple[str, pd.Dat
 
 def claim_no_collisions(evals: pd.DataFrame, configs: Configs = PAPER["table1"], run: Configs = ()) -> Claim:
     claim = Claim(
-        "no_collisions", "Zero collisions (safety filter on)",
+        "no_collisions", "Zero collisions, literally (safety filter on)",
         "Table I: for 40..100 robots at p = 0.2 no collisions are observed in the evaluation "
         "episodes. Not guaranteed: Proposition 2 assumes received positions, and under loss the "
         "filter uses predicted ones (issue 18), so the number is the measured collision rate.",
-        "Supported iff no evaluation episode of >= 3 seeds has a collision; any collision "
-        "contradicts; per execution mode.")
+        "Against a literal zero: supported iff no evaluation episode of >= 3 seeds has a "
+        "collision; any collision contradicts; per execution mode. The rate at the paper's print "
+        "precision (0.00%) is `collisions_printed`.")
     return _each(claim, configs, run, _per_filter_mode(
         with_execution(evals), lambda rows, _: check_collisions(per_cell(rows, "collision_rate"))))
 
@@ -302,10 +320,19 @@ def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"
         f"Table I: for 40..100 robots at p = 0.2 the filter modifies fewer than {MAX_CORRECTION:.0%} "
         "of the proposed robot controls.",
         f"One-sample t over per-seed mean correction rates against {MAX_CORRECTION:.0%}, one-sided, "
-        "level 0.05, per execution mode.")
-    return _each(claim, configs, run, _per_filter_mode(
-        with_execution(evals), lambda rows, contra_alpha: check_corrections(
-            seed_means(rows, "correction_rate"), contra_alpha=contra_alpha)))
+        "level 0.0125, per execution mode.")
+    ev = with_execution(evals)
+
+    def one(c: tuple, contra_alpha: float) -> list:
+        paper = c[0] in PAPER_TABLE1
+        truth = PAPER_TABLE1[c[0]][1] if paper else MAX_CORRECTION / 2
+        words = f"a true rate of {truth:.2%}" + (" (the paper's)" if paper else "")
+
+        def check(rows: pd.DataFrame, a: float) -> tuple:
+            m = seed_means(rows, "correction_rate")
+            return (*check_corrections(m, contra_alpha=a), power_below(m, MAX_CORRECTION, truth, words))
+        return _per_filter_mode(ev, check)(c, contra_alpha)
+    return _each(claim, configs, run, one)
 
 
 def _per_filter_mode(ev: pd.DataFrame, check: Callable[[pd.DataFrame, float], tuple],
@@ -325,11 +352,13 @@ def _per_filter_mode(ev: pd.DataFrame, check: Callable[[pd.DataFrame, float], tu
 def claim_payload_ratio(evals: pd.DataFrame) -> Claim:
     claim = Claim(
         "payload_ratio", "Payload ratio equals (Z-1)/(N-1)",
-        "Fig. 3 / Sec. III-A: the measured payload ratio C_hier / C_dec equals the analytical "
+        "Fig. 3 / Sec. III-A: the payload ratio C_hier / C_dec equals the analytical "
         "(Z-1)/(N-1) (C_hier <= N(Z-1)d_m): O(NZ) instead of O(N^2) communication.",
         "Verified by construction: the channel counts the scalars it sends with the paper's formula, "
         f"so the check (ratio within {RATIO_TOL:.0%} of the bound, no episode above it) cannot fail "
-        "unless the counting is broken. At every team size of the run.")
+        "unless the counting is broken. The payload is the formula's count per step (d_m scalars "
+        "per robot per link sent), not measured from the bytes of the messages. At every team size "
+        "of the run.")
     pts = payload_points(evals)
     for _, r in pts.iterrows():
         cfg = f"N = {r['n_robots']}, Z = {r['groups']}"
@@ -338,11 +367,11 @@ def claim_payload_ratio(evals: pd.DataFrame) -> Claim:
             continue
         rel = abs(r["ratio"] - r["bound"]) / r["bound"] if r["bound"] > 0 else np.inf
         ok = rel <= RATIO_TOL and bool(r["ratio_max"] <= r["bound"] * (1 + 1e-9))
-        nums = (f"C_hier = {_g(r['c_hier'])}, C_dec = {_g(r['c_dec'])} ({r['c_dec_source']}); ratio "
+        nums = (f"formula count C_hier = {_g(r['c_hier'])}, C_dec = {_g(r['c_dec'])} ({r['c_dec_source']}); ratio "
                 f"{r['ratio']:.4f} vs bound {r['bound']:.4f} (relative difference {rel:.2%}); "
                 f"largest episode ratio {r['ratio_max']:.4f}")
         claim.checks.append(Check(cfg, BY_CONSTRUCTION if ok else CONTRADICTED, nums,
-                                  f"exact count over {r['episodes']} episodes"))
+                                  f"the formula's count over {r['episodes']} episodes (not measured from messages)"))
     if pts.empty:
         claim.checks.append(Check("any N", NOT_ENOUGH, "no hierarchical evaluation rows", "-"))
     return claim
@@ -356,13 +385,14 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
         "Lemma 1 (lemma:safety_bound): if C_max >= sum_{d<=L} C(n_z, d)(m-1)^d the filter examines "
         "every candidate within radius L. The paper uses Z = 4, L = 2, C_max = 500, m = 5.",
         "Arithmetic on the settings with the largest group n_z = ceil(N/Z): verified when the bound is "
-        "<= C_max; contradicted (the guarantee does not hold) when it exceeds C_max.")
+        "<= C_max; **condition not met** (the lemma's premise fails, so its guarantee does not "
+        "apply; nothing in the data is contradicted) when it exceeds C_max.")
 
     def one(c: tuple, _: float) -> list:  # arithmetic: no error to control
         n, z, radius, c_max = c
         n_z = -(-n // z)
         b = lemma1_bound(n_z, radius)
-        v = BY_CONSTRUCTION if b <= c_max else CONTRADICTED
+        v = BY_CONSTRUCTION if b <= c_max else CONDITION_NOT_MET
         return [(f"N = {n}, Z = {z}, L = {radius}, C_max = {c_max}", "-", v,
                  f"n_z = {n_z}: bound {b:,} {'<=' if b <= c_max else '>'} C_max = {c_max}",
                  "arithmetic (no data)")]
@@ -386,7 +416,10 @@ def all_claims(train: pd.DataFrame, evals: pd.DataFrame, at: str = "paper",
         h = cells[(cells["method"] == "hierarchical") & cells["safety_filter"].astype(bool)]
         lemma = sorted({(int(a), int(b), int(c), int(d)) for a, b, c, d in
                         h[["n_robots", "groups", "search_radius", "c_max"]].itertuples(index=False)})
+    from reports import claims_table1 as T  # imports this module: Table I's further statements
     return [claim_hier_above_dec(train, run=fig1), claim_gap_widens(train, run=gaps),
             claim_convergence(train, run=hier_t), claim_above_ic3net(evals, run=fig2),
-            claim_no_collisions(evals, run=hier_e), claim_few_corrections(evals, run=hier_e),
+            claim_no_collisions(evals, run=hier_e), T.claim_collisions_printed(evals, run=hier_e),
+            claim_few_corrections(evals, run=hier_e), T.claim_mean_candidates(evals, run=hier_e),
+            T.claim_searches_grow(evals), T.claim_normal_search(evals, run=hier_e),
             claim_payload_ratio(evals), claim_lemma1(run=lemma)]

@@ -4,17 +4,17 @@ Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 i
 paper's direction), **contradicted** (significant in the opposite direction),
 **inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side). Two checks are not statistical: **verified by construction** (the payload ratio)
-and Lemma 1's arithmetic. Each kernel takes one number (or one array of episodes) per
+and Lemma 1's arithmetic (**condition not met** when its premise fails). Each kernel takes one number (or one array of episodes) per
 seed and decides with a Welch / one-sample t test from ``reports.stats``; ``bench
 calibrate`` measures how often each says *supported* when the claim is false, and how
 often *contradicted* when it holds.
 
 Both errors are controlled for a whole claim, which combines k checks (configurations x
 execution modes):
-- *supported* needs every check supported at ``ALPHA``: an intersection-union test,
-  whose false support stays <= ``ALPHA`` without correction;
+- *supported* needs every check supported at ``TEST_ALPHA`` (0.0125, a quarter of ``ALPHA``:
+  see below): an intersection-union test, whose false support stays <= its checks' rate;
 - *contradicted* needs one check contradicted, a union, so each check contradicts only
-  at ``contra_alpha = ALPHA / k`` (Bonferroni; ``claims._each`` passes it). A check that
+  at ``contra_alpha = TEST_ALPHA / k`` (Bonferroni; ``claims._each`` passes it). A check that
   contradicts through any of m tests (a mean and a band, or three convergence parts)
   gives each ``contra_alpha / m``.
 """
@@ -40,8 +40,17 @@ from reports.stats import (
 SUPPORTED, INCONCLUSIVE, CONTRADICTED = "supported", "inconclusive", "contradicted"
 NOT_ENOUGH = "not enough seeds"
 BY_CONSTRUCTION = "verified by construction"
-VERDICTS = (SUPPORTED, INCONCLUSIVE, CONTRADICTED, NOT_ENOUGH, BY_CONSTRUCTION)
+CONDITION_NOT_MET = "condition not met"  # a lemma's premise fails on the settings (no data tested)
+VERDICTS = (SUPPORTED, INCONCLUSIVE, CONTRADICTED, NOT_ENOUGH, BY_CONSTRUCTION, CONDITION_NOT_MET)
 MIN_SEEDS = 3
+# The level every check decides at: a quarter of the 5% its error rates must stay under.
+# At 0.05 the t tests over 3-5 seeds with the reproduction's own skewed seed spread said
+# "supported" up to 9% and "contradicted" at 2-3x their Bonferroni level (``bench
+# calibrate``, resampled rows); at 0.025 a 5-vs-5 Welch test with one collapsing side still
+# said "supported" 5.9% and two whole claims were contradicted 5.9-7%; at 0.0125 (a wider
+# band: the 98.75% one-sided bound decides) every rate is within 5% + 2 MC s.e.
+# (docs/decisions.md, "New decisions").
+TEST_ALPHA = ALPHA / 4
 FINAL_FRAC = 0.2
 CONV_REL_TOL = 0.2
 MAX_CORRECTION = 0.08
@@ -51,13 +60,16 @@ N_CONTROLS = 5  # |U| = {Up, Down, Left, Right, Wait}
 
 
 def combine(verdicts: Sequence[str]) -> str:
-    """Contradicted dominates; all supported (or by construction) supports; then
-    inconclusive; else not enough seeds. All "by construction" stays so."""
+    """Contradicted dominates, then "condition not met"; all supported (or by
+    construction) supports; then inconclusive; else not enough seeds. All "by
+    construction" stays so."""
     vs = list(verdicts)
     if not vs:
         return NOT_ENOUGH
     if CONTRADICTED in vs:
         return CONTRADICTED
+    if CONDITION_NOT_MET in vs:
+        return CONDITION_NOT_MET
     if all(v == BY_CONSTRUCTION for v in vs):
         return BY_CONSTRUCTION
     if all(v in (SUPPORTED, BY_CONSTRUCTION) for v in vs):
@@ -65,7 +77,7 @@ def combine(verdicts: Sequence[str]) -> str:
     return INCONCLUSIVE if INCONCLUSIVE in vs else NOT_ENOUGH
 
 
-def decide(t: TTest, alpha: float = ALPHA, contra_alpha: float | None = None) -> str:
+def decide(t: TTest, alpha: float = TEST_ALPHA, contra_alpha: float | None = None) -> str:
     """Supported if the contrast is significantly > 0 at ``alpha``, contradicted if
     significantly < 0 at ``contra_alpha`` (default ``alpha``)."""
     if not t.valid:
@@ -78,8 +90,8 @@ def decide(t: TTest, alpha: float = ALPHA, contra_alpha: float | None = None) ->
 
 
 def contra_note(contra_alpha: float) -> str:
-    """What the test string says of a contradiction level below ``ALPHA``."""
-    return "" if contra_alpha >= ALPHA else f"; contradicted only at level {contra_alpha:.2g} (Bonferroni)"
+    """What the test string says of a contradiction level below ``TEST_ALPHA``."""
+    return "" if contra_alpha >= TEST_ALPHA else f"; contradicted only at level {contra_alpha:.2g} (Bonferroni)"
 
 
 def _g(x: float) -> str:
@@ -102,7 +114,7 @@ def seeds_msg(*counts: int) -> str:
 
 
 # ------------------------------------------------------------ check kernels
-def check_greater(a: np.ndarray, b: np.ndarray, what: str, contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+def check_greater(a: np.ndarray, b: np.ndarray, what: str, contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """Is A above B? ``a`` (S_a,), ``b`` (S_b,) per-seed values. (verdict, numbers, test)."""
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     if _too_few(a.size, b.size):
@@ -116,7 +128,7 @@ def check_greater(a: np.ndarray, b: np.ndarray, what: str, contra_alpha: float =
 
 
 def check_gap(groups: Sequence[np.ndarray], large: int, small: int,
-              contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+              contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """Gap(large) - Gap(small) > 0 with groups (hier large, dec large, hier small, dec small)."""
     gs = [g[np.isfinite(g)] for g in groups]
     if _too_few(*(g.size for g in gs)):
@@ -129,7 +141,7 @@ def check_gap(groups: Sequence[np.ndarray], large: int, small: int,
             f"Welch t on a contrast of four per-seed means{contra_note(contra_alpha)}")
 
 
-def check_curves(h: list[np.ndarray], i: list[np.ndarray], contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+def check_curves(h: list[np.ndarray], i: list[np.ndarray], contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """Hierarchical above IC3Net across the percentile range. ``h``/``i``: per-seed
     arrays of evaluation-episode success rates. Supported: mean success higher (Welch t)
     and the simultaneous lower bound of the per-seed quantile-curve difference above
@@ -141,13 +153,13 @@ def check_curves(h: list[np.ndarray], i: list[np.ndarray], contra_alpha: float =
     t = t_test([ma, mb], [1.0, -1.0])
     qh = np.stack([quantile_curve(x, BAND_PCT) for x in h])
     qi = np.stack([quantile_curve(x, BAND_PCT) for x in i])
-    diff, lo, _ = simultaneous_band(qh, qi)  # support: lower bound at ALPHA
+    diff, lo, _ = simultaneous_band(qh, qi, alpha=TEST_ALPHA)  # support: lower bound at TEST_ALPHA
     if not t.valid or not np.isfinite(lo).all():
         return NOT_ENOUGH, "no finite success rates", "-"
     _, _, hi_c = simultaneous_band(qh, qi, alpha=contra_alpha / 2)  # contradiction: upper bound
     if t.p_less < contra_alpha / 2 or bool((hi_c < -BAND_TOL).any()):
         verdict = CONTRADICTED
-    elif t.p_greater < ALPHA and bool((lo > -BAND_TOL).all()):
+    elif t.p_greater < TEST_ALPHA and bool((lo > -BAND_TOL).all()):
         verdict = SUPPORTED
     else:
         verdict = INCONCLUSIVE
@@ -162,7 +174,7 @@ def check_curves(h: list[np.ndarray], i: list[np.ndarray], contra_alpha: float =
 
 
 def check_convergence(curves: list[np.ndarray], rel_tol: float = CONV_REL_TOL,
-                      contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+                      contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """Improved and stable, over seeds: ``curves`` one (T,) training curve per seed.
     Contradicted by any of three one-sample tests, each at ``contra_alpha`` / 3."""
     if _too_few(len(curves)):
@@ -171,7 +183,7 @@ def check_convergence(curves: list[np.ndarray], rel_tol: float = CONV_REL_TOL,
     if any(s is None for s in shapes):
         return NOT_ENOUGH, "too few training episodes for the windows (< 10 each)", "-"
     r = convergence_test([s for s in shapes if s is not None], rel_tol)
-    verdict = (CONTRADICTED if r.contradicted(contra_alpha / 3) else SUPPORTED if r.supported()
+    verdict = (CONTRADICTED if r.contradicted(contra_alpha / 3) else SUPPORTED if r.supported(TEST_ALPHA)
                else INCONCLUSIVE)
     g = np.array([s.gain for s in shapes if s is not None])
     d = np.array([s.drift for s in shapes if s is not None])
@@ -184,14 +196,14 @@ def check_convergence(curves: list[np.ndarray], rel_tol: float = CONV_REL_TOL,
 
 
 def check_corrections(m: np.ndarray, bound: float = MAX_CORRECTION,
-                      contra_alpha: float = ALPHA) -> tuple[str, str, str]:
+                      contra_alpha: float = TEST_ALPHA) -> tuple[str, str, str]:
     """Mean correction rate below ``bound``: one-sample t over per-seed means (contradicted:
     significantly above it at ``contra_alpha``)."""
     m = m[np.isfinite(m)]
     if _too_few(m.size):
         return NOT_ENOUGH, seeds_msg(m.size), "-"
     t = t_test([m], [1.0], null=bound)
-    verdict = (NOT_ENOUGH if not t.valid else SUPPORTED if t.p_less < ALPHA
+    verdict = (SUPPORTED if t.p_less < TEST_ALPHA  # >= 3 finite values: t is always valid
                else CONTRADICTED if t.p_greater < contra_alpha else INCONCLUSIVE)
     # The interval is shown cut at the rate's range [0, 1] (as every rate's CI in the
     # report; coverage is kept); the test above uses the t statistics as they are.

@@ -5,7 +5,7 @@ Cells: hierarchical at N in {20,40,60,80,90,100} x p in {0.2,0.4,0.6}; decentral
 N in {20,40,60} x p = 0.2; IC3Net at N in {40,60} x every p. Training curves rise and
 plateau (hierarchical above decentralized, gap widest at 60); evaluation success is
 higher for hierarchical; payload is exactly N(Z-1)d_m and N(N-1)d_m; no collisions and
-3% corrections. ``hold=False`` reverses each of these.
+3% corrections, Table I's mean candidates and no fallback. ``hold=False`` reverses each of these.
 """
 from __future__ import annotations
 
@@ -88,10 +88,17 @@ def frames(seeds: int = 2, episodes: int = 120, eval_eps: int = 20, hold: bool =
                    "payload_dec_per_step": n * (n - 1) * D_M, "steps": 50}
             if filt:
                 row.update(correction_rate=(0.03 if hold else 0.12) + 0.005 * rng.random(),
-                           mean_candidates=3.0 + n / 10 + rng.random(), fallback_rate=0.0,
+                           mean_candidates=_candidates(n, hold) * (1 + 0.01 * rng.random()),
+                           fallback_rate=0.0 if hold else 0.5,
                            predictor_error=0.5 + rng.random())
             evals.append(row)
     return pd.DataFrame(cells), pd.DataFrame(train), pd.DataFrame(evals)
+
+
+def _candidates(n: int, hold: bool) -> float:
+    """Mean candidates: Table I's value (3 + N / 10 where it has none), or far above it
+    and falling with N."""
+    return {40: 3.79, 60: 16.44, 80: 24.15, 90: 35.63, 100: 24.68}.get(n, 3.0 + n / 10) if hold else 500.0 - 3 * n
 
 
 def joined(cells: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:

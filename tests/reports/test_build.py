@@ -64,7 +64,7 @@ def test_build_report__index_links_everything_with_the_manifest(paper_run):
     assert "deadbeef" in md and "deadbeef" in html  # git sha of the manifest
     assert "bench run --grid synthetic" in html
     assert "Every cell of the store is done." in md
-    assert md.count("**not enough seeds**") == 6  # 2 seeds per configuration
+    assert md.count("**not enough seeds**") == 10  # 2 seeds per configuration: every statistical claim
     assert "**supported**" not in md
 
 
@@ -84,7 +84,7 @@ def test_build_report__claims_page_links_the_calibration_table(paper_run):
     _, out = paper_run
     assert "[calibration](calibration.md)" in (out / "claims.md").read_text()
     cal = (out / "calibration.md").read_text()
-    assert "| no_collisions | null |" in cal and "**NO**" not in cal
+    assert "| no_collisions | 300 episodes | null | binomial |" in cal and "**NO**" not in cal
     assert (out / "calibration.json").exists()
 
 

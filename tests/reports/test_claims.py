@@ -4,6 +4,7 @@ reports/verdicts.py, reports/claims_page.py). Runtime: about 5 s."""
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 import pandas as pd
@@ -36,6 +37,8 @@ from reports.stats import TTest, curve_shape, quantile_curve, simultaneous_band,
 from reports.verdicts import (
     BAND_PCT,
     BY_CONSTRUCTION,
+    CONDITION_NOT_MET,
+    TEST_ALPHA,
     CONTRADICTED,
     INCONCLUSIVE,
     NOT_ENOUGH,
@@ -53,8 +56,9 @@ from reports.verdicts import (
 from tests.reports.synthetic import frames, joined, smoke_specs
 
 KEYS = ["hier_above_dec", "gap_widens", "convergence", "above_ic3net", "no_collisions",
-        "few_corrections", "payload_ratio", "lemma1_budget"]
-STATISTICAL = KEYS[:6]
+        "collisions_printed", "few_corrections", "table1_candidates", "searches_grow", "normal_search",
+        "payload_ratio", "lemma1_budget"]
+STATISTICAL = KEYS[:10]
 
 
 def _tables(seeds: int, hold: bool, seed: int = 0, **kw) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -64,7 +68,7 @@ def _tables(seeds: int, hold: bool, seed: int = 0, **kw) -> tuple[pd.DataFrame, 
 
 @pytest.fixture(scope="module")
 def holding():
-    return _tables(3, True)
+    return _tables(5, True)  # 5 seeds: at level 0.0125 three synthetic seeds rarely decide
 
 
 def test_combine__contradicted_dominates_then_inconclusive_then_missing():
@@ -88,17 +92,18 @@ def test_decide__direction_of_significance():
 def test_claims__supported_on_tables_built_to_hold_with_three_seeds(holding):
     claims = all_claims(*holding)
     assert [c.key for c in claims] == KEYS
-    for c in claims[:6]:
+    for c in claims[:10]:
         assert c.verdict == SUPPORTED, (c.key, [k.numbers for k in c.checks])
-    assert claims[6].verdict == BY_CONSTRUCTION
-    assert claims[7].verdict == CONTRADICTED  # Lemma 1 fails from N = 40 at the paper's settings
+    assert claims[10].verdict == BY_CONSTRUCTION
+    assert claims[11].verdict == CONDITION_NOT_MET  # Lemma 1's premise fails from N = 40 at the paper's settings
 
 
 def test_claims__contradicted_on_tables_built_to_fail():
-    for c in all_claims(*_tables(3, False, seed=1)):
+    for c in all_claims(*_tables(5, False, seed=1)):
         # the failing tables give the decentralized method the same level at every N:
         # equal gaps, so "the gap widens" is neither shown nor refuted
-        want = INCONCLUSIVE if c.key == "gap_widens" else CONTRADICTED
+        want = (INCONCLUSIVE if c.key == "gap_widens" else CONDITION_NOT_MET if c.key == "lemma1_budget"
+                else CONTRADICTED)
         assert c.verdict == want, (c.key, [k.numbers for k in c.checks])
 
 
@@ -259,7 +264,7 @@ def test_lemma1__bound_per_n_at_the_papers_settings():
     c = claim_lemma1()
     got = [(k.config, k.verdict) for k in c.checks]
     assert got[0] == ("N = 20, Z = 4, L = 2, C_max = 500", BY_CONSTRUCTION)
-    assert all(v == CONTRADICTED for _, v in got[1:])
+    assert all(v == CONDITION_NOT_MET for _, v in got[1:])
     assert "n_z = 10: bound 761 > C_max = 500" in c.checks[1].numbers
     assert "n_z = 23: bound 4,141" in c.checks[4].numbers  # N = 90: groups of 23 and 22
     assert "bound 4,901" in c.checks[5].numbers
@@ -271,7 +276,7 @@ def test_lemma1__a_budget_equal_to_the_bound_is_enough_and_the_row_says_so():
     assert (at.config, at.execution, at.verdict, at.numbers, at.test) == (
         "N = 20, Z = 4, L = 2, C_max = 181", "-", BY_CONSTRUCTION, "n_z = 5: bound 181 <= C_max = 181",
         "arithmetic (no data)")
-    assert (below.verdict, below.numbers) == (CONTRADICTED, "n_z = 5: bound 181 > C_max = 180")
+    assert (below.verdict, below.numbers) == (CONDITION_NOT_MET, "n_z = 5: bound 181 > C_max = 180")
 
 
 def _payload_rows(c_hier: float, n: int = 40, z: int = 4) -> pd.DataFrame:
@@ -293,8 +298,9 @@ def test_payload_ratio__one_episode_above_the_bound_contradicts_and_the_numbers_
     and ratios; N = 1 or no rows have no ratio."""
     ok = _payload_rows(40 * 3 * 3.0)
     c = claim_payload_ratio(ok).checks[0]
-    assert (c.config, c.verdict, c.test) == ("N = 40, Z = 4", BY_CONSTRUCTION, "exact count over 5 episodes")
-    assert c.numbers == ("C_hier = 360, C_dec = 4.68e+03 (reference); ratio 0.0769 vs bound 0.0769 "
+    assert (c.config, c.verdict, c.test) == ("N = 40, Z = 4", BY_CONSTRUCTION,
+                                             "the formula's count over 5 episodes (not measured from messages)")
+    assert c.numbers == ("formula count C_hier = 360, C_dec = 4.68e+03 (reference); ratio 0.0769 vs bound 0.0769 "
                          "(relative difference 0.00%); largest episode ratio 0.0769")
     spike = ok.copy()
     spike.loc[0, "payload_scalars_per_step"] *= 1.04  # one episode 4% above, the mean 0.8%
@@ -360,7 +366,7 @@ def test_claims__too_short_training_is_not_enough():
 
 def test_claims_at_run__checks_the_runs_own_configurations():
     specs = [dict(method=m, n_robots=n, loss_p=0.2, seed=s)
-             for m in ("hierarchical", "decentralized", "ic3net") for n in (4, 8) for s in range(3)]
+             for m in ("hierarchical", "decentralized", "ic3net") for n in (4, 8) for s in range(5)]
     cells, train, evals = frames(episodes=60, eval_eps=40, specs=specs)
     tr, ev = joined(cells, train), joined(cells, evals)
     paper = all_claims(tr, ev)
@@ -392,17 +398,17 @@ def test_claims_page__frame_summary_and_markdown(holding):
     claims = all_claims(*holding)
     f = claims_frame(claims)
     assert list(f.columns) == ["claim", "name", "scope", "configuration", "execution", "verdict",
-                               "numbers", "test"]
+                               "numbers", "test", "power", "power_note"]
     assert set(f["claim"]) == set(KEYS) and set(f["scope"]) == {"paper"}
     assert f.loc[f["claim"] == "hier_above_dec", "execution"].unique().tolist() == ["training (sampled)"]
     s = claims_summary(claims)
-    assert s["verdict"].tolist()[:6] == [SUPPORTED] * 6 and (s["verdict_run"] == "").all()
+    assert s["verdict"].tolist()[:10] == [SUPPORTED] * 10 and (s["verdict_run"] == "").all()
     assert s["by_mode"].tolist()[0] == "training (sampled): supported"
     assert s["by_mode"].tolist()[3] == "argmax: supported"
     md = claims_markdown(claims, "calibration.md")
     for key in KEYS:
         assert f"## {key}" in md
-    assert md.count("**Verdict: supported**") == 6
+    assert md.count("**Verdict: supported**") == 10
     assert "[calibration](calibration.md)" in md
     assert "bound 761 > C_max = 500" in md
 
@@ -439,19 +445,21 @@ def test_claims_table__lists_checked_configurations_and_counts_the_rest():
     other = Claim("j", "Other", "More.", "crit", [Check("N = 90", NOT_ENOUGH, "0 seeds", "-", "argmax")])
     lines = claims_table_markdown([c, other]).splitlines()
     assert lines[:4] == [
-        "| claim | paper | configuration | execution | our numbers (95% CI) | verdict |",
-        "|---|---|---|---|---|---|",
-        "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** |",
-        "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** |"]
+        "| claim | paper | configuration | execution | our numbers (95% CI) | verdict | power |",
+        "|---|---|---|---|---|---|---|",
+        "| **Name** | Statement. | N = 20 | argmax | x 1 [0, 2] | **supported** | - |",
+        "|  |  | N = 40 | sample | x 3 [2, 4] | **contradicted** | - |"]
     assert lines[4:] == ["", "Not enough seeds yet (checks per claim): `k` 2, `j` 1."]
 
 
 # ------------------------------------------------ kernels: edges and the numbers shown
 def test_decide__a_p_value_equal_to_alpha_is_not_significant() -> None:
     at = dict(estimate=1.0, se=1.0, df=4.0, lo=-1.0, hi=3.0)
-    assert decide(TTest(**at, p_greater=0.05, p_less=0.95)) == INCONCLUSIVE
-    assert decide(TTest(**at, p_greater=0.95, p_less=0.05)) == INCONCLUSIVE
-    assert decide(TTest(**at, p_greater=0.0499, p_less=0.9501)) == SUPPORTED
+    assert TEST_ALPHA == 0.0125
+    assert decide(TTest(**at, p_greater=0.0125, p_less=0.9875)) == INCONCLUSIVE
+    assert decide(TTest(**at, p_greater=0.9875, p_less=0.0125)) == INCONCLUSIVE
+    assert decide(TTest(**at, p_greater=0.0124, p_less=0.9876)) == SUPPORTED
+    assert decide(TTest(**at, p_greater=0.9876, p_less=0.0124)) == CONTRADICTED
 
 
 def test_kernels__fewer_than_three_seeds_on_any_side_is_not_enough_and_says_so() -> None:
@@ -490,10 +498,10 @@ def test_check_curves__within_the_tolerance_band_is_supported_and_the_worst_perc
     ic3 = [np.clip(base + rng.normal(0, 0.004, 200), 0, 1) for _ in range(3)]
     noise = np.zeros(200)
     noise[150:] = 1.0  # the upper percentiles vary most between hierarchical seeds
-    hier = [np.clip(base + 0.02 + noise * d, 0, 1) for d in (-0.015, 0.0, 0.015)]
+    hier = [np.clip(base + 0.02 + noise * d, 0, 1) for d in (-0.004, 0.0, 0.004)]
     verdict, nums, test = check_curves(hier, ic3)
     diff, lo, _ = simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in hier]),
-                                    np.stack([quantile_curve(x, BAND_PCT) for x in ic3]))
+                                    np.stack([quantile_curve(x, BAND_PCT) for x in ic3]), alpha=TEST_ALPHA)
     k = int(np.argmin(lo))
     assert -0.05 < lo.min() < 0 and k > 0  # inside the tolerance, not at the first percentile
     assert verdict == SUPPORTED
@@ -613,22 +621,30 @@ def _train_levels(levels: dict[tuple[str, int], list[float]], episodes: int = 20
     return pd.concat(rows, ignore_index=True)
 
 
+def _shift_for(p_of: Callable[[float], float], lo_p: float, hi_p: float, lo: float = 0.0,
+               hi: float = 40.0) -> float:
+    """A shift s whose p-value ``p_of(s)`` lies strictly in (``lo_p``, ``hi_p``) (scanned)."""
+    for s in np.linspace(lo, hi, 40001):
+        if lo_p < p_of(float(s)) < hi_p:
+            return float(s)
+    raise AssertionError("no shift in range")
+
+
 def test_check_greater__contradicts_only_at_its_contradiction_level():
-    a, b = np.array([0.0, 1.0, 2.0]), np.array([2.04, 3.04, 4.04])  # one-sided p_less ~ 0.033
-    p_less = t_test([a, b], [1.0, -1.0]).p_less
-    assert 0.05 / 3 < p_less < 0.05
+    a = np.array([0.0, 1.0, 2.0])
+    b = a + _shift_for(lambda s: t_test([a, a + s], [1.0, -1.0]).p_less, TEST_ALPHA / 3, TEST_ALPHA)
     assert check_greater(a, b, "x")[0] == CONTRADICTED
-    v, _, test = check_greater(a, b, "x", contra_alpha=0.05 / 3)
-    assert v == INCONCLUSIVE and "0.017 (Bonferroni)" in test
+    v, _, test = check_greater(a, b, "x", contra_alpha=TEST_ALPHA / 3)
+    assert v == INCONCLUSIVE and "0.0042 (Bonferroni)" in test
     assert check_greater(b, a, "x", contra_alpha=1e-9)[0] == SUPPORTED  # support keeps 0.05
 
 
 def test_check_corrections__contradicts_only_at_its_contradiction_level():
-    m = np.array([0.08, 0.09, 0.10]) + 0.0125  # above 8%: t = 3.9 on 2 df, one-sided p ~ 0.03
-    t = t_test([m], [1.0], null=0.08)
-    assert 0.05 / 3 < t.p_greater < 0.05
+    base = np.array([0.08, 0.09, 0.10])
+    m = base + _shift_for(lambda s: t_test([base + s], [1.0], null=0.08).p_greater, TEST_ALPHA / 3, TEST_ALPHA,
+                          lo=0.0, hi=0.2)
     assert check_corrections(m)[0] == CONTRADICTED
-    assert check_corrections(m, contra_alpha=0.05 / 3)[0] == INCONCLUSIVE
+    assert check_corrections(m, contra_alpha=TEST_ALPHA / 3)[0] == INCONCLUSIVE
     assert check_corrections(np.array([0.01, 0.02, 0.03]), contra_alpha=1e-9)[0] == SUPPORTED
 
 
@@ -640,11 +656,13 @@ def test_claim__one_of_three_checks_contradicts_the_claim_only_beyond_alpha_over
         for n in (40, 60):
             out[("hierarchical", n)] = out[("decentralized", n)] = [0.0, 1.0, 2.0]
         return out
-    alone = claim_hier_above_dec(_train_levels(levels(2.04)), configs=[(20, 0.2)])
+    a = np.array([0.0, 1.0, 2.0])
+    shift = _shift_for(lambda s: t_test([a, a + s], [1.0, -1.0]).p_less, TEST_ALPHA / 3, TEST_ALPHA)
+    alone = claim_hier_above_dec(_train_levels(levels(shift)), configs=[(20, 0.2)])
     assert alone.verdict == CONTRADICTED
-    three = claim_hier_above_dec(_train_levels(levels(2.04)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
+    three = claim_hier_above_dec(_train_levels(levels(shift)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
     assert three.verdict == INCONCLUSIVE and three.checks[0].verdict == INCONCLUSIVE
-    assert "0.017 (Bonferroni)" in three.checks[0].test
+    assert "0.0042 (Bonferroni)" in three.checks[0].test
     far = claim_hier_above_dec(_train_levels(levels(10.0)), configs=[(20, 0.2), (40, 0.2), (60, 0.2)])
     assert far.verdict == CONTRADICTED
 
@@ -669,3 +687,76 @@ def test_check_convergence__its_three_ways_to_contradict_share_the_level():
     assert check_convergence(curves)[0] == INCONCLUSIVE
     far = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-30.2, -30.0, -29.8)]
     assert check_convergence(far)[0] == CONTRADICTED
+
+
+# ------------------------------------------- pins of the contradiction levels (mutmut)
+def test_check_gap__contradicts_only_at_its_contradiction_level():
+    three = np.array([0.0, 1.0, 2.0])
+    s = _shift_for(lambda x: t_test([three, three + x, three, three], [1.0, -1.0, -1.0, 1.0]).p_less,
+                   TEST_ALPHA / 3, TEST_ALPHA)
+    gs = [three, three + s, three, three]
+    assert check_gap(gs, 60, 20)[0] == CONTRADICTED
+    v, _, test = check_gap(gs, 60, 20, contra_alpha=TEST_ALPHA / 3)
+    assert v == INCONCLUSIVE and "0.0042 (Bonferroni)" in test
+
+
+def _two_level(low: float, high: float) -> np.ndarray:
+    """20 episodes, half at ``low``, half at ``high``: quantiles 10, 30 -> low; 70, 90 -> high."""
+    return np.repeat([low, high], 10)
+
+
+def _crossing(x: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Hierarchical ``x`` below IC3Net on its worse half and ``x`` above on its better half:
+    equal per-seed means (the mean test has p = 0.5), the band decided at percentiles 10, 30."""
+    d = (-0.02, 0.0, 0.02)
+    return ([_two_level(0.3 - x + s, 0.7 + x + s) for s in d], [_two_level(0.3 + s, 0.7 + s) for s in d])
+
+
+def _band_top(alpha: float) -> float:
+    """The upper simultaneous bound at the 10th percentile of ``_crossing(0)`` at ``alpha``."""
+    h, i = _crossing(0.0)
+    qh = np.stack([quantile_curve(v, BAND_PCT) for v in h])
+    qi = np.stack([quantile_curve(v, BAND_PCT) for v in i])
+    return float(simultaneous_band(qh, qi, alpha=alpha)[2][0])
+
+
+def test_check_curves__the_contradicting_band_is_at_half_the_checks_level():
+    # x = tolerance + the band's half-width at level a: contradicted iff the band's level >= a
+    between_2_and_3 = 0.05 + (_band_top(TEST_ALPHA / 2) + _band_top(TEST_ALPHA / 3)) / 2
+    assert check_curves(*_crossing(between_2_and_3))[0] == CONTRADICTED  # at / 2, not at / 3
+    between_1_and_2 = 0.05 + (_band_top(TEST_ALPHA) + _band_top(TEST_ALPHA / 2)) / 2
+    assert check_curves(*_crossing(between_1_and_2))[0] == INCONCLUSIVE  # not at / 1 (or * 2)
+    h, i = _crossing(between_2_and_3)
+    assert check_curves(h, i, contra_alpha=TEST_ALPHA / 2)[0] == INCONCLUSIVE  # the level is the check's
+
+
+def test_check_curves__the_contradicting_mean_is_at_half_the_checks_level():
+    base = np.array([0.30, 0.40, 0.50])
+    s = _shift_for(lambda x: t_test([base, base + x], [1.0, -1.0]).p_less, TEST_ALPHA / 3, TEST_ALPHA / 2, hi=2.0)
+    h = [np.full(20, v) for v in base]
+    assert check_curves(h, [x + s for x in h])[0] == CONTRADICTED
+
+
+def test_check_convergence__contradicts_at_a_third_of_the_checks_level():
+    c = _shift_for(lambda x: t_test([np.array([-x - 1, -x, -x + 1])], [1.0]).p_less, TEST_ALPHA / 4, TEST_ALPHA / 3)
+    curves = [np.concatenate([np.zeros(40), np.full(10, g)]) for g in (-c - 1, -c, -c + 1)]
+    assert check_convergence(curves)[0] == CONTRADICTED
+
+
+def _drifting(drift_frac: float) -> list[np.ndarray]:
+    """Gains 4.9, 5, 5.1; the last window rises by ``drift_frac`` x gain across it."""
+    out = []
+    for g in (4.9, 5.0, 5.1):
+        last = g + drift_frac * g * (np.arange(10) - 4.5) / 10
+        out.append(np.concatenate([np.zeros(10), np.linspace(0, g, 30), last]))
+    return out
+
+
+def test_check_convergence__uses_its_tolerance_and_the_modules_final_fraction(monkeypatch):
+    curves = _drifting(0.3)
+    assert check_convergence(curves)[0] == CONTRADICTED  # rising 0.3 gain > 0.2 gain
+    v, nums, test = check_convergence(curves, rel_tol=0.5)
+    assert v == SUPPORTED and "vs tolerance +-2.5" in nums and "|drift| < 0.5 gain" in test
+    import reports.verdicts as verdicts
+    monkeypatch.setattr(verdicts, "FINAL_FRAC", 0.4)
+    assert "(windows of 20 episodes)" in verdicts.check_convergence(curves)[2]
