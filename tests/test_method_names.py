@@ -23,6 +23,7 @@ ALLOWED = {
     "bench/perf_baselines.py": "benchmarks of the built-in baselines' kernels",
     "reports/claims.py": "the paper's own claims (Sec. IV) are about its method and baselines",
     "reports/calibrate.py": "simulates the paper's claims on synthetic rows of those methods",
+    "reports/calibrate_data.py": "resamples the paper's claims from the committed rows of those methods",
     "reports/fig1_training.py": "the paper's Fig. 1 (hierarchical vs decentralized)",
     "reports/fig2_success.py": "the paper's Fig. 2 (hierarchical vs IC3Net)",
     "reports/fig3_payload.py": "the paper's Fig. 3 (hierarchical vs all-to-all payload)",
