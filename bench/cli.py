@@ -75,6 +75,7 @@ def run(
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
     rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
+    repair: bool = typer.Option(False, "--repair", help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is refused, naming the file."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -106,11 +107,13 @@ def run(
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv,
-                               rerun_changed=rerun_changed, stack_seeds=stack_seeds)
+                               rerun_changed=rerun_changed, stack_seeds=stack_seeds, repair=repair)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
         raise
+    for line in summary.repaired:
+        typer.echo(f"bench: repair: {line}", err=True)
     for cid, why in summary.rerun.items():
         typer.echo(f"bench: warning: cell {cid} {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "
@@ -259,12 +262,22 @@ def report(
     from bench.completeness import incomplete_cells
     from bench.store import RunStore
 
+    from bench.integrity import find_damage
+
     store = RunStore(run_dir)
+    damage = find_damage(store, store.integrity())
+    broken = [d for d in damage if d.rel == "cells.parquet"]
+    if broken:
+        raise BenchError(f"{str(run_dir)!r}: {broken[0].line()}")
+    for d in damage:  # left out of the report (reports/store.py), never read as numbers
+        typer.echo(f"bench: warning: {d.line()}", err=True)
     cells = store.read_cells()
+    damaged = {d.cell_id for d in damage}
     if cells is not None:
         for cid, gap in incomplete_cells(store, cells).items():
-            typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
-                       "rerun `bench run` to complete it", err=True)
+            if cid not in damaged:
+                typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
+                           "rerun `bench run` to complete it", err=True)
     try:
         built = build_report(run_dir, out, claims_at=claims_at.value)
     except PermissionError as exc:

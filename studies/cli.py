@@ -79,7 +79,7 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
         raise BenchError(f"--trials must be >= 1, got {n_trials}")
     directory = study_dir(name, root)
     given = _config(options)  # bad options fail before anything is written
-    store = open_storage(storage, directory)
+    store = open_storage(storage, directory, log)
     explicit = set(options) - {"c_max", "param"} | ({"space"} if {"c_max", "param"} & set(options) else set())
     stored = stored_config(store, name)
     config = merge_config(name, stored, given, explicit)
