@@ -68,7 +68,11 @@ def file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
-def repair_hint() -> str:
+def repair_hint(rel: str = "") -> str:
+    """The command that repairs the stored file ``rel`` (a path inside the run)."""
+    if rel.startswith("matrix/"):
+        return ("rerun `bench matrix` (same --run and conditions) with --repair: it moves the file to "
+                "superseded/ and evaluates that unit again")
     return ("rerun `bench run` (same grid and --out) with --repair: it moves the file to "
             "superseded/ and recomputes that cell only")
 
@@ -180,14 +184,15 @@ class Damage:
     why: str
 
     def line(self) -> str:
-        return f"damaged file {self.rel}: {self.why}; {repair_hint()}"
+        return f"damaged file {self.rel}: {self.why}; {repair_hint(self.rel)}"
 
 
 def inner_cell_ids(path: Path) -> set[str]:
-    """The distinct ``cell_id`` values of a Parquet file of ours (reads that column only)."""
+    """The distinct ``cell_id`` values of a Parquet file of ours; every page is read, so a
+    page checksum (files written since page checksums) is verified too."""
     import pyarrow.parquet as pq
 
-    col = pq.read_table(path, columns=["cell_id"], page_checksum_verification=True).column("cell_id")
+    col = pq.read_table(path, page_checksum_verification=True).column("cell_id")
     return {str(v) for v in col.unique().to_pylist()}
 
 
@@ -217,10 +222,11 @@ def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = No
         cid = owner_cell(rel)
         if cell_ids is not None and cid and cid not in cell_ids:
             continue
-        why = checksums.mismatch(path)
-        if not why and rel.endswith(".parquet"):
+        why = ""
+        if rel.endswith(".parquet"):  # misplaced first: a copy's checksum is wrong too, less telling
             why = placement_problem(path, cid) if cid else _readable(path)
-        elif not why and rel.endswith(".pt") and not (checksums.active and rel in checksums.files):
+        why = why or checksums.mismatch(path)
+        if not why and rel.endswith(".pt") and not (checksums.active and rel in checksums.files):
             why = _loadable(path)  # an unrecorded checkpoint: torch's own CRCs tell
         if why:
             out.append(Damage(rel, cid, why))

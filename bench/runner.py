@@ -26,11 +26,9 @@ from __future__ import annotations
 import importlib
 import json
 import os
-import signal
 import sys
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -42,6 +40,7 @@ from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
 from bench.schema import SCHEMA_VERSION
+from bench.signals import Terminated, sigterm_as_interrupt, sigterm_received  # noqa: F401 (re-exported)
 from bench.store import DiskFull, RunStore, is_disk_full
 from bench.worker import CellWorker
 from bench.worker_pool import Slot, release_workers, take_workers
@@ -67,39 +66,6 @@ class RunSummary:
 
 
 EventHook = Callable[[str, CellState], None]
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM to the driver: handled like Ctrl-C (checkpoints kept, rerun resumes), exit 143.
-
-    Ray turns an exception raised by a signal handler inside ``ray.wait``/``ray.get`` into
-    a plain KeyboardInterrupt, so ``sigterm_received()`` is what tells the two apart."""
-
-
-_SIGTERM_RECEIVED: list[bool] = [False]
-
-
-def sigterm_received() -> bool:
-    return _SIGTERM_RECEIVED[0]
-
-
-@contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """While active, SIGTERM raises ``Terminated`` in the main thread (replacing the handler
-    ``ray.init`` installs, which exits mid-write with a crash dump)."""
-    def handler(signum: int, frame: Any) -> None:
-        _SIGTERM_RECEIVED[0] = True
-        raise Terminated()
-
-    try:
-        old = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
 
 
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
@@ -154,7 +120,8 @@ def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
         return []
     from bench.integrity import find_damage, move_aside
 
-    damage = find_damage(store, store.integrity(), {c.cell_id for c in grid.cells})
+    damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells})
+              if not d.rel.startswith("matrix/")]  # bench matrix --repair's
     if not damage:
         return []
     if not repair:

@@ -21,9 +21,9 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from bench.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, owner_cell
 from bench.plan import dict_changes
 from bench.schema import EVAL_SCHEMA, TRAIN_SCHEMA
-from bench.integrity import Checksums, Damage, owner_cell
 from bench.store import RunStore, read_table
 from envs.errors import BenchError
 
@@ -175,6 +175,14 @@ def superseded_notes(run: Path, cells: pd.DataFrame) -> list[str]:
     now = dict(zip(cells["cell_id"].astype(str), cells["params_json"].astype(str), strict=True))
     out = []
     for d in sorted(p for p in root.iterdir() if p.is_dir()):
+        if d.name.startswith(REPAIR_PREFIX):  # bench run / matrix --repair (bench/integrity.py)
+            try:
+                moved = json.loads((d / REPAIR_FILE).read_text())
+                files = ", ".join(f"{m['file']} ({m['why']})" for m in moved)
+            except (OSError, ValueError, TypeError, KeyError):
+                files = f"unreadable {REPAIR_FILE}"
+            out.append(f"superseded/{d.name}: damaged files moved aside by --repair and recomputed: {files}")
+            continue
         try:
             row = json.loads((d / "cells_row.json").read_text())
             changed = dict_changes(json.loads(row.get("params_json") or "{}"),

@@ -76,9 +76,10 @@ def ray_local() -> Iterator[None]:
     ray.shutdown()
 
 
-def write_finished_store(out: Path, grid: Any) -> None:
+def write_finished_store(out: Path, grid: Any, checksums: bool = False) -> None:
     """A complete run directory for ``grid`` computed in this process (no Ray), written with
-    the same store calls and in the same order as the runner."""
+    the same store calls and in the same order as the runner; ``checksums``: recorded in
+    checksums.json as by this bench's runner (else a store of an older bench)."""
     from bench.plan import cell_spec, plan_run
     from bench.schema import SCHEMA_VERSION
     from bench.store import RunStore
@@ -86,7 +87,10 @@ def write_finished_store(out: Path, grid: Any) -> None:
 
     store = RunStore(out)
     states, _ = plan_run(store, grid, fresh=True)
-    store.write_manifest({"schema_version": SCHEMA_VERSION, "grid": grid.name, "runs": []})
+    store.write_manifest({"schema_version": SCHEMA_VERSION, "grid": grid.name,
+                          "runs": [{"grid": grid.name, "checksums": 1}] if checksums else []})
+    if checksums:
+        store.integrity().start_recording()
     worker = CellWorker()
     for st in states:
         spec, state, first = cell_spec(st.cell), None, 0
