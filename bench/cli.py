@@ -483,7 +483,9 @@ def main(argv: list[str] | None = None) -> None:
             _error(_TERMINATED)
             sys.exit(143)
         _exit_on(exc)
-    if code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
+    if code == 130 and sigterm_received():  # typer turned Terminated into 130 too
+        code = 143
+    elif code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
         _error("interrupted; rerun the same command to resume")
     if code == 143:  # SIGTERM (bench run turns it into exit status 143)
         _error(_TERMINATED if not _is_run(argv) else "terminated; checkpoints are kept, rerun the same command to resume")
