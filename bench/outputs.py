@@ -19,10 +19,10 @@ REPORT_MARK = "# Report: "  # first line of every index.md the report writes (re
 
 
 # Names a report writes (reports/build.py, reports/matrix.py), so that a folder left by an
-# interrupted report (index.md is written last) is still recognized as the bench's.
+# interrupted report (index.md and index.html are written last) is still recognized as the bench's.
 REPORT_NAMES = re.compile(
     r"(fig[123]_\w+|table1_safety|summary|success_by_mode|progress|claims(_table)?|calibration|ablation"
-    r"|matrix\w*|index)\.(png|pdf|txt|md|csv|tex|json|html)|studies|replays|\..+\.tmp")
+    r"|matrix\w*)\.(png|pdf|txt|md|csv|tex|json|html)|studies|replays|\..+\.tmp")
 
 
 def is_bench_report(folder: Path) -> bool:

@@ -234,3 +234,18 @@ def test_checksums_file__that_is_not_ours_is_one_line(legacy, recorded) -> None:
     (out / CHECKSUMS_FILE).write_text(json.dumps({"format": "x", "files": []}))
     with pytest.raises(BenchError, match="corrupt .*checksums.json.*format"):
         Checksums.load(out, RunStore(out).read_manifest())
+
+
+# ------------------------------------------- D6: a broken study beside the run
+@pytest.mark.parametrize("content", ["{not json", '{"run": 5}'])
+def test_report__a_broken_study_beside_the_run_is_a_warning_not_a_crash(
+        capsys: pytest.CaptureFixture[str], legacy, tmp_path: Path, content: str) -> None:
+    _, out, _ = legacy
+    study = out.parent / "studies" / "other"
+    study.mkdir(parents=True)
+    (study / "trials.parquet").write_bytes(b"")
+    (study / "study.json").write_text(content)
+    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
+    assert code == 0, err
+    index = (tmp_path / "rep" / "index.md").read_text()
+    assert "study studies/other beside the run was left out" in index and "study.json" in index
