@@ -192,7 +192,8 @@ def inner_cell_ids(path: Path) -> set[str]:
     page checksum (files written since page checksums) is verified too."""
     import pyarrow.parquet as pq
 
-    col = pq.read_table(path, page_checksum_verification=True).column("cell_id")
+    table = pq.ParquetFile(path, page_checksum_verification=True).read(use_threads=False)  # 10x read_table
+    col = table.column("cell_id")
     return {str(v) for v in col.unique().to_pylist()}
 
 
@@ -210,10 +211,13 @@ def placement_problem(path: Path, cell_id: str) -> str:
     return ""
 
 
-def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = None) -> list[Damage]:
+def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = None,
+                load_checkpoints: bool = False) -> list[Damage]:
     """Every damaged or misplaced file of ``store`` (a ``bench.store.RunStore``), restricted
-    to ``cell_ids`` when given (cells.parquet is always checked). Reads every Parquet file's
-    ``cell_id`` column and hashes every recorded file."""
+    to ``cell_ids`` when given (cells.parquet is always checked). Reads every Parquet file
+    (page checksums, ``cell_id`` column) and hashes every recorded file; an unrecorded
+    checkpoint is loaded only with ``load_checkpoints`` (a resume, which needs them; the
+    report does not read checkpoints)."""
     out = []
     for path in store.bench_files():
         if path.name.startswith(".") or path.name == "manifest.json" or path == checksums.path:
@@ -226,7 +230,8 @@ def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = No
         if rel.endswith(".parquet"):  # misplaced first: a copy's checksum is wrong too, less telling
             why = placement_problem(path, cid) if cid else _readable(path)
         why = why or checksums.mismatch(path)
-        if not why and rel.endswith(".pt") and not (checksums.active and rel in checksums.files):
+        if (not why and load_checkpoints and rel.endswith(".pt")
+                and not (checksums.active and rel in checksums.files)):
             why = _loadable(path)  # an unrecorded checkpoint: torch's own CRCs tell
         if why:
             out.append(Damage(rel, cid, why))
@@ -248,7 +253,7 @@ def _readable(path: Path) -> str:
     import pyarrow.parquet as pq
 
     try:
-        pq.read_table(path, page_checksum_verification=True)
+        pq.ParquetFile(path, page_checksum_verification=True).read(use_threads=False)
     except (OSError, pa.ArrowException) as exc:
         return f"unreadable Parquet ({' '.join(str(exc).split())[:160]})"
     return ""

@@ -120,7 +120,7 @@ def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
         return []
     from bench.integrity import find_damage, move_aside
 
-    damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells})
+    damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells}, True)
               if not d.rel.startswith("matrix/")]  # bench matrix --repair's
     if not damage:
         return []
