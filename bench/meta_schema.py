@@ -33,7 +33,7 @@ class RunRecord(BaseModel):
     grid: StrictStr | None = None
     started: StrictStr | None = None
     ended: StrictStr | None = None
-    command: list[StrictStr] | None = None
+    command: list[StrictStr] | StrictStr | None = None  # sys.argv (older tools: one string)
     git: StrictStr | None = None
     workers: StrictInt | None = None
     wall_s: Number | None = None
@@ -51,7 +51,7 @@ class Manifest(BaseModel):
     created: StrictStr | None = None
     updated: StrictStr | None = None
     grid: StrictStr | None = None
-    command: list[StrictStr] | None = None
+    command: list[StrictStr] | StrictStr | None = None  # sys.argv (older tools: one string)
     git_sha: StrictStr | None = None
     package_version: StrictStr | None = None
     versions: dict[str, StrictStr] | None = None

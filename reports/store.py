@@ -52,7 +52,7 @@ class Store:
 
 
 def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
-                  checksums: Checksums | None = None) -> pd.DataFrame:
+                  checksums: Checksums | None = None, damaged: set[str] | None = None) -> pd.DataFrame:
     """Every Parquet file under ``root`` (bench/store.py layout); unreadable, damaged
     (checksum mismatch) and misplaced (rows of another cell than its name says) ones are
     listed in ``problems`` and skipped, so one bad file neither hides the rest of the run
@@ -75,7 +75,9 @@ def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
             if cid and found and found != {cid}:
                 why = f"it holds rows of cell {', '.join(sorted(found - {cid}))}, not of {cid} (a copied or renamed file)"
         if why:
-            problems.append(f"skipped {Damage(rel, owner_cell(rel), why).line()}")
+            problems.append(f"skipped {rel}: {Damage(rel, owner_cell(rel), why).line()}")
+            if damaged is not None:
+                damaged.add(owner_cell(rel))
             continue
         tables.append(table)
     if not tables:
@@ -155,9 +157,14 @@ def load_store(run_dir: Path | str) -> Store:
     cells["safety_filter"] = cells["safety_filter"].fillna(False).astype(bool)
     problems: list[str] = []
     done = cells[cells["status"] == "done"]
-    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems, checksums), done)
-    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems, checksums), done)
+    damaged: set[str] = set()
+    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems, checksums, damaged), done)
+    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems, checksums, damaged), done)
     problems += manifest_problems
+    if damaged:  # a done cell with a damaged file is not done until `bench run --repair`
+        cells.loc[cells["cell_id"].isin(damaged) & (cells["status"] == "done"), "status"] = "pending"
+        done = cells[cells["status"] == "done"]
+        train, evals = (df[df["cell_id"].isin(done["cell_id"])].reset_index(drop=True) for df in (train, evals))
     for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
         problems.append(f"cell {cid} is done but has no evaluation rows")
     problems += incomplete_evals(done, evals)

@@ -170,8 +170,9 @@ def test_misplaced__a_copied_eval_file_is_named_by_run_and_report(
     assert code == 0, err
     assert f"eval/{b}.parquet" in err and "--repair" in err
     progress = (tmp_path / "rep" / "progress.md").read_text()
+    assert "| toy | 1 | 0 | 1 | 0 | 2 |" in progress, progress  # b is not done until repaired
     store = load_store(out)
-    assert set(store.eval["cell_id"]) == {a} and progress
+    assert set(store.eval["cell_id"]) == {a}
 
 
 def test_misplaced__a_swapped_pair_of_eval_files_names_both(recorded) -> None:
@@ -196,13 +197,17 @@ def test_corrupt_file__of_an_old_store_names_the_repair_command(
     assert code == 2
     _one_error_line(err, f"damaged file {victim.relative_to(out).as_posix()}", "unreadable",
                     "rerun `bench run` (same grid and --out) with --repair")
+    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(out.parent / "rep"))
+    assert code == 0, err
+    warnings = [ln for ln in err.splitlines() if ln.startswith("bench: warning:")]
+    assert len(warnings) == 1 and "--repair" in warnings[0] and "to complete it" not in err, err
 
 
 # ------------------------------------------------------ D8: manifest schema
 @pytest.mark.parametrize(("runs", "message"), [
     (5, "runs: Input should be a valid list"),
     ("notalist", "runs: Input should be a valid list"),
-    ([{"command": "bench run"}], "runs.0.command: Input should be a valid list"),
+    ([{"workers": "two"}], "runs.0.workers: Input should be a valid integer"),
 ])
 def test_manifest__a_field_of_the_wrong_type_is_one_line_and_nothing_is_written(
         capsys: pytest.CaptureFixture[str], legacy, runs: object, message: str, tmp_path: Path) -> None:
