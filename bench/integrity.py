@@ -204,7 +204,7 @@ def placement_problem(path: Path, cell_id: str) -> str:
     try:
         found = inner_cell_ids(path)
     except (OSError, pa.ArrowException, KeyError) as exc:
-        return f"unreadable Parquet ({' '.join(str(exc).split())[:160]})"
+        return f"corrupt Parquet ({' '.join(str(exc).split())[:160]})"
     if found and found != {cell_id}:
         others = ", ".join(sorted(found - {cell_id})) or "none"
         return f"it holds rows of cell {others}, not of {cell_id} (a copied or renamed file)"
@@ -255,7 +255,7 @@ def _readable(path: Path) -> str:
     try:
         pq.ParquetFile(path, page_checksum_verification=True).read(use_threads=False)
     except (OSError, pa.ArrowException) as exc:
-        return f"unreadable Parquet ({' '.join(str(exc).split())[:160]})"
+        return f"corrupt Parquet ({' '.join(str(exc).split())[:160]})"
     return ""
 
 

@@ -124,3 +124,31 @@ def store_with_params(out: Path, cid: str, **old: Any) -> None:
     i = cells.index[cells["cell_id"] == cid][0]
     cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), **old}, sort_keys=True)
     store.write_cells(cells.to_dict("records"))
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    """``bench ARGS`` in-process: (exit status, stdout, stderr)."""
+    from bench.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+def one_error_line(err: str, *needles: str) -> None:
+    """``err`` is one ``bench: error:`` line holding every needle."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("bench: error: ") and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, err
+
+
+@pytest.fixture
+def one_cell_run(toy: str, tmp_path: Path) -> Path:
+    """A finished run directory of one toy cell (no checksums: as an older bench wrote it)."""
+    from bench.grid_files import load_grid_file
+
+    grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0]}))
+    write_finished_store(tmp_path / "run", grid)
+    return tmp_path / "run"

@@ -11,27 +11,19 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from bench.cli import main
 from bench.grid_files import load_grid_file
 from bench.integrity import CHECKSUMS_FILE, Checksums, find_damage
 from bench.store import RunStore, table_bytes
 from envs.errors import BenchError
 from reports.store import load_store
-from tests.bench.conftest import snapshot, toy_spec, write_finished_store, write_grid_file
-
-
-def _cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as exc:
-        main(list(args))
-    out, err = capsys.readouterr()
-    return int(exc.value.code or 0), out, err
-
-
-def _one_error_line(err: str, *needles: str) -> None:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("bench: error: ") and "Traceback" not in err, err
-    for n in needles:
-        assert n in err, err
+from tests.bench.conftest import (
+    one_error_line,
+    run_cli,
+    snapshot,
+    toy_spec,
+    write_finished_store,
+    write_grid_file,
+)
 
 
 @pytest.fixture
@@ -98,9 +90,9 @@ def test_bit_rot__run_refuses_naming_the_file_and_repair_and_writes_nothing(
     victim = stored_files(out, ids[1])[kind]
     flip_bit(victim, where)
     before = snapshot(out)
-    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
+    code, _, err = run_cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
-    _one_error_line(err, f"damaged file {victim.relative_to(out).as_posix()}", "--repair", "superseded/")
+    one_error_line(err, f"damaged file {victim.relative_to(out).as_posix()}", "--repair", "superseded/")
     assert snapshot(out) == before
 
 
@@ -108,7 +100,7 @@ def test_bit_rot__report_leaves_the_file_out_with_one_warning_and_no_wrong_numbe
         capsys: pytest.CaptureFixture[str], recorded, tmp_path: Path) -> None:
     _, out, ids = recorded
     flip_bit(out / "eval" / f"{ids[1]}.parquet", 0.5)
-    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
+    code, _, err = run_cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
     assert code == 0, err
     warnings = [ln for ln in err.splitlines() if ln.startswith("bench: warning:")]
     assert len(warnings) == 1 and f"eval/{ids[1]}.parquet" in warnings[0] and "--repair" in warnings[0]
@@ -117,13 +109,13 @@ def test_bit_rot__report_leaves_the_file_out_with_one_warning_and_no_wrong_numbe
     assert any(f"damaged file eval/{ids[1]}.parquet" in p for p in store.problems)
 
 
-def test_bit_rot__a_damaged_cells_parquet_stops_the_report_with_one_line(
+def test_bit_rot__a_damaged_cells_parquet_stops_the_report_withone_error_line(
         capsys: pytest.CaptureFixture[str], recorded, tmp_path: Path) -> None:
     _, out, _ = recorded
     flip_bit(out / "cells.parquet", 0.5)
-    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
+    code, _, err = run_cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
     assert code == 2
-    _one_error_line(err, "damaged file cells.parquet", "--repair")
+    one_error_line(err, "damaged file cells.parquet", "--repair")
 
 
 def test_bit_rot__in_a_store_without_checksums_a_data_page_flip_is_still_caught(
@@ -137,9 +129,9 @@ def test_bit_rot__in_a_store_without_checksums_a_data_page_flip_is_still_caught(
     data = bytearray(victim.read_bytes())
     data[col.data_page_offset + col.total_compressed_size - 2] ^= 0x01  # inside the page's values
     victim.write_bytes(bytes(data))
-    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
+    code, _, err = run_cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
-    _one_error_line(err, f"damaged file eval/{ids[0]}.parquet", "--repair")
+    one_error_line(err, f"damaged file eval/{ids[0]}.parquet", "--repair")
 
 
 def test_checksums__a_rewrite_interrupted_between_checksums_and_rename_is_not_damage(recorded) -> None:
@@ -162,11 +154,11 @@ def test_misplaced__a_copied_eval_file_is_named_by_run_and_report(
     grid_file, out, (a, b) = request.getfixturevalue(store_kind)
     shutil.copyfile(out / "eval" / f"{a}.parquet", out / "eval" / f"{b}.parquet")
     before = snapshot(out)
-    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
+    code, _, err = run_cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
-    _one_error_line(err, f"eval/{b}.parquet", f"holds rows of cell {a}", "--repair")
+    one_error_line(err, f"eval/{b}.parquet", f"holds rows of cell {a}", "--repair")
     assert snapshot(out) == before
-    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
+    code, _, err = run_cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
     assert code == 0, err
     assert f"eval/{b}.parquet" in err and "--repair" in err
     progress = (tmp_path / "rep" / "progress.md").read_text()
@@ -193,11 +185,11 @@ def test_corrupt_file__of_an_old_store_names_the_repair_command(
     grid_file, out, ids = legacy
     victim = stored_files(out, ids[0])[kind]
     victim.write_bytes(victim.read_bytes()[:40])  # truncated: unreadable
-    code, _, err = _cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
+    code, _, err = run_cli(capsys, "run", "--grid-file", str(grid_file), "--out", str(out))
     assert code == 2
-    _one_error_line(err, f"damaged file {victim.relative_to(out).as_posix()}", "unreadable",
+    one_error_line(err, f"damaged file {victim.relative_to(out).as_posix()}", "corrupt Parquet",
                     "rerun `bench run` (same grid and --out) with --repair")
-    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(out.parent / "rep"))
+    code, _, err = run_cli(capsys, "report", "--run", str(out), "--out", str(out.parent / "rep"))
     assert code == 0, err
     warnings = [ln for ln in err.splitlines() if ln.startswith("bench: warning:")]
     assert len(warnings) == 1 and "--repair" in warnings[0] and "to complete it" not in err, err
@@ -218,13 +210,13 @@ def test_manifest__a_field_of_the_wrong_type_is_one_line_and_nothing_is_written(
     before = snapshot(out)
     for args in (["run", "--grid-file", str(grid_file), "--out", str(out)],
                  ["report", "--run", str(out), "--out", str(tmp_path / "rep")]):
-        code, _, err = _cli(capsys, *args)
+        code, _, err = run_cli(capsys, *args)
         assert code == 2
-        _one_error_line(err, "manifest.json", message)
+        one_error_line(err, "manifest.json", message)
     assert snapshot(out) == before
 
 
-def test_eval_metadata__of_the_wrong_type_is_one_line(legacy) -> None:
+def test_eval_metadata__of_the_wrong_type_isone_error_line(legacy) -> None:
     _, out, ids = legacy
     path = out / "eval" / f"{ids[0]}.parquet"
     table = pq.read_table(path)
@@ -234,7 +226,7 @@ def test_eval_metadata__of_the_wrong_type_is_one_line(legacy) -> None:
         RunStore(out).eval_meta(ids[0])
 
 
-def test_checksums_file__that_is_not_ours_is_one_line(legacy, recorded) -> None:
+def test_checksums_file__that_is_not_ours_isone_error_line(legacy, recorded) -> None:
     _, out, _ = recorded
     (out / CHECKSUMS_FILE).write_text(json.dumps({"format": "x", "files": []}))
     with pytest.raises(BenchError, match="corrupt .*checksums.json.*format"):
@@ -250,7 +242,7 @@ def test_report__a_broken_study_beside_the_run_is_a_warning_not_a_crash(
     study.mkdir(parents=True)
     (study / "trials.parquet").write_bytes(b"")
     (study / "study.json").write_text(content)
-    code, _, err = _cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
+    code, _, err = run_cli(capsys, "report", "--run", str(out), "--out", str(tmp_path / "rep"))
     assert code == 0, err
     index = (tmp_path / "rep" / "index.md").read_text()
     assert "study studies/other beside the run was left out" in index and "study.json" in index

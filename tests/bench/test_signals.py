@@ -13,8 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.grid_files import load_grid_file
-from tests.bench.conftest import REPO, TOY_PATH, toy_spec, write_finished_store, write_grid_file
+from tests.bench.conftest import REPO, TOY_PATH
 
 SCRIPT = '''
 import io, json, os, signal, sys
@@ -50,22 +49,16 @@ print(json.dumps(out))
 '''
 
 
-@pytest.fixture
-def run_dir(toy: str, tmp_path: Path) -> Path:
-    grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0]}))
-    write_finished_store(tmp_path / "run", grid)
-    return tmp_path / "run"
-
 
 def test_sigterm__report_tune_matrix_and_replay_exit_143_with_one_line_and_no_temp_file(
-        run_dir: Path, tmp_path: Path) -> None:
+        one_cell_run: Path, tmp_path: Path) -> None:
     import pandas as pd
 
-    cell = str(pd.read_parquet(run_dir / "cells.parquet")["cell_id"][0])
-    cases = {"report": ["report", "--run", str(run_dir)],
+    cell = str(pd.read_parquet(one_cell_run / "cells.parquet")["cell_id"][0])
+    cases = {"report": ["report", "--run", str(one_cell_run)],
              "tune": ["tune", "--study", "s", "--inline", "--out", str(tmp_path / "studies")],
-             "matrix": ["matrix", "--run", str(run_dir)],
-             "replay": ["replay", "--run", str(run_dir), "--cell", cell]}
+             "matrix": ["matrix", "--run", str(one_cell_run)],
+             "replay": ["replay", "--run", str(one_cell_run), "--cell", cell]}
     res = subprocess.run([sys.executable, "-c", SCRIPT.format(toy=TOY_PATH), json.dumps(cases)],
                          capture_output=True, text=True, cwd=REPO, timeout=300)
     assert res.returncode == 0, res.stderr[-3000:]
@@ -73,7 +66,7 @@ def test_sigterm__report_tune_matrix_and_replay_exit_143_with_one_line_and_no_te
     for name, (code, err) in results.items():
         lines = [ln for ln in err.splitlines() if ln.strip()]
         assert code == 143 and len(lines) == 1 and lines[0].startswith("bench: error: terminated"), (name, code, err)
-    report = run_dir / "report"
+    report = one_cell_run / "report"
     assert report.is_dir() and not [p for p in report.rglob("*") if p.name.startswith(".")]
     assert not (report / "fig1_training.png").exists()
 
