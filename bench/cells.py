@@ -20,6 +20,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import method_class, method_target
+from bench.limits import limit, with_reasons
 from envs.config import EnvConfig, bursty_loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
@@ -27,7 +28,8 @@ from envs.scenarios import main_region
 
 # Largest horizon T a cell may ask for: 20x the paper's 500 steps (Sec. IV). Rollout arrays
 # grow with T x N x batch, so T = 10**12 would fail at run time with MemoryError instead.
-MAX_HORIZON = 10_000
+# Every count has such a bound, with its reason (bench/limits.py).
+MAX_HORIZON = limit("horizon")
 
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
@@ -41,21 +43,21 @@ class Cell(BaseModel):
     # strict=True on numbers and flags: `n_robots = true` or `horizon = 2.5` is an error, not 1
     # or 2 (a number is a number, a flag is a flag); an int is still accepted for a float.
     method: str = Field(description="registered method name or module:Class (algorithms/registry.py)")
-    n_robots: int = Field(ge=1, le=10_000, strict=True, description="team size N")
+    n_robots: int = Field(ge=1, le=limit("n_robots"), strict=True, description="team size N")
     loss_p: float = Field(ge=0.0, le=1.0, strict=True, description="inter-group message loss probability p")
     seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
-    groups: int = Field(4, ge=1, strict=True, description="number of fixed groups Z")
-    ref_size: int = Field(8, ge=1, strict=True, description="abstract references per group |R_z|")
-    search_radius: int = Field(2, ge=0, strict=True, description="safety-filter search radius L")
-    c_max: int = Field(500, ge=1, strict=True, description="safety-filter candidate budget C_max")
+    groups: int = Field(4, ge=1, le=limit("groups"), strict=True, description="number of fixed groups Z")
+    ref_size: int = Field(8, ge=1, le=limit("ref_size"), strict=True, description="abstract references per group |R_z|")
+    search_radius: int = Field(2, ge=0, le=limit("search_radius"), strict=True, description="safety-filter search radius L")
+    c_max: int = Field(500, ge=1, le=limit("c_max"), strict=True, description="safety-filter candidate budget C_max")
     safety_filter: bool = Field(
         False, strict=True, description="safety filter on (default: the method's safety_filter_default)"
     )
     layout: str = Field("auto", description="'auto' (preset sized for N), a preset or a .map path")
-    episodes: int = Field(2000, ge=0, strict=True,
+    episodes: int = Field(2000, ge=0, le=limit("episodes"), strict=True,
                           description="training episodes (0: evaluate the initialization)")
     horizon: int = Field(500, ge=1, le=MAX_HORIZON, strict=True, description="maximum episode length T")
-    eval_episodes: int = Field(100, ge=1, strict=True, description="evaluation episodes (per execution mode)")
+    eval_episodes: int = Field(100, ge=1, le=limit("eval_episodes"), strict=True, description="evaluation episodes (per execution mode)")
     eval_temperatures: tuple[float, ...] = Field(
         DEFAULT_TEMPERATURES,
         description="temperatures T != 1 of the tempered evaluation modes sample@T (learned methods; "
@@ -216,6 +218,6 @@ def _one_line(what: str, exc: ValidationError) -> str:
     parts = []
     for err in exc.errors():
         loc = ".".join(str(p) for p in err["loc"])
-        msg = str(err["msg"]).removeprefix("Value error, ")
+        msg = with_reasons(err, str(err["msg"]).removeprefix("Value error, "))
         parts.append(f"{loc}: {msg}" if loc else msg)
     return f"invalid {what}: " + "; ".join(parts)

@@ -76,6 +76,7 @@ def run(
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
     rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
+    repair: bool = typer.Option(False, "--repair", help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is refused, naming the file."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -86,6 +87,11 @@ def run(
 
     if (grid is None) == (grid_file is None):
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
+    from bench.limits import check_count
+
+    for option, field, value in (("--workers", "workers", workers), ("--checkpoint-every", "checkpoint_every", checkpoint_every),
+                                 ("--stack-seeds", "stack_seeds", stack_seeds)):
+        check_count(option, field, value)
     g = get_grid(grid.value, seeds) if grid is not None else load_grid_file(grid_file, seeds)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
@@ -107,11 +113,13 @@ def run(
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv,
-                               rerun_changed=rerun_changed, stack_seeds=stack_seeds)
+                               rerun_changed=rerun_changed, stack_seeds=stack_seeds, repair=repair)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
         raise
+    for line in summary.repaired:
+        typer.echo(f"bench: repair: {line}", err=True)
     for cid, why in summary.rerun.items():
         typer.echo(f"bench: warning: cell {cid} {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "
@@ -284,14 +292,19 @@ def report(
     against: Path | None = typer.Option(None, "--against", help="Also report the done cells of this run directory "
                                         "(e.g. reproduction/paper) at the configurations RUN covers, as if they had "
                                         "run together; refused unless settings and scenarios match."),
+    force: bool = typer.Option(False, "--force", help="Write into an --out folder that holds files the bench did not write (default: refused)."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
     Warns naming every done cell whose stored rows are incomplete. With --against REF, a
     method of your own is judged against REF's committed baselines without retraining them."""
     import os
 
+    from bench.outputs import check_report_out
+
     run_dir = _run_dir(run)
     target = out if out is not None else run_dir / "report"
+    if out is not None:
+        check_report_out(out, force)
     if out is None and not _writable(target):
         raise BenchError(f"run directory {str(run_dir)!r} is read-only; write the report elsewhere "
                          "with --out DIR")
@@ -300,14 +313,23 @@ def report(
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
     from bench.completeness import incomplete_cells
+    from bench.integrity import find_damage
     from bench.store import RunStore
 
     store = RunStore(run_dir)
+    damage = find_damage(store, store.integrity())
+    broken = [d for d in damage if d.rel == "cells.parquet"]
+    if broken:
+        raise BenchError(f"{str(run_dir)!r}: {broken[0].line()}")
+    for d in damage:  # left out of the report (reports/store.py), never read as numbers
+        typer.echo(f"bench: warning: {d.line()}", err=True)
     cells = store.read_cells()
+    damaged = {d.cell_id for d in damage}
     if cells is not None:
         for cid, gap in incomplete_cells(store, cells).items():
-            typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
-                       "rerun `bench run` to complete it", err=True)
+            if cid not in damaged:
+                typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "
+                           "rerun `bench run` to complete it", err=True)
     try:
         if against is not None:
             RunStore(against).require_run()
@@ -333,13 +355,19 @@ def matrix(
     episodes: int | None = typer.Option(None, "--episodes", help="Evaluation episodes per condition and mode (default: the run's eval_episodes)."),
     workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
     address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
+    repair: bool = typer.Option(False, "--repair", help="Move damaged or misplaced files of RUN/matrix/ to RUN/superseded/repair-<time>/ and evaluate those units again (without it such a matrix is refused, naming the file)."),
 ) -> None:
     """Robustness matrix: evaluate every trained checkpoint at other team sizes N', loss
     rates p' and bursty (Gilbert-Elliott) loss, on scenarios shared by every method, into
     RUN/matrix/. Rerunning skips the (cell, condition) units already written."""
+    from bench.limits import check_count
     from bench.matrix import run_matrix
 
-    s = run_matrix(run, n, p, loss_model, burst, episodes, workers, address)
+    check_count("--episodes", "eval_episodes", episodes)
+    check_count("--workers", "workers", workers)
+    for size in n:
+        check_count("--n", "n_robots", size)
+    s = run_matrix(run, n, p, loss_model, burst, episodes, workers, address, repair=repair)
     typer.echo(f"matrix: {s.units} units ({s.skipped} already done, {s.written} evaluated, "
                f"{s.unsupported} unsupported) in {s.wall_s:.1f} s -> {s.out / 'matrix'}")
     for unit, error in s.failed.items():
@@ -362,11 +390,12 @@ def _writable(path: Path) -> bool:
 def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
-    episode: int = typer.Option(0, "--episode", min=0, help="Evaluation episode to replay."),
+    episode: int = typer.Option(0, "--episode", min=0, max=100_000, help="Evaluation episode to replay (below the cell's eval_episodes)."),
     out: Path | None = typer.Option(None, "--out", help="Output path (default: RUN/replays/<cell>-ep<K>[-<mode>].<format>)."),
     execution: str | None = typer.Option(None, "--execution", help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
     fmt: str = typer.Option("gif", "--format", help="gif, or mp4 (needs the imageio-ffmpeg package)."),
-    fps: float = typer.Option(8.0, "--fps", min=0.5, help="Frames (steps) per second."),
+    fps: float = typer.Option(8.0, "--fps", min=0.5, max=60.0, help="Frames (steps) per second (0.5..60)."),
+    force: bool = typer.Option(False, "--force", help="Replace an existing --out file (default: refused; the default path is rebuilt in place)."),
 ) -> None:
     """Render one evaluation episode of a cell, in one execution mode, as a captioned GIF or MP4."""
     from bench.store import RunStore
@@ -379,8 +408,11 @@ def replay(
         from reports.replay import replay_progress, write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
+    from bench.outputs import check_replay_out
+
     suffix = f"-{execution}" if execution else ""
     target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.{fmt}"
+    check_replay_out(target, out is None, force)
     with replay_progress() as progress:
         path = write_replay(run_dir, cell, episode, target, fps=fps, fmt=fmt, progress=progress,
                             execution=execution)
@@ -486,9 +518,40 @@ def _error(msg: str) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console entry point: one-line errors with exit status 2 for user mistakes."""
+    """Console entry point: one-line errors with exit status 2 for user mistakes; Ctrl-C
+    (exit 130) and SIGTERM (exit 143) stop every command with one line, its atomic writes
+    having removed their temp files."""
+    from bench.signals import sigterm_as_interrupt, sigterm_received
+
     try:
-        code = app(args=argv, prog_name="bench", standalone_mode=False)
+        with sigterm_as_interrupt():
+            code = app(args=argv, prog_name="bench", standalone_mode=False)
+    except BaseException as exc:
+        if sigterm_received() and isinstance(exc, (KeyboardInterrupt, typer.Abort, click_exc.Abort)):
+            _error(_TERMINATED)
+            sys.exit(143)
+        _exit_on(exc)
+    if code == 130 and sigterm_received():  # typer turned Terminated into 130 too
+        code = 143
+    elif code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
+        _error("interrupted; rerun the same command to resume")
+    if code == 143:  # SIGTERM (bench run turns it into exit status 143)
+        _error(_TERMINATED if not _is_run(argv) else "terminated; checkpoints are kept, rerun the same command to resume")
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+_TERMINATED = "terminated; no partial file was left behind; rerun the same command to resume"
+
+
+def _is_run(argv: list[str] | None) -> bool:
+    args = sys.argv[1:] if argv is None else argv
+    return bool(args) and args[0] == "run"
+
+
+def _exit_on(exc: BaseException) -> None:
+    """Exit for an exception out of a command (re-raised when it is a bug)."""
+    try:
+        raise exc
     except BenchError as exc:
         _error(str(exc))
         sys.exit(2)
@@ -514,11 +577,6 @@ def main(argv: list[str] | None = None) -> None:
             raise
         _error(str(DiskFull(exc.filename or "results")))
         sys.exit(2)
-    if code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
-        _error("interrupted; rerun the same command to resume")
-    if code == 143:  # SIGTERM (bench run turns it into exit status 143)
-        _error("terminated; checkpoints are kept, rerun the same command to resume")
-    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":

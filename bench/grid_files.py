@@ -31,6 +31,7 @@ from typing import Any
 
 from bench.cells import Cell
 from bench.grids import Grid, dedup
+from bench.limits import limit, reason
 from envs.errors import BenchError
 
 try:
@@ -105,6 +106,8 @@ def load_grid_file(path: str | Path, seeds: int | None = None) -> Grid:
     if n_seeds is not None:
         if not isinstance(n_seeds, int) or isinstance(n_seeds, bool) or n_seeds < 1:
             raise BenchError(f"{where}: seeds must be an integer >= 1, got {n_seeds!r}")
+        if n_seeds > limit("seeds"):
+            raise BenchError(f"{where}: seeds {n_seeds} is too large{reason('seeds')}")
         axes = {k: v for k, v in axes.items() if k != "seed"}
         axes["seed"] = list(range(n_seeds))
     keys = list(axes)

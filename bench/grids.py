@@ -176,4 +176,7 @@ def get_grid(name: str, seeds: int | None = None) -> Grid:
         raise BenchError(f"unknown grid {name!r}; choose one of {', '.join(BUILTIN)} or pass --grid-file")
     if seeds is not None and seeds < 1:
         raise BenchError(f"--seeds must be >= 1, got {seeds}")
+    from bench.limits import check_count
+
+    check_count("--seeds", "seeds", seeds)
     return BUILTIN[name](seeds if seeds is not None else DEFAULT_SEEDS[name])

@@ -318,7 +318,23 @@ def _prepare(unit: Unit) -> None:
     unit.todo = unit.chunks()
 
 
-def _write_unit(run: Path, unit: Unit, status: str, reason: str = "") -> None:
+def _check_matrix_files(store: RunStore, repair: bool) -> bool:
+    """Refuse (or with ``repair`` move aside) damaged or misplaced files of RUN/matrix/; the
+    files written next are recorded in checksums.json when the run's checksums are in force."""
+    from datetime import datetime, timezone
+
+    from bench.integrity import find_damage, move_aside
+
+    checks = store.integrity()
+    damage = [d for d in find_damage(store, checks) if d.rel.startswith("matrix/")]
+    if damage and not repair:
+        raise BenchError(f"{store.root}: {damage[0].line()}")
+    if checks.active:
+        checks.start_recording()
+    return move_aside(store, checks, damage, datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")) is not None
+
+
+def _write_unit(run: Path, unit: Unit, status: str, reason: str = "", store: RunStore | None = None) -> None:
     base = {**unit.columns(), "status": status, "reason": reason}
     if status == UNSUPPORTED:
         rows = [{**base, "episode": -1, "execution": ",".join(unit.modes), "scenario": "", "steps": None}]
@@ -326,15 +342,19 @@ def _write_unit(run: Path, unit: Unit, status: str, reason: str = "") -> None:
         rows = [{**r, **base} for u in unit.chunks() for r in unit.rows[u]
                 if int(r["episode"]) < unit.episodes]
     meta = {"status": json.dumps(status), "episodes": json.dumps(unit.episodes)}
-    write_table(unit_path(run, unit.cell.cell_id, unit.cond), rows_to_table(rows, MATRIX_SCHEMA, meta))
+    write_table(unit_path(run, unit.cell.cell_id, unit.cond), rows_to_table(rows, MATRIX_SCHEMA, meta),
+                store.checksums if store is not None else None)
 
 
 def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[float] | None = None,
                models: Sequence[str] | None = None, bursts: Sequence[float] | None = None,
                episodes: int | None = None, workers: int | None = None, address: str | None = None,
-               use_ray: bool = True, on_unit: Callable[[Unit], None] | None = None) -> MatrixSummary:
+               use_ray: bool = True, on_unit: Callable[[Unit], None] | None = None,
+               repair: bool = False) -> MatrixSummary:
     """Evaluate every missing (cell, condition) unit of the run; see the module docstring.
 
+    A damaged or misplaced matrix file (bench/integrity.py) is a BenchError naming it, unless
+    ``repair``: then it moves to superseded/repair-<time>/ and its unit is evaluated again.
     ``use_ray=False`` runs the same worker code in this process (tests, one core)."""
     t0 = time.monotonic()
     run = Path(run)
@@ -342,6 +362,8 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
     store = RunStore(run)
     lock = store.lock()
     try:
+        if _check_matrix_files(store, repair):  # moved aside: those units are to do again
+            _, _, units, skipped = plan_units(run, ns, ps, models, bursts, episodes)
         states: dict[str, dict[str, Any] | None] = {}
         support: dict[tuple[str, int, str], str] = {}
         todo: list[Unit] = []
@@ -355,7 +377,7 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
             if key not in support:
                 support[key] = support_reason(unit.cell, unit.cond, states[cid])
             if support[key]:
-                _write_unit(run, unit, UNSUPPORTED, support[key])
+                _write_unit(run, unit, UNSUPPORTED, support[key], store)
                 unsupported += 1
                 if on_unit is not None:
                     on_unit(unit)
@@ -370,7 +392,7 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
             if unit.error:
                 failed[f"{unit.cell.cell_id}/{unit.cond.key}"] = unit.error
                 return
-            _write_unit(run, unit, OK)
+            _write_unit(run, unit, OK, store=store)
             written += 1
             if on_unit is not None:
                 on_unit(unit)

@@ -199,7 +199,24 @@ def _probe(address: str) -> None:
 
 
 def connect(address: str | None = None, workers: int | None = None) -> RayContext:
-    """Start embedded Ray or join ``address`` (or RAY_ADDRESS); BenchError when unreachable."""
+    """Start embedded Ray or join ``address`` (or RAY_ADDRESS); BenchError when unreachable.
+
+    ``ray.init`` installs its own SIGTERM handler (a crash dump, exit 134); the bench's
+    (bench/signals.py ``sigterm_as_interrupt``: one line, exit 143), when active, is put back."""
+    import signal
+
+    try:
+        old = signal.getsignal(signal.SIGTERM)
+    except ValueError:  # pragma: no cover - not the main thread
+        old = None
+    try:
+        return _connect(address, workers)
+    finally:
+        if getattr(old, "bench_stop", False):
+            signal.signal(signal.SIGTERM, old)
+
+
+def _connect(address: str | None, workers: int | None) -> RayContext:
     import ray
 
     if ray.is_initialized():

@@ -25,11 +25,9 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import sys
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -37,13 +35,16 @@ from typing import Any
 
 from algorithms.registry import method_class
 from bench.grids import Grid
+from bench.integrity import RUN_FLAG
 from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
 from bench.schema import SCHEMA_VERSION
+from bench.signals import Terminated, sigterm_as_interrupt, sigterm_received  # noqa: F401 (re-exported)
 from bench.store import DiskFull, RunStore, is_disk_full
 from bench.worker import CellWorker
 from bench.worker_pool import Slot, release_workers, take_workers
+from envs.errors import BenchError
 
 MAX_RETRIES = 3  # worker deaths tolerated per cell and run
 MAX_RESTARTS = 4  # Ray restarts of one worker actor
@@ -61,51 +62,21 @@ class RunSummary:
     wall_s: float
     failures: dict[str, str] = field(default_factory=dict)
     rerun: dict[str, str] = field(default_factory=dict)  # done cells run again: rows were incomplete
+    repaired: list[str] = field(default_factory=list)  # damaged files moved aside by --repair
 
 
 EventHook = Callable[[str, CellState], None]
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM to the driver: handled like Ctrl-C (checkpoints kept, rerun resumes), exit 143.
-
-    Ray turns an exception raised by a signal handler inside ``ray.wait``/``ray.get`` into
-    a plain KeyboardInterrupt, so ``sigterm_received()`` is what tells the two apart."""
-
-
-_SIGTERM_RECEIVED: list[bool] = [False]
-
-
-def sigterm_received() -> bool:
-    return _SIGTERM_RECEIVED[0]
-
-
-@contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """While active, SIGTERM raises ``Terminated`` in the main thread (replacing the handler
-    ``ray.init`` installs, which exits mid-write with a crash dump)."""
-    def handler(signum: int, frame: Any) -> None:
-        _SIGTERM_RECEIVED[0] = True
-        raise Terminated()
-
-    try:
-        old = signal.signal(signal.SIGTERM, handler)
-    except ValueError:  # not the main thread: leave signals alone
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
-
-
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
-             rerun_changed: bool = False, stack_seeds: int = 1) -> RunSummary:
+             rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
 
-    Raises BenchError before writing anything when the store, the grid or the address is bad.
+    Raises BenchError before writing anything when the store, the grid or the address is bad,
+    or when a file of the grid's cells is damaged or misplaced (bench/integrity.py) and not
+    ``repair``; with ``repair`` such files move to superseded/ and their cells are recomputed.
     """
     store = RunStore(out)
     store.check_writable()
@@ -113,6 +84,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
         store.check_fresh()
     lock = store.lock()
     try:
+        repaired = [] if fresh else check_integrity(store, grid, repair)
         states, others = plan_run(store, grid, fresh, rerun_changed)
         if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
             ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
@@ -130,12 +102,36 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
                            progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds))
-                return run.execute()
+                summary = run.execute()
+                summary.repaired = repaired
+                return summary
         finally:
             ctx.shutdown()
     finally:
         if lock is not None:
             os.close(lock)
+
+
+def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
+    """Damaged or misplaced files of the grid's cells (and cells.parquet): a BenchError naming
+    the first, unless ``repair``, which moves them to superseded/repair-<time>/ (returns
+    one line per file moved). Reads only, without ``repair`` or without damage."""
+    if not store.exists():
+        return []
+    from bench.integrity import find_damage, move_aside
+
+    damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells}, True)
+              if not d.rel.startswith("matrix/")]  # bench matrix --repair's
+    if not damage:
+        return []
+    if not repair:
+        more = f" ({len(damage) - 1} more damaged or misplaced file(s))" if len(damage) > 1 else ""
+        raise BenchError(f"{store.root}: {damage[0].line()}{more}")
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    dest = move_aside(store, store.integrity(), damage, stamp)
+    return [f"moved damaged {d.rel} to {dest.relative_to(store.root) / d.rel} ({d.why}); "
+            + (f"recomputing cell {d.cell_id}" if d.cell_id else "cells.parquet is rebuilt from the cells' files")
+            for d in damage if dest is not None]
 
 
 class _Run:
@@ -159,7 +155,9 @@ class _Run:
         store = self.store
         if self.fresh:
             store.wipe()
+            store.checksums = None
         store.remove_temp_files()
+        store.integrity().start_recording()  # every file written from here on is recorded
         stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
         for st in self.states:
             if st.superseded is not None:  # run with other parameters: keep its files aside
@@ -171,7 +169,8 @@ class _Run:
         v = versions()
         self.run_record = {"grid": self.grid.name, "started": now, "command": self.command,
                            "git": v["git"], "machine": machine(), "workers": self.n_workers,
-                           "cells_done_before": sum(s.phase == "done" for s in self.states)}
+                           "cells_done_before": sum(s.phase == "done" for s in self.states),
+                           RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/integrity.py)
         runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
         manifest.update({
             "schema_version": SCHEMA_VERSION, "package_version": v["package"], "git_sha": v["git"],

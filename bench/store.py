@@ -28,6 +28,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bench.atomic import DiskFull, _suppress_oserror, atomic_file, file_mode, is_disk_full
+from bench.integrity import CHECKSUMS_FILE, Checksums
+from bench.meta_schema import EvalMeta, Manifest, validated
 from bench.schema import (
     CELLS_SCHEMA,
     EVAL_SCHEMA,
@@ -49,17 +51,27 @@ PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
 CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/cells.py: 12 hex digits of SHA-256
 
 
-def write_table(path: Path, table: pa.Table) -> None:
+def table_bytes(table: pa.Table) -> bytes:
+    """A Parquet file of ``table`` in memory, with CRC-32 page checksums (verified by
+    ``read_table``; the rows are the same as without them)."""
     sink = pa.BufferOutputStream()  # serialize first: the only disk write is fh.write
-    pq.write_table(table, sink)
+    pq.write_table(table, sink, write_page_checksum=True)
+    return sink.getvalue().to_pybytes()
+
+
+def write_table(path: Path, table: pa.Table, checksums: Checksums | None = None) -> None:
+    """Write ``table`` to ``path`` atomically; its digest goes to ``checksums`` first."""
+    data = table_bytes(table)
+    if checksums is not None:
+        checksums.before_write(path, data)
     with atomic_file(path) as fh:
-        fh.write(sink.getvalue().to_pybytes())
+        fh.write(data)
 
 
 def read_table(path: Path, expected: pa.Schema) -> pa.Table:
     """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError."""
     try:
-        table = pq.read_table(path)
+        table = pq.read_table(path, page_checksum_verification=True)
     except (OSError, pa.ArrowException) as exc:
         raise BenchError(f"corrupt Parquet file {str(path)!r}: {_short(exc)}") from None
     _check_version(path, table.schema.metadata)
@@ -143,6 +155,13 @@ class RunStore:
         self.train_dir = self.root / "train"
         self.eval_dir = self.root / "eval"
         self.ckpt_dir = self.root / "checkpoints"
+        self.checksums: Checksums | None = None  # set by integrity(); records writes once started
+
+    def integrity(self) -> Checksums:
+        """The run's checksums (bench/integrity.py), read once (BenchError when corrupt)."""
+        if self.checksums is None:
+            self.checksums = Checksums.load(self.root, self.read_manifest())
+        return self.checksums
 
     # ----------------------------------------------------------- validation
     def check_writable(self) -> None:
@@ -195,7 +214,7 @@ class RunStore:
                 f"{str(self.root)!r} was written with results schema version {found}, this bench "
                 f"reads version {SCHEMA_VERSION}; use another --out or --fresh"
             )
-        return data
+        return validated(Manifest, data, self.manifest_path)
 
     def require_run(self) -> dict[str, Any]:
         """The manifest of an existing run directory (for report/replay), else BenchError."""
@@ -211,7 +230,7 @@ class RunStore:
         return read_table(self.cells_path, CELLS_SCHEMA).to_pandas()
 
     def write_cells(self, rows: Sequence[Mapping[str, Any]]) -> None:
-        write_table(self.cells_path, rows_to_table(rows, CELLS_SCHEMA))
+        write_table(self.cells_path, rows_to_table(rows, CELLS_SCHEMA), self.checksums)
 
     def write_manifest(self, data: Mapping[str, Any]) -> None:
         with atomic_file(self.manifest_path) as fh:
@@ -237,16 +256,16 @@ class RunStore:
 
     def write_train_part(self, cell_id: str, first_episode: int, rows: Sequence[Mapping[str, Any]]) -> None:
         rows = [{**r, "cell_id": cell_id} for r in rows]
-        write_table(self._part_path(cell_id, first_episode), rows_to_table(rows, TRAIN_SCHEMA))
+        write_table(self._part_path(cell_id, first_episode), rows_to_table(rows, TRAIN_SCHEMA), self.checksums)
 
     def discard_parts_from(self, cell_id: str, episode: int) -> int:
         """Delete parts starting at or after ``episode`` (not covered by the checkpoint)."""
-        n = 0
-        for first, path in self.train_parts(cell_id):
-            if first >= episode:
-                path.unlink()
-                n += 1
-        return n
+        gone = [path for first, path in self.train_parts(cell_id) if first >= episode]
+        for path in gone:
+            path.unlink()
+        if self.checksums is not None:
+            self.checksums.forget(gone)
+        return len(gone)
 
     def read_train(self) -> pd.DataFrame:
         return self._read_dataset(self.train_dir, TRAIN_SCHEMA)
@@ -258,7 +277,7 @@ class RunStore:
     def write_eval(self, cell_id: str, rows: Sequence[Mapping[str, Any]], meta: Mapping[str, Any]) -> None:
         rows = [{**r, "cell_id": cell_id} for r in rows]
         extra = {k: json.dumps(v) for k, v in meta.items()}
-        write_table(self.eval_path(cell_id), rows_to_table(rows, EVAL_SCHEMA, extra))
+        write_table(self.eval_path(cell_id), rows_to_table(rows, EVAL_SCHEMA, extra), self.checksums)
 
     def eval_meta(self, cell_id: str) -> dict[str, Any] | None:
         """Metadata (wall_s, peak_mem_mb, attempts) of a finished cell's eval file, or None."""
@@ -273,7 +292,7 @@ class RunStore:
                 out[k] = json.loads(v)
             except ValueError:
                 out[k] = v
-        return out
+        return validated(EvalMeta, out, f"{path} (key-value metadata)")
 
     def read_eval(self) -> pd.DataFrame:
         return self._read_dataset(self.eval_dir, EVAL_SCHEMA)
@@ -295,6 +314,8 @@ class RunStore:
 
         buf = io.BytesIO()  # serialize first: a full disk fails in fh.write, not in torch's zip writer
         torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, buf)
+        if self.checksums is not None:
+            self.checksums.before_write(self.ckpt_path(cell_id), buf.getvalue())
         with atomic_file(self.ckpt_path(cell_id)) as fh:
             fh.write(buf.getbuffer())
 
@@ -323,6 +344,8 @@ class RunStore:
             if src.exists():
                 dst.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(src, dst)
+        if self.checksums is not None:
+            self.checksums.forget(src for src, _ in moves)
         for d in (self.train_dir / cell_id, matrix):
             _rmdir_if_empty(d)
         (dest / "cells_row.json").write_text(json.dumps(dict(row), sort_keys=True, default=str, indent=1) + "\n")
@@ -342,7 +365,7 @@ class RunStore:
     def bench_files(self) -> list[Path]:
         """Files of this run directory that the bench itself writes (and only those).
 
-        manifest.json, cells.parquet, train/<cell_id>/part-<k>.parquet,
+        manifest.json, cells.parquet, checksums.json, train/<cell_id>/part-<k>.parquet,
         eval/<cell_id>.parquet, checkpoints/<cell_id>.pt, matrix/<cell_id>/*.parquet
         (``bench matrix``; cell_id: 12 hex digits) and the
         temp files ('.<name>.<random>.tmp') of interrupted writes of these. Anything else,
@@ -354,7 +377,7 @@ class RunStore:
                 return []
             return [(p, _temp_target(p.name) or p.name) for p in d.iterdir() if p.is_file() and not p.is_symlink()]
 
-        out = [p for p, name in plain(self.root) if name in ("manifest.json", "cells.parquet")]
+        out = [p for p, name in plain(self.root) if name in ("manifest.json", "cells.parquet", CHECKSUMS_FILE)]
         if self.train_dir.is_dir() and not self.train_dir.is_symlink():
             for d in self.train_dir.iterdir():
                 if CELL_ID_RE.fullmatch(d.name):

@@ -299,6 +299,9 @@ def write_gif(frames: Sequence[np.ndarray] | np.ndarray, path: str | os.PathLike
     os.close(fd)
     try:
         iio.imwrite(tmp, stack, extension=".gif", duration=int(round(1000 / fps)), loop=0)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a GIF follows the umask like any file
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -30,6 +30,7 @@ from matplotlib.figure import Figure
 
 from bench.completeness import incomplete_cells
 from bench.store import DiskFull, RunStore, file_mode, is_disk_full
+from envs.errors import BenchError
 from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
 from reports.against import merge_against
 from reports.claims import all_claims
@@ -106,6 +107,19 @@ def _atomic(path: Path, write: Callable[[str], None]) -> Path:
     return path
 
 
+def remove_stale_temp_files(out: Path) -> int:
+    """Delete the temp files ('.<name>.<random>.tmp') an earlier report left when it was
+    killed (SIGKILL, power loss) before its atomic writes could clean up; returns how many."""
+    from bench.store import _temp_target
+
+    if not out.is_dir() or out.is_symlink():
+        return 0
+    stale = [p for p in out.rglob(".*.tmp") if p.is_file() and not p.is_symlink() and _temp_target(p.name)]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return len(stale)
+
+
 def write_text(path: Path, text: str) -> Path:
     return _atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
@@ -139,23 +153,41 @@ def _copy(src: Path, dst: Path) -> str:
     return dst.name
 
 
-def _study_entries(run_dir: Path, out: Path) -> tuple[list[Entry], str]:
+def _study_entries(run_dir: Path, out: Path, problems: list[str] | None = None) -> tuple[list[Entry], str]:
     """Optuna studies launched for this run (``<run>/../studies/<name>/study.json`` naming
     the run folder under ``"run"``): their reports are rebuilt, copied into
     ``<report>/studies/<name>/`` (links stay inside the report folder) and linked. Returns
-    the entries and, when none is linked, a note saying how to link one."""
+    the entries and, when none is linked, a note saying how to link one. A study whose
+    study.json or trials cannot be read is left out with a line in ``problems`` (it may be
+    another run's: it never stops the report)."""
+    from bench.meta_schema import StudyConfig, validated
     from studies.export import CONFIG_FILE, TRIALS_FILE
     from studies.report import build_study_report
+
+    problems = problems if problems is not None else []
 
     entries = []
     run = run_dir.resolve()
     for trials in sorted((run.parent / "studies").glob(f"*/{TRIALS_FILE}")):
         cfg_path = trials.parent / CONFIG_FILE
-        cfg = json.loads(cfg_path.read_text(encoding="utf-8")) if cfg_path.exists() else {}
+        shown = f"studies/{trials.parent.name}"
+        try:
+            cfg = validated(StudyConfig, json.loads(cfg_path.read_text(encoding="utf-8")),
+                            cfg_path) if cfg_path.exists() else {}
+        except (OSError, ValueError, BenchError) as exc:
+            why = str(exc) if isinstance(exc, BenchError) else " ".join(str(exc).split())[:160]
+            problems.append(f"study {shown} beside the run was left out: its {CONFIG_FILE} is unreadable ({why})")
+            continue
         if str(cfg.get(STUDY_LINK_KEY, "")) not in (run.name, str(run)):
             continue
         name = trials.parent.name
-        files = build_study_report(trials.parent)
+        try:
+            files = build_study_report(trials.parent)
+        except DiskFull:
+            raise
+        except (OSError, ValueError, BenchError) as exc:
+            problems.append(f"study {shown} was left out: its report cannot be built ({' '.join(str(exc).split())[:160]})")
+            continue
         rel = tuple(f"studies/{name}/{_copy(f, out / 'studies' / name / f.name)}"
                     for f in files if f.suffix in (".html", ".md", ".png", ".pdf"))
         image = next((r for r in rel if r.endswith("study_landscape.png")), None)
@@ -229,6 +261,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     (reports/against.py: refused unless settings and scenarios match)."""
     store = load_store(run_dir)
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
+    remove_stale_temp_files(out)
     for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
         store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
     if against is not None:
@@ -307,7 +340,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv", "claims_table.md") + ((cal,) if cal else ()),
                          tables=tuple(cal_tables), checks=checks))  # checks grouped per claim (index_claims)
 
-    studies, studies_note = _study_entries(Path(run_dir), out)
+    studies, studies_note = _study_entries(Path(run_dir), out, store.problems)
     entries += studies
     entries += matrix_entries(run_dir, out, save_figure, write_text)  # RUN/matrix/ (bench matrix)
 

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 
+from bench.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, owner_cell
 from bench.plan import dict_changes
 from bench.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from bench.store import RunStore, read_table
@@ -50,18 +51,35 @@ class Store:
         return self.cells[self.cells["status"] != "done"]
 
 
-def _read_dataset(root: Path, schema: pa.Schema, problems: list[str]) -> pd.DataFrame:
-    """Every Parquet file under ``root`` (bench/store.py layout); unreadable ones are listed
-    in ``problems`` and skipped, so one bad file does not hide the rest of the run."""
+def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
+                  checksums: Checksums | None = None, damaged: set[str] | None = None) -> pd.DataFrame:
+    """Every Parquet file under ``root`` (bench/store.py layout); unreadable, damaged
+    (checksum mismatch) and misplaced (rows of another cell than its name says) ones are
+    listed in ``problems`` and skipped, so one bad file neither hides the rest of the run
+    nor puts wrong numbers in the report (bench/integrity.py)."""
     files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
     if not files:
         problems.append(f"{root.name}/ holds no Parquet file")
     tables = []
     for path in files:
+        rel = path.relative_to(root.parent).as_posix()
+        why = checksums.mismatch(path) if checksums is not None else ""
         try:
-            tables.append(read_table(path, schema).select(schema.names).cast(schema))
+            table = read_table(path, schema).select(schema.names).cast(schema) if not why else None
         except BenchError as exc:
-            problems.append(f"skipped {path.relative_to(root.parent)}: {exc}")
+            why = f"unreadable ({exc})"
+            table = None
+        if table is not None:
+            cid = owner_cell(rel)
+            found = {str(v) for v in table.column("cell_id").unique().to_pylist()}
+            if cid and found and found != {cid}:
+                why = f"it holds rows of cell {', '.join(sorted(found - {cid}))}, not of {cid} (a copied or renamed file)"
+        if why:
+            problems.append(f"skipped {rel}: {Damage(rel, owner_cell(rel), why).line()}")
+            if damaged is not None:
+                damaged.add(owner_cell(rel))
+            continue
+        tables.append(table)
     if not tables:
         return schema.empty_table().to_pandas()
     return pa.concat_tables(tables).to_pandas()
@@ -112,7 +130,25 @@ def load_store(run_dir: Path | str) -> Store:
     version, is a ``BenchError``; anything else missing is listed in ``Store.problems``."""
     run = Path(run_dir)
     rs = RunStore(run)
-    cells = rs.read_cells()
+    manifest: dict[str, Any] = {}
+    manifest_problems: list[str] = []
+    checksums = None
+    try:
+        manifest = rs.read_manifest() or {}
+        if not manifest:
+            manifest_problems.append("manifest.json is absent")
+        checksums = rs.integrity()
+    except BenchError as exc:
+        manifest_problems.append(str(exc))
+    why = checksums.mismatch(rs.cells_path) if checksums is not None and rs.cells_path.is_file() else ""
+    if why:
+        raise BenchError(f"{str(run)!r}: {Damage('cells.parquet', '', why).line()}")
+    try:
+        cells = rs.read_cells()
+    except BenchError as exc:
+        if "corrupt Parquet" not in str(exc):
+            raise
+        raise BenchError(f"{str(run)!r}: {Damage('cells.parquet', '', 'unreadable Parquet').line()}") from None
     if cells is None:
         raise BenchError(f"no results store at {str(run)!r}: cells.parquet not found "
                          "(run `bench run` first, or pass --run DIR)")
@@ -121,15 +157,14 @@ def load_store(run_dir: Path | str) -> Store:
     cells["safety_filter"] = cells["safety_filter"].fillna(False).astype(bool)
     problems: list[str] = []
     done = cells[cells["status"] == "done"]
-    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems), done)
-    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems), done)
-    manifest: dict[str, Any] = {}
-    try:
-        manifest = rs.read_manifest() or {}
-        if not manifest:
-            problems.append("manifest.json is absent")
-    except BenchError as exc:
-        problems.append(str(exc))
+    damaged: set[str] = set()
+    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems, checksums, damaged), done)
+    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems, checksums, damaged), done)
+    problems += manifest_problems
+    if damaged:  # a done cell with a damaged file is not done until `bench run --repair`
+        cells.loc[cells["cell_id"].isin(damaged) & (cells["status"] == "done"), "status"] = "pending"
+        done = cells[cells["status"] == "done"]
+        train, evals = (df[df["cell_id"].isin(done["cell_id"])].reset_index(drop=True) for df in (train, evals))
     for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
         problems.append(f"cell {cid} is done but has no evaluation rows")
     problems += incomplete_evals(done, evals)
@@ -147,6 +182,14 @@ def superseded_notes(run: Path, cells: pd.DataFrame) -> list[str]:
     now = dict(zip(cells["cell_id"].astype(str), cells["params_json"].astype(str), strict=True))
     out = []
     for d in sorted(p for p in root.iterdir() if p.is_dir()):
+        if d.name.startswith(REPAIR_PREFIX):  # bench run / matrix --repair (bench/integrity.py)
+            try:
+                moved = json.loads((d / REPAIR_FILE).read_text())
+                files = ", ".join(f"{m['file']} ({m['why']})" for m in moved)
+            except (OSError, ValueError, TypeError, KeyError):
+                files = f"unreadable {REPAIR_FILE}"
+            out.append(f"superseded/{d.name}: damaged files moved aside by --repair and recomputed: {files}")
+            continue
         try:
             row = json.loads((d / "cells_row.json").read_text())
             changed = dict_changes(json.loads(row.get("params_json") or "{}"),

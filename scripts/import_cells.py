@@ -43,10 +43,16 @@ def import_cells(src: Path, dst: Path, grid_name: str) -> list[str]:
     for cid in rows.cell_id:
         if target.has_results(cid):
             raise BenchError(f"{str(dst)!r} already holds files of cell {cid}; not overwritten")
+    checks = target.integrity()  # a target whose checksums are in force keeps them (bench/integrity.py)
+    if checks.active:
+        checks.start_recording()
     for cid in rows.cell_id:
         if (source.train_dir / cid).is_dir():  # a planner cell has no training rows
+            for _, part in source.train_parts(cid):
+                checks.before_write(target.train_dir / cid / part.name, part.read_bytes())
             shutil.copytree(source.train_dir / cid, target.train_dir / cid)
         target.eval_dir.mkdir(parents=True, exist_ok=True)
+        checks.before_write(target.eval_path(cid), source.eval_path(cid).read_bytes())
         shutil.copy2(source.eval_path(cid), target.eval_path(cid))
     out_rows = pd.concat([have, rows], ignore_index=True) if have is not None else rows
     target.write_cells(out_rows.to_dict("records"))
@@ -57,6 +63,7 @@ def import_cells(src: Path, dst: Path, grid_name: str) -> list[str]:
         "imported_from": str(src), "started": now, "ended": now, "grid": grid_name,
         "cells_imported": len(rows), "note": "cells copied from a finished run of the same code "
         "(same cell ids); the records above with imported_from are the runs that trained them",
+        **({"checksums": 1} if checks.recording else {}),
     }]
     old.update({"updated": now, "grid": grid_name, "schema_version": SCHEMA_VERSION})
     target.write_manifest(old)

@@ -77,9 +77,13 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     if n_trials is not None and n_trials < 1:
         raise BenchError(f"--trials must be >= 1, got {n_trials}")
+    from bench.limits import check_count
+
+    check_count("--trials", "trials", n_trials)
+    check_count("--workers", "workers", workers)
     directory = study_dir(name, root)
     given = _config(options)  # bad options fail before anything is written
-    store = open_storage(storage, directory)
+    store = open_storage(storage, directory, log)
     explicit = set(options) - {"c_max", "param"} | ({"space"} if {"c_max", "param"} & set(options) else set())
     stored = stored_config(store, name)
     config = merge_config(name, stored, given, explicit)
@@ -157,6 +161,9 @@ def _config(options: dict[str, Any]) -> dict[str, Any]:
     replicates = int(options.get("replicates", 2))
     if replicates < 1:
         raise BenchError(f"--replicates must be >= 1, got {replicates}")
+    from bench.limits import check_count
+
+    check_count("--replicates", "replicates", replicates)
     warmup = float(options.get("prune_warmup", WARMUP))
     warmup_step(settings.iterations, warmup)  # validates the range
     min_rho = float(options.get("prune_min_rho", MIN_RHO))

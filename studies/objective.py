@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 from algorithms.base import Method
 from algorithms.registry import method_class
 from bench.cells import Cell
+from bench.limits import limit, with_reasons
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 
@@ -47,15 +48,15 @@ class TrialSettings(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     method: str = Field("hierarchical", description="registered method name or module:Class")
-    n_robots: int = Field(8, ge=1, description="team size N")
+    n_robots: int = Field(8, ge=1, le=limit("n_robots"), description="team size N")
     loss_p: float = Field(0.2, ge=0.0, le=1.0, description="inter-group message loss p")
     layout: str = Field("tiny", description="layout preset or map path")
-    groups: int = Field(4, ge=1, description="number of groups Z")
-    horizon: int = Field(48, ge=1, description="episode length T")
-    episodes: int = Field(48, ge=1, description="training episodes per trial")
+    groups: int = Field(4, ge=1, le=limit("groups"), description="number of groups Z")
+    horizon: int = Field(48, ge=1, le=limit("horizon"), description="episode length T")
+    episodes: int = Field(48, ge=1, le=limit("episodes"), description="training episodes per trial")
     batch_episodes: int = Field(8, ge=1, description="episodes per update")
     eval_every: int = Field(2, ge=1, description="updates between intermediate evaluations")
-    eval_episodes: int = Field(20, ge=1, description="greedy episodes of the final evaluation")
+    eval_episodes: int = Field(20, ge=1, le=limit("eval_episodes"), description="greedy episodes of the final evaluation")
     eval_chunk: int = Field(10, ge=1, description="episodes per evaluation chunk")
     report_chunks: int = Field(2, ge=1, description="chunks per intermediate evaluation (2 x 10 episodes:"
                                " fewer made pruning decisions noisy, issue #16)")
@@ -67,7 +68,8 @@ class TrialSettings(BaseModel):
         try:
             return cls(**kwargs)
         except ValidationError as exc:
-            raise BenchError(format_validation_error("study settings", exc)) from None
+            text = format_validation_error("study settings", exc)
+            raise BenchError(text + "".join(with_reasons(e, "") for e in exc.errors())) from None
 
     @property
     def iterations(self) -> int:

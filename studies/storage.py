@@ -7,6 +7,8 @@
   for drivers on several machines; an unreachable or malformed URL is one ``BenchError``.
 * The same study name resumes: the study keeps its settings, space and seed in its user
   attributes, and a rerun may only repeat them (a conflict is an error naming the field).
+* Journal repair: appends are all-or-nothing (a full disk leaves whole records), and a torn
+  record left by an interrupted write is dropped on open, saying so (studies/journal.py).
 * Crash repair: each running trial carries a lease (driver host, pid, heartbeat). A
   RUNNING trial whose driver is gone (dead pid on this host, or no heartbeat for
   ``grace_s``) is marked FAIL and re-queued with the same parameters (``enqueue_trial``).
@@ -17,17 +19,17 @@ import os
 import re
 import socket
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import optuna
 from optuna.storages import BaseStorage, JournalStorage, RDBStorage
-from optuna.storages.journal import JournalFileBackend
 from optuna.trial import FrozenTrial, TrialState
 
 from envs.errors import BenchError
 from studies import DEFAULT_ROOT
+from studies.journal import SafeJournalFileBackend
 
 JOURNAL_FILE = "journal.log"
 CONFIG_ATTR = "config"  # study user attribute holding settings, space and seed
@@ -45,17 +47,33 @@ def study_dir(name: str, root: str | Path = DEFAULT_ROOT) -> Path:
     return Path(root) / name
 
 
-def open_storage(url: str | None, directory: Path) -> BaseStorage:
-    """The journal file under ``directory`` (created) or the RDB database at ``url``."""
+def open_storage(url: str | None, directory: Path,
+                 log: Callable[[str], None] | None = None) -> BaseStorage:
+    """The journal file under ``directory`` (created; a torn record of an interrupted write
+    is repaired, and ``log`` told what was recovered: studies/journal.py) or the RDB
+    database at ``url``."""
     if url is None:
         directory.mkdir(parents=True, exist_ok=True)
-        return JournalStorage(JournalFileBackend(str(directory / JOURNAL_FILE)))
+        backend = SafeJournalFileBackend(str(directory / JOURNAL_FILE))
+        if backend.repaired:
+            (log or _warn)(backend.repaired)
+        try:
+            return JournalStorage(backend)
+        except (ValueError, KeyError, TypeError) as exc:  # a record Optuna cannot replay
+            raise BenchError(f"study journal {str(directory / JOURNAL_FILE)!r} cannot be replayed: "
+                             f"{' '.join(str(exc).split())[:200]}") from None
     shown = _redact(url)
     try:
         return RDBStorage(url, engine_kwargs=_engine_kwargs(url))
     except Exception as exc:  # sqlalchemy raises many types; the user needs one line
         reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise BenchError(f"cannot open study storage {shown}: {reason}") from None
+
+
+def _warn(message: str) -> None:
+    import sys
+
+    print(f"bench: warning: {message}", file=sys.stderr)
 
 
 def _engine_kwargs(url: str) -> dict[str, Any]:

@@ -77,9 +77,10 @@ def ray_local() -> Iterator[None]:
     ray.shutdown()
 
 
-def write_finished_store(out: Path, grid: Any) -> None:
+def write_finished_store(out: Path, grid: Any, checksums: bool = False) -> None:
     """A complete run directory for ``grid`` computed in this process (no Ray), written with
-    the same store calls and in the same order as the runner."""
+    the same store calls and in the same order as the runner; ``checksums``: recorded in
+    checksums.json as by this bench's runner (else a store of an older bench)."""
     from bench.plan import cell_spec, plan_run
     from bench.schema import SCHEMA_VERSION
     from bench.store import RunStore
@@ -87,7 +88,10 @@ def write_finished_store(out: Path, grid: Any) -> None:
 
     store = RunStore(out)
     states, _ = plan_run(store, grid, fresh=True)
-    store.write_manifest({"schema_version": SCHEMA_VERSION, "grid": grid.name, "runs": []})
+    store.write_manifest({"schema_version": SCHEMA_VERSION, "grid": grid.name,
+                          "runs": [{"grid": grid.name, "checksums": 1}] if checksums else []})
+    if checksums:
+        store.integrity().start_recording()
     worker = CellWorker()
     for st in states:
         spec, state, first = cell_spec(st.cell), None, 0
@@ -121,3 +125,31 @@ def store_with_params(out: Path, cid: str, **old: Any) -> None:
     i = cells.index[cells["cell_id"] == cid][0]
     cells.loc[i, "params_json"] = json.dumps({**json.loads(cells.loc[i, "params_json"]), **old}, sort_keys=True)
     store.write_cells(cells.to_dict("records"))
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    """``bench ARGS`` in-process: (exit status, stdout, stderr)."""
+    from bench.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(list(args))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+def one_error_line(err: str, *needles: str) -> None:
+    """``err`` is one ``bench: error:`` line holding every needle."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("bench: error: ") and "Traceback" not in err, err
+    for n in needles:
+        assert n in err, err
+
+
+@pytest.fixture
+def one_cell_run(toy: str, tmp_path: Path) -> Path:
+    """A finished run directory of one toy cell (no checksums: as an older bench wrote it)."""
+    from bench.grid_files import load_grid_file
+
+    grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0]}))
+    write_finished_store(tmp_path / "run", grid)
+    return tmp_path / "run"

@@ -4,6 +4,7 @@ training conditions, resume, unsupported N', bad arguments; one test on Ray, one
 real learned methods. The run is trained in-process (conftest ``write_finished_store``)."""
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 from collections.abc import Iterator
@@ -350,3 +351,37 @@ def test_matrix__a_failing_unit_is_not_written_and_a_rerun_retries_it(toy: str, 
     again = run_matrix(run, ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
     assert (again.written, again.skipped, again.failed) == (4, 12, {})
     assert all(p.exists() for p in failed_files)
+
+
+def test_matrix__a_flipped_bit_or_a_misplaced_unit_is_named_and_repair_redoes_only_it(
+        toy: str, tiny_run: Path, tmp_path: Path) -> None:
+    """Issue 37 (D2/D3 for matrix files): a damaged unit file is refused naming it and
+    `bench matrix --repair`; with repair it moves to superseded/ and only it is evaluated."""
+    import shutil
+
+    from bench.store import RunStore
+    from envs.errors import BenchError
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    store = RunStore(run)  # a run of this bench: checksums in force, so matrix records its files
+    store.write_manifest({**store.read_manifest(), "runs": [{"grid": "toygrid", "checksums": 1}]})
+    store.integrity().start_recording()
+    args = dict(ns=[4], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    run_matrix(run, **args)
+    recorded = json.loads((run / "checksums.json").read_text())["files"]
+    assert sum(k.startswith("matrix/") for k in recorded) == 8
+    before = snapshot(run / "matrix")
+    units = sorted((run / "matrix").glob("*/*.parquet"))
+    victim, other = units[0], units[-1]
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= 0x08
+    victim.write_bytes(bytes(data))
+    with pytest.raises(BenchError, match=rf"damaged file matrix/{victim.parent.name}/{victim.name}: .*bench matrix.*--repair"):
+        run_matrix(run, **args)
+    s = run_matrix(run, repair=True, **args)
+    assert (s.written, s.skipped) == (1, 7)
+    assert snapshot(run / "matrix") == before
+    shutil.copyfile(other, run / "matrix" / victim.parent.name / other.name)  # another cell's unit
+    with pytest.raises(BenchError, match="holds rows of cell"):
+        run_matrix(run, **args)

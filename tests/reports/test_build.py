@@ -160,7 +160,8 @@ def test_build_report__corrupt_file_is_skipped_and_reported(tmp_path):
     victim.write_bytes(b"not parquet")
     md = (build_report(tmp_path) / "index.md").read_text()
     assert f"skipped eval/{victim.name}" in md
-    assert f"cell {victim.stem} is done but has no evaluation rows" in md
+    # issue 37: the cell counts as not done until `bench run --repair` recomputes it
+    assert f"damaged file eval/{victim.name}: unreadable" in md and "--repair" in md
 
 
 def test_build_report__not_a_run_directory_is_a_user_error(tmp_path):
