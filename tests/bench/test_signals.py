@@ -20,7 +20,7 @@ import io, json, os, signal, sys
 from contextlib import redirect_stderr
 from pathlib import Path
 from algorithms import registry
-registry.METHODS["toy"] = {toy!r}
+registry.register("toy", {toy!r})
 import bench.signals
 from bench.cli import main
 import reports.build as build, studies.cli as tune_cli, bench.matrix as matrix, reports.replay as replay
