@@ -75,9 +75,14 @@ def run(
     checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
     rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
+    log: str | None = typer.Option(None, "--log", help="Experiment tracking, comma-separated: tensorboard, mlflow, wandb (offline). Per-update training metrics and each cell's evaluation summary, one tracker run per cell named by its id, under RUN/tracking/ (needs the track extra). Default: none."),
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Without a terminal, log every event (cell started, each training chunk and evaluation unit) instead of one line per finished or failed cell and a summary every 5 minutes."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
+    from bench.tracking import parse_log
+
+    log_names = parse_log(log)
     from bench.grid_files import check_run_name, load_grid_file
     from bench.grids import get_grid
     from bench.runner import sigterm_as_interrupt, sigterm_received
@@ -101,16 +106,22 @@ def run(
                 raise typer.Abort()
     from bench.progress import make_progress
     from bench.runner import run_grid
+    from bench.tracking import make_observer
 
+    observer = make_observer(log_names, out_dir, g.name)
     try:
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
-                               checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv,
-                               rerun_changed=rerun_changed, stack_seeds=stack_seeds)
+                               checkpoint_every=checkpoint_every, progress=make_progress(verbose),
+                               command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stack_seeds,
+                               observer=observer)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
         raise
+    finally:
+        if observer is not None:
+            observer.close()
     for cid, why in summary.rerun.items():
         typer.echo(f"bench: warning: cell {cid} {why}", err=True)
     typer.echo(f"{summary.done}/{summary.total} cells done, {summary.failed} failed, "

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from bench.grids import Grid
+from bench.observers import RunObserver, dispatch
 from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
@@ -102,8 +103,12 @@ def sigterm_as_interrupt() -> Iterator[None]:
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
-             rerun_changed: bool = False, stack_seeds: int = 1) -> RunSummary:
+             rerun_changed: bool = False, stack_seeds: int = 1, observer: RunObserver | None = None,
+             ) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
+
+    ``observer`` (bench/observers.py) receives each cell's start, stored training rows,
+    evaluation summary and end, from the driver (loggers: ``bench run --log``).
 
     Raises BenchError before writing anything when the store, the grid or the address is bad.
     """
@@ -129,7 +134,8 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                         raise
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds))
+                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
+                           observer)
                 return run.execute()
         finally:
             ctx.shutdown()
@@ -141,11 +147,12 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
 class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
-                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1) -> None:
+                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
+                 observer: RunObserver | None = None) -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
         self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
-        self.on_event, self.command = on_event, command
+        self.on_event, self.command, self.observer = on_event, command, observer
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
         self.inflight: dict[Any, tuple[str, Slot, Any, Any]] = {}  # kind, worker, cell(s), unit
         self.versions = versions_json()
@@ -379,7 +386,7 @@ class _Run:
         })
         st.has_checkpoint = True
         st.state_ref = ray.put(result["state"])
-        self._emit("train_chunk", st)
+        self._emit("train_chunk", st, rows)
         if result["finished"]:
             self._begin_eval(st)
             self._write_cells()
@@ -443,10 +450,12 @@ class _Run:
                 self._emit("retry", st)
 
     # --------------------------------------------------------------- progress
-    def _emit(self, kind: str, st: CellState | None) -> None:
+    def _emit(self, kind: str, st: CellState | None, rows: list[dict[str, Any]] | None = None) -> None:
         message = event_message(kind, st, self.last_error) if st is not None else ""
         if self.on_event is not None and st is not None:
             self.on_event(kind, st)
+        if self.observer is not None:
+            dispatch(self.observer, kind, st, self.grid.name, rows)
         done_w = sum(s.progress() * s.weight for s in self.states)
         left = self.total_weight - self.start_progress
         frac = (done_w - self.start_progress) / left if left > 1e-9 else 1.0
@@ -454,7 +463,7 @@ class _Run:
             total=len(self.states), done=sum(s.phase == "done" for s in self.states),
             running=sum(s.phase in ("training", "evaluating") for s in self.states),
             failed=sum(s.phase == "failed" for s in self.states), fraction=min(max(frac, 0.0), 1.0),
-            elapsed_s=time.monotonic() - self.t0, message=message,
+            elapsed_s=time.monotonic() - self.t0, message=message, kind=kind,
         )
         self.progress.update(snap)
 
