@@ -314,6 +314,28 @@ def matrix(
         raise typer.Exit(1)
 
 
+class ExportFormat(str, Enum):
+    marl_eval = "marl-eval"
+    csv = "csv"
+
+
+@app.command()
+def export(
+    run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
+    fmt: ExportFormat = typer.Option(..., "--format", help="marl-eval: marl-eval's raw-data JSON (environment / task / algorithm / run / step); csv: tidy cells.csv, train.csv, eval.csv."),
+    out: Path | None = typer.Option(None, "--out", help="File (marl-eval) or folder (csv) to write (default: RUN/export/marl-eval.json or RUN/export/csv/). An existing file there is replaced only with --yes."),
+    execution: str = typer.Option("argmax", "--execution", help="marl-eval: the execution mode exported (PIBT: planner, its only mode)."),
+    balanced: bool = typer.Option(False, "--balanced", help="marl-eval: only the tasks every method ran, with the same seeds everywhere (what marl-eval's rliable matrices need)."),
+    yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing files at --out."),
+) -> None:
+    """Write a run's results for other evaluators: marl-eval JSON or tidy CSV tables."""
+    from bench.export_cmd import export_run
+
+    written = export_run(_run_dir(run), fmt.value, out, execution=execution, balanced=balanced, overwrite=yes)
+    for path in written:
+        typer.echo(str(path))
+
+
 def _writable(path: Path) -> bool:
     """Whether ``path`` (or its nearest existing parent) is a writable directory."""
     import os
