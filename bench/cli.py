@@ -42,6 +42,7 @@ class Suite(str, Enum):
     baselines = "baselines"
     pibt = "pibt"
     train = "train"
+    peers = "peers"
     all = "all"
 
 
@@ -413,7 +414,8 @@ PERF_SUITES = {
     "hierarchical": ("bench.perf_methods", "run_hierarchical_suite"),
     "baselines": ("bench.perf_baselines", "run_baselines_suite"),
     "pibt": ("bench.perf_pibt", "run_pibt_suite"),
-    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100
+    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
+    "peers": ("bench.perf_peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
 }
 
 
