@@ -158,3 +158,29 @@ def test_parse_log__unknown_logger_is_one_clear_error() -> None:
     with pytest.raises(BenchError, match="--log nosuch.module:Logger: cannot import"):
         parse_log("nosuch.module:Logger")
     assert parse_log("TensorBoard, mlflow,tensorboard") == ["tensorboard", "mlflow"]
+
+
+def test_docs_tracking__the_custom_logger_example_runs_as_written(
+        ray_local, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    import re
+
+    from algorithms import registry
+    from tests.bench.conftest import REPO
+    from tests.bench.toy_method import TOY_PATH
+
+    monkeypatch.setitem(registry.METHODS, "toy", TOY_PATH)
+    page = (REPO / "docs" / "tracking.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
+    assert len(blocks) == 2 and "class BestReturn(Observer)" in blocks[0]
+    grid = Grid("smoke", "test", tuple(Cell.make(**toy_spec(seed=s)) for s in (0, 1)))
+    monkeypatch.setattr("bench.grids.get_grid", lambda name, seeds=None: grid)  # the toy grid, not smoke
+    monkeypatch.chdir(tmp_path)
+    namespace: dict = {}
+    exec(compile(blocks[0], "docs/tracking.md", "exec"), namespace)
+    exec(compile(blocks[1], "docs/tracking.md", "exec"), namespace)
+    printed = [ln for ln in capsys.readouterr().out.splitlines() if "best training return" in ln]
+    train = RunStore(tmp_path / "results" / "smoke-mine").read_train()
+    assert len(printed) == 2
+    for cid, best in train.groupby("cell_id")["team_return"].max().items():
+        line = next(ln for ln in printed if ln.startswith(cid))
+        assert f"best training return {best:.2f}" in line and "argmax" in line
