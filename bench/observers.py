@@ -125,7 +125,7 @@ def cell_info(st: Any, grid: str) -> CellInfo:
 
 def dispatch(observer: RunObserver, kind: str, st: Any, grid: str, rows: Sequence[Row] | None = None) -> None:
     """Turn one runner event (bench/runner.py ``_emit``) into the observer's calls."""
-    if st is None:
+    if st is None or kind not in ("started", "train_chunk", "done", "failed"):
         return
     info = cell_info(st, grid)
     if kind == "started":

@@ -13,8 +13,9 @@ parameters shared across robots) and the same batch (1,600 env-steps), on one to
 
 Rates are env-steps (one step of the whole team) per second of wall time and of process CPU
 time (``_cpu``: what one dedicated core would give on a shared, busy machine); ``ratio`` is
-ours over TorchRL's at the same N. Other peers (BenchMARL, EPyMARL) do not install beside our
-pins; the suite says so in ``note`` rather than leaving them out silently.
+ours over TorchRL's at the same N. Other peers do not install here: BenchMARL 1.5 requires
+``torchrl~=0.10`` (we pin 0.14.1), which resolves to torch 2.14 with CUDA wheels, and EPyMARL
+is not on PyPI; the suite says so in ``note`` rather than leaving them out silently.
 """
 from __future__ import annotations
 
@@ -97,6 +98,6 @@ def run_peers_suite(sizes: tuple[int, ...] = PEER_SIZES, frames: int = FRAMES, h
             rows.append({"suite": "peers", **r, "ratio_ours_over_torchrl": ratio,
                          "ratio_ours_over_torchrl_cpu": ratio_cpu,
                          "note": "" if r is ours else f"{frames} frames/batch, {EPOCHS} PPO epochs, 2x64 shared"})
-    rows.append({"suite": "peers", "peer": "benchmarl/epymarl", "note": "not measured: do not install beside "
-                 "our pins (BenchMARL pins its own TorchRL; EPyMARL needs gym 0.x and sacred)"})
+    rows.append({"suite": "peers", "peer": "benchmarl/epymarl", "note": "not measured: BenchMARL 1.5 needs "
+                 "torchrl~=0.10 (ours 0.14), which pulls torch 2.14 with CUDA; EPyMARL is not on PyPI"})
     return pd.DataFrame(rows)
