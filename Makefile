@@ -3,7 +3,7 @@ VENV ?= .venv
 BENCH := $(VENV)/bin/bench
 PY := $(VENV)/bin/python
 
-.PHONY: setup smoke test lint docs anchors clean-venv example-check
+.PHONY: setup smoke test lint docs anchors marl-eval clean-venv example-check
 
 $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
@@ -44,5 +44,18 @@ anchors: .anchors-venv/.installed
 	.anchors-venv/bin/python -c "import pogema, rware; print('anchors ready: pogema', pogema.__version__)"
 	touch $@
 
+## marl-eval (PyPI id-marl-eval) pins pandas==1.4.4, which has no build for Python 3.11, so it
+## lives in its own venv, installed without its declared pins; tests/bench/test_export.py loads
+## `bench export --format marl-eval` with its data-processing functions there.
+marl-eval: .marl-eval-venv/.installed
+
+.marl-eval-venv/.installed: bench/marl-eval-requirements.txt
+	python3 -m venv .marl-eval-venv
+	.marl-eval-venv/bin/pip install --quiet --upgrade pip
+	.marl-eval-venv/bin/pip install --quiet -r bench/marl-eval-requirements.txt
+	.marl-eval-venv/bin/pip install --quiet --no-deps "id-marl-eval==0.0.4"
+	.marl-eval-venv/bin/python -c "import marl_eval.utils.data_processing_utils, marl_eval.utils.diagnose_data_errors; print('marl-eval ready')"
+	touch $@
+
 clean-venv:
-	rm -rf $(VENV) .anchors-venv
+	rm -rf $(VENV) .anchors-venv .marl-eval-venv

@@ -43,6 +43,7 @@ class Suite(str, Enum):
     baselines = "baselines"
     pibt = "pibt"
     train = "train"
+    peers = "peers"
     all = "all"
 
 
@@ -77,9 +78,14 @@ def run(
     rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
     repair: bool = typer.Option(False, "--repair", help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is refused, naming the file."),
+    log: str | None = typer.Option(None, "--log", help="Experiment tracking, comma-separated: tensorboard, mlflow, wandb (offline). Per-update training metrics and each cell's evaluation summary, one tracker run per cell named by its id, under RUN/tracking/ (needs the track extra). Default: none."),
+    verbose: bool = typer.Option(False, "--verbose", "-v", help="Without a terminal, log every event (cell started, each training chunk and evaluation unit) instead of one line per finished or failed cell and a summary every 5 minutes."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
+    from bench.tracking import parse_log
+
+    log_names = parse_log(log)
     from bench.grid_files import check_run_name, load_grid_file
     from bench.grids import get_grid
     from bench.runner import sigterm_as_interrupt, sigterm_received
@@ -108,16 +114,22 @@ def run(
                 raise typer.Abort()
     from bench.progress import make_progress
     from bench.runner import run_grid
+    from bench.tracking import make_observer
 
+    observer = make_observer(log_names, out_dir, g.name)
     try:
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
-                               checkpoint_every=checkpoint_every, progress=make_progress(), command=sys.argv,
-                               rerun_changed=rerun_changed, stack_seeds=stack_seeds, repair=repair)
+                               checkpoint_every=checkpoint_every, progress=make_progress(verbose),
+                               command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stack_seeds,
+                               repair=repair, observer=observer)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
         raise
+    finally:
+        if observer is not None:
+            observer.close()
     for line in summary.repaired:
         typer.echo(f"bench: repair: {line}", err=True)
     for cid, why in summary.rerun.items():
@@ -376,6 +388,28 @@ def matrix(
         raise typer.Exit(1)
 
 
+class ExportFormat(str, Enum):
+    marl_eval = "marl-eval"
+    csv = "csv"
+
+
+@app.command()
+def export(
+    run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
+    fmt: ExportFormat = typer.Option(..., "--format", help="marl-eval: marl-eval's raw-data JSON (environment / task / algorithm / run / step); csv: tidy cells.csv, train.csv, eval.csv."),
+    out: Path | None = typer.Option(None, "--out", help="File (marl-eval) or folder (csv) to write (default: RUN/export/marl-eval.json or RUN/export/csv/). An existing file there is replaced only with --yes."),
+    execution: str = typer.Option("argmax", "--execution", help="marl-eval: the execution mode exported (PIBT: planner, its only mode)."),
+    balanced: bool = typer.Option(False, "--balanced", help="marl-eval: only the tasks every method ran, with the same seeds everywhere (what marl-eval's rliable matrices need)."),
+    yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing files at --out."),
+) -> None:
+    """Write a run's results for other evaluators: marl-eval JSON or tidy CSV tables."""
+    from bench.export_cmd import export_run
+
+    written = export_run(_run_dir(run), fmt.value, out, execution=execution, balanced=balanced, overwrite=yes)
+    for path in written:
+        typer.echo(str(path))
+
+
 def _writable(path: Path) -> bool:
     """Whether ``path`` (or its nearest existing parent) is a writable directory."""
     import os
@@ -460,7 +494,8 @@ PERF_SUITES = {
     "hierarchical": ("bench.perf_methods", "run_hierarchical_suite"),
     "baselines": ("bench.perf_baselines", "run_baselines_suite"),
     "pibt": ("bench.perf_pibt", "run_pibt_suite"),
-    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100
+    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
+    "peers": ("bench.perf_peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
 }
 
 

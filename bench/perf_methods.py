@@ -15,7 +15,9 @@
 * ``measure_cell_training`` / ``run_train_suite`` (``bench perf --suite train``): what a
   bench cell pays per update, every learned method at N = 40 and N = 100 on the MovingAI
   map: whole ``train_iteration()`` calls (scenario sampling and reset, rollout, update)
-  after a warm-up, in env-steps/s of wall time and of process CPU time.
+  after a warm-up, in env-steps/s of wall time and of process CPU time; and the achieved
+  matmul FLOP/s of a training iteration against this core's measured peaks at the same
+  shapes and at large shapes (bench/perf_flops.py).
 
     .venv/bin/python -m bench.perf_methods          # prints the table
 """
@@ -112,9 +114,11 @@ def measure_cell_training(method: str, n_robots: int, layout: str, iterations: i
 
 def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int = 8,
                     sizes: tuple[int, ...] = TRAIN_SIZES, methods: tuple[str, ...] = LEARNED,
-                    layout: str | None = None, stack: int = 3) -> pd.DataFrame:
+                    layout: str | None = None, stack: int = 3, flops: bool = True) -> pd.DataFrame:
     """Training env-steps/s per cell of every learned method at N = 40 and 100 (MovingAI map),
-    and of ``stack`` seeds trained seed-stacked for the methods that stack (hierarchical)."""
+    and of ``stack`` seeds trained seed-stacked for the methods that stack (hierarchical);
+    with ``flops``, each unstacked row's matmul FLOP/s and its fraction of this core's
+    peaks (bench/perf_flops.py)."""
     where = layout or str(REAL_MAP)
     cases = [(name, n, 1) for name in methods for n in sizes]
     if stack > 1:
@@ -123,6 +127,14 @@ def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int
     rows = [measure_cell_training(name, n, where, iterations=iterations, horizon=horizon,
                                   batch_episodes=batch_episodes, stack=k)
             for name, n, k in cases]
+    if flops:  # achieved matmul FLOP/s against this core's peaks (bench/perf_flops.py)
+        from bench.perf_flops import large_peak, matmul_rates
+
+        peak = large_peak()
+        for r in rows:
+            if r["stacked_seeds"] == 1:
+                r.update(matmul_rates(r["method"], r["n_robots"], where, r["env_steps_per_s_cpu"], peak,
+                                      horizon=horizon, batch_episodes=batch_episodes))
     return pd.DataFrame([{"suite": "train", **r} for r in rows])
 
 

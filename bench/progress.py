@@ -1,8 +1,11 @@
 """Driver-side progress: cells done / running / failed and an ETA.
 
 A rich live bar on a terminal; plain log lines (on stderr) when stderr is not a TTY or
-``CI=true``. The runner calls ``update(snapshot)`` after every event and about once a
-second; ``close()`` at the end.
+``CI=true``: by default one line per finished or failed cell (and per retry or rerun) and a
+summary line every ``QUIET_EVERY_S`` seconds (``QuietLogProgress``); ``bench run --verbose``
+prints every event (a cell started, each training chunk and evaluation unit: ``LogProgress``).
+The runner calls ``update(snapshot)`` after every event and about once a second;
+``close()`` at the end.
 """
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ class Snapshot:
     fraction: float  # cost-weighted fraction of the work finished, 0..1
     elapsed_s: float
     message: str = ""  # the last event, e.g. "done 3f2a... (hierarchical N=40 p=0.2)"
+    kind: str = ""  # the runner event behind it: start, started, train_chunk, eval_chunk, done, failed, retry, rerun, tick
 
     @property
     def eta_s(self) -> float | None:
@@ -81,6 +85,31 @@ class LogProgress:
         return None
 
 
+QUIET_EVERY_S = 300.0
+QUIET_KINDS = frozenset({"done", "failed", "retry", "rerun"})  # the events a quiet log prints
+
+
+class QuietLogProgress(LogProgress):
+    """The log without a terminal: the first snapshot, one line per finished or failed cell
+    (and per retry or rerun), and a summary every ``every_s`` seconds (docs/decisions.md,
+    "Quiet logs")."""
+
+    def __init__(self, every_s: float = QUIET_EVERY_S, stream=None) -> None:
+        super().__init__(every_s, stream)
+        self._started = False
+
+    def update(self, snap: Snapshot) -> None:
+        now = time.monotonic()
+        if snap.kind in QUIET_KINDS:
+            line = f"{snap.line()} | {snap.message}"
+        elif not self._started or now - self._last_t >= self.every_s:
+            line = snap.line()
+        else:
+            return
+        self._started, self._last_t = True, now
+        print(f"[{time.strftime('%H:%M:%S')}] {line}", file=self.stream, flush=True)
+
+
 class RichProgress:
     """A live rich bar on stderr."""
 
@@ -109,8 +138,9 @@ class RichProgress:
         self._bar.stop()
 
 
-def make_progress() -> Progress:
-    """Rich on an interactive terminal, plain lines on CI or when stderr is redirected."""
+def make_progress(verbose: bool = False) -> Progress:
+    """Rich on an interactive terminal, plain lines on CI or when stderr is redirected:
+    quiet ones unless ``verbose`` (every event, as before issue 38)."""
     if os.environ.get("CI", "").lower() in ("1", "true", "yes") or not sys.stderr.isatty():
-        return LogProgress()
+        return LogProgress() if verbose else QuietLogProgress()
     return RichProgress()

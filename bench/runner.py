@@ -36,6 +36,7 @@ from typing import Any
 from algorithms.registry import method_class
 from bench.grids import Grid
 from bench.integrity import RUN_FLAG
+from bench.observers import RunObserver, dispatch
 from bench.plan import CellState, machine, plan_run, versions, versions_json
 from bench.progress import NullProgress, Progress, Snapshot
 from bench.ray_cluster import RayContext, connect
@@ -71,8 +72,12 @@ EventHook = Callable[[str, CellState], None]
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
-             rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False) -> RunSummary:
+             rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False,
+             observer: RunObserver | None = None) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
+
+    ``observer`` (bench/observers.py) receives each cell's start, stored training rows,
+    evaluation summary and end, from the driver (loggers: ``bench run --log``).
 
     Raises BenchError before writing anything when the store, the grid or the address is bad,
     or when a file of the grid's cells is damaged or misplaced (bench/integrity.py) and not
@@ -101,7 +106,8 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                         raise
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds))
+                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
+                           observer)
                 summary = run.execute()
                 summary.repaired = repaired
                 return summary
@@ -137,11 +143,12 @@ def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
 class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
-                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1) -> None:
+                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
+                 observer: RunObserver | None = None) -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
         self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
-        self.on_event, self.command = on_event, command
+        self.on_event, self.command, self.observer = on_event, command, observer
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
         self.inflight: dict[Any, tuple[str, Slot, Any, Any]] = {}  # kind, worker, cell(s), unit
         self.versions = versions_json()
@@ -378,7 +385,7 @@ class _Run:
         })
         st.has_checkpoint = True
         st.state_ref = ray.put(result["state"])
-        self._emit("train_chunk", st)
+        self._emit("train_chunk", st, rows)
         if result["finished"]:
             self._begin_eval(st)
             self._write_cells()
@@ -442,10 +449,12 @@ class _Run:
                 self._emit("retry", st)
 
     # --------------------------------------------------------------- progress
-    def _emit(self, kind: str, st: CellState | None) -> None:
+    def _emit(self, kind: str, st: CellState | None, rows: list[dict[str, Any]] | None = None) -> None:
         message = event_message(kind, st, self.last_error) if st is not None else ""
         if self.on_event is not None and st is not None:
             self.on_event(kind, st)
+        if self.observer is not None:
+            dispatch(self.observer, kind, st, self.grid.name, rows)
         done_w = sum(s.progress() * s.weight for s in self.states)
         left = self.total_weight - self.start_progress
         frac = (done_w - self.start_progress) / left if left > 1e-9 else 1.0
@@ -453,7 +462,7 @@ class _Run:
             total=len(self.states), done=sum(s.phase == "done" for s in self.states),
             running=sum(s.phase in ("training", "evaluating") for s in self.states),
             failed=sum(s.phase == "failed" for s in self.states), fraction=min(max(frac, 0.0), 1.0),
-            elapsed_s=time.monotonic() - self.t0, message=message,
+            elapsed_s=time.monotonic() - self.t0, message=message, kind=kind,
         )
         self.progress.update(snap)
 
