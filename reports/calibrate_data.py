@@ -34,7 +34,14 @@ from reports.claim_power import EFFECT_SUCCESS, REWARD_FRAC
 from reports.claims_table1 import FALLBACK_BOUND, PAPER_SLOPE, PRINT_BOUND
 from reports.stats import ALPHA, curve_shape, quantile_curve, welch_parts, zero_events_bound
 from reports.table1_safety import PAPER_TABLE1
-from reports.verdicts import BAND_PCT, BAND_TOL, CONV_REL_TOL, FINAL_FRAC, MAX_CORRECTION, TEST_ALPHA
+from reports.verdicts import (
+    BAND_PCT,
+    BAND_TOL,
+    CONV_REL_TOL,
+    FINAL_FRAC,
+    MAX_CORRECTION,
+    TEST_ALPHA,
+)
 from reports.verdicts_bounds import NEAR_TOL, trend_weights
 
 SIMS = 5000  # MC s.e. of a 5% rate: 0.0031; of any rate up to 14%: <= 0.005

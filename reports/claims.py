@@ -28,13 +28,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from reports.claim_power import power_below, power_convergence, power_curves, power_gap, power_greater
+from reports.claim_power import (
+    power_below,
+    power_convergence,
+    power_curves,
+    power_gap,
+    power_greater,
+)
 from reports.fig3_payload import payload_points
 from reports.power import COULD_NOT, LOW, NO_POWER
 from reports.store import fmt_p, select
 from reports.table1_safety import PAPER_TABLE1
 from reports.verdicts import (
-    TEST_ALPHA,
     BAND_TOL,
     BY_CONSTRUCTION,
     CONDITION_NOT_MET,
@@ -44,6 +49,7 @@ from reports.verdicts import (
     INCONCLUSIVE,
     MAX_CORRECTION,
     NOT_ENOUGH,
+    TEST_ALPHA,
     check_collisions,
     check_convergence,
     check_corrections,

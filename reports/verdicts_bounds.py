@@ -21,11 +21,11 @@ import numpy as np
 from reports.stats import t_test
 from reports.verdicts import (
     CONTRADICTED,
-    TEST_ALPHA,
     INCONCLUSIVE,
+    MIN_SEEDS,
     NOT_ENOUGH,
     SUPPORTED,
-    MIN_SEEDS,
+    TEST_ALPHA,
     contra_note,
     decide,
     seeds_msg,
