@@ -106,7 +106,7 @@ def _kill_namespace(ns: str) -> None:
 
 
 @contextmanager
-def test_hosts(root: Path, env: dict[str, str]) -> Iterator[dict[str, Host]]:
+def netns_hosts(root: Path, env: dict[str, str]) -> Iterator[dict[str, Host]]:
     """Three hosts in their own network namespaces on a bridge in a fourth; removed afterwards."""
     tag = f"wmbc{os.getpid() % 100000}"
     bridge = f"{tag}-br"
@@ -173,7 +173,7 @@ def check(reference: Path | None, keep_going_s: float = 600) -> int:
                        cwd=REPO, env=env, check=True, capture_output=True)
         print(f"cluster-check: single-machine reference {reference} ({time.monotonic() - started:.0f} s)")
     shutil.rmtree(out_dir, ignore_errors=True)
-    with tempfile.TemporaryDirectory(prefix="wmbc-") as tmp, test_hosts(Path(tmp), env) as hosts:
+    with tempfile.TemporaryDirectory(prefix="wmbc-") as tmp, netns_hosts(Path(tmp), env) as hosts:
         head = hosts["head"]
         prelude = "set -e; " + "; ".join(roles["all"]) + "; "
         sub = lambda line, h: line.replace("HEAD_IP", head.ip).replace("NODE_IP", h.ip)  # noqa: E731
