@@ -28,7 +28,7 @@ docker-check: setup
 ## The cluster recipe on three network-namespace hosts, one killed mid-run (root; docs/deployment.md).
 ## CLUSTER_REFERENCE=DIR reuses a single-machine smoke run.
 cluster-check: setup
-	$(PY) -m pytest -q -p no:cacheprovider -m netns tests/scripts/test_cluster_check.py
+	$(PY) -m pytest -q -s -p no:cacheprovider -m netns tests/scripts/test_cluster_check.py
 
 lint: setup
 	$(VENV)/bin/ruff check .

@@ -36,6 +36,10 @@ def load_rows(run: Path, table: str) -> pd.DataFrame:
     return frame[sorted(frame.columns)]
 
 
+def _missing(v: object) -> bool:
+    return v is None or (isinstance(v, float) and np.isnan(v))
+
+
 def first_difference(a: pd.DataFrame, b: pd.DataFrame) -> str | None:
     """None when ``a`` and ``b`` hold the same rows bit for bit, else a line naming the first difference."""
     if list(a.columns) != list(b.columns):
@@ -47,7 +51,8 @@ def first_difference(a: pd.DataFrame, b: pd.DataFrame) -> str | None:
         if x.dtype.kind == "f" and y.dtype.kind == "f" and x.dtype == y.dtype:
             same = x.view(f"u{x.dtype.itemsize}") == y.view(f"u{y.dtype.itemsize}")
         else:
-            same = np.array([u == v or (u is v) for u, v in zip(x, y)], dtype=bool)
+            same = np.array([bool(u == v) or (u is v) or (_missing(u) and _missing(v))
+                             for u, v in zip(x, y, strict=True)], dtype=bool)
         if not same.all():
             i = int(np.flatnonzero(~same)[0])
             where = ", ".join(f"{k}={a.at[i, k]}" for k in KEYS if k in a.columns)
