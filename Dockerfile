@@ -42,10 +42,13 @@ RUN --mount=type=secret,id=pip_ca \
     if [ -s /run/secrets/pip_ca ]; then export PIP_CERT=/run/secrets/pip_ca; fi; \
     /opt/venv/bin/pip install --quiet --no-deps .
 # Size (docs/decisions.md "Docker image size"): the packages' own test suites, C++ headers,
-# Ray's Java jars and RLlib are never imported by the bench; about 0.45 GB.
+# Ray's Java jars and libraries the bench never imports (RLlib, Data, Serve, Tune, Train),
+# and the byte code of modules a run does not load (docker/prune_pyc.py).
 WORKDIR /opt/venv/lib/python3.11/site-packages
 RUN find . -depth -type d \( -name tests -o -name test \) -prune -exec rm -rf {} + \
-    && rm -rf ray/jars ray/rllib pyarrow/include
+    && rm -rf ray/jars ray/rllib ray/data ray/serve ray/tune ray/train ray/llm ray/workflow pyarrow/include
+COPY docker/prune_pyc.py /tmp/prune_pyc.py
+RUN /opt/venv/bin/python /tmp/prune_pyc.py
 
 FROM ${BASE_IMAGE}
 ENV PYTHONUNBUFFERED=1 PYTHONDONTWRITEBYTECODE=1 \
