@@ -3,7 +3,7 @@ VENV ?= .venv
 BENCH := $(VENV)/bin/bench
 PY := $(VENV)/bin/python
 
-.PHONY: setup smoke test lint docs anchors marl-eval clean-venv example-check
+.PHONY: setup smoke test lint docs anchors marl-eval clean-venv example-check docker-check cluster-check
 
 $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
@@ -18,7 +18,17 @@ smoke: setup
 
 ## Set up and run the whole test suite (2 workers).
 test: setup
-	$(PY) -m pytest -q -n 2 --dist loadfile
+	$(PY) -m pytest -q -n 2 --dist loadfile -m "not netns"
+
+## Build the Docker image with a private dockerd and check smoke + report in it against the host
+## (docs/deployment.md). HOST_RUN=DIR reuses a host smoke run.
+docker-check: setup
+	bash scripts/docker_check.sh
+
+## The cluster recipe on three network-namespace hosts, one killed mid-run (root; docs/deployment.md).
+## CLUSTER_REFERENCE=DIR reuses a single-machine smoke run.
+cluster-check: setup
+	$(PY) -m pytest -q -s -p no:cacheprovider -m netns tests/scripts/test_cluster_check.py
 
 ## The worked outside method packages end to end, with no edit to this package.
 example-check: setup
