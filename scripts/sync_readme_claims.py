@@ -50,12 +50,14 @@ def verdicts(claims_table: str) -> str:
     """One row per claim of ``claims_table.md``: how many of its checks got each verdict."""
     counts: dict[str, Counter[str]] = {}
     claim = ""
+    header = [c.strip() for c in claims_table.splitlines()[0].strip().strip("|").split("|")]
+    col = header.index("verdict")
     for line in claims_table.splitlines()[2:]:
         if not line.startswith("|"):
             continue
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         claim = cells[0].strip("*") or claim
-        counts.setdefault(claim, Counter())[cells[-1].strip("*")] += 1
+        counts.setdefault(claim, Counter())[cells[col].strip("*")] += 1
     rows = ["| claim | checks | verdicts |", "|---|---|---|"]
     for claim, c in counts.items():
         rows.append(f"| {claim} | {sum(c.values())} | "
