@@ -37,6 +37,7 @@ example-check: setup
 lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
+	$(VENV)/bin/lint-imports
 	$(VENV)/bin/hadolint Dockerfile
 
 ## Build the documentation site (mkdocs.yml) into site/; --strict fails on a broken link or reference.
