@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from reports import claim_power
 from reports import claims as C
 from reports import verdicts as V
 from reports.stats import bootstrap_ci, mean_ci, zero_events_bound
@@ -242,7 +243,8 @@ def calibrate(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SE
         for s in seed_counts:
             for effect in (False, True):
                 rng = np.random.default_rng(np.random.SeedSequence([seed, i, s, int(effect)]))
-                verdicts = [sc.sim(rng, s, effect) for _ in range(sims)]
+                with claim_power.skipped():  # verdicts only: power is the page's, not the simulation's
+                    verdicts = [sc.sim(rng, s, effect) for _ in range(sims)]
                 rate = verdicts.count(V.SUPPORTED) / sims
                 contra = verdicts.count(V.CONTRADICTED) / sims
                 rows.append({"test": sc.test, "truth": "effect" if effect else "null",

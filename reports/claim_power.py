@@ -10,7 +10,10 @@ paper's own Table I column.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from functools import wraps
+from typing import Any
 
 import numpy as np
 
@@ -21,6 +24,27 @@ from reports.verdicts_bounds import NEAR_TOL, trend_weights
 
 EFFECT_SUCCESS = 0.10
 REWARD_FRAC = 0.10
+_SKIP = [False]
+
+
+@contextmanager
+def skipped() -> Iterator[None]:
+    """Checks computed inside carry no power (``NO_POWER``): the simulations of
+    ``bench calibrate`` decide thousands of checks and read only their verdicts."""
+    _SKIP[0] = True
+    try:
+        yield
+    finally:
+        _SKIP[0] = False
+
+
+def _unless_skipped(fn: Callable[..., Power]) -> Callable[..., Power]:
+    @wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Power:
+        from reports.power import NO_POWER
+
+        return NO_POWER if _SKIP[0] else fn(*args, **kwargs)
+    return wrapper
 
 
 def _level(x: np.ndarray) -> float:
@@ -30,12 +54,14 @@ def _level(x: np.ndarray) -> float:
     return abs(float(a.mean())) if a.size else float("nan")
 
 
+@_unless_skipped
 def power_greater(a: np.ndarray, b: np.ndarray) -> Power:
     """``check_greater`` on final rewards: A above B by 10% of B's mean."""
     effect = REWARD_FRAC * _level(b)
     return power_of([a, b], [1.0, -1.0], effect, f"+{effect:.3g} final reward (10% of the baseline's)")
 
 
+@_unless_skipped
 def power_gap(groups: Sequence[np.ndarray]) -> Power:
     """``check_gap`` (hier large, dec large, hier small, dec small): the gap at the large N
     wider by 10% of decentralized's mean final reward there."""
@@ -44,6 +70,7 @@ def power_gap(groups: Sequence[np.ndarray]) -> Power:
                     f"a gap wider by {effect:.3g} (10% of decentralized's final reward)")
 
 
+@_unless_skipped
 def power_curves(h: list[np.ndarray], i: list[np.ndarray]) -> Power:
     """``check_curves``: hierarchical +0.1 success at every percentile; the mean test and
     each percentile's band bound (margin 0.1 + ``BAND_TOL`` at TEST_ALPHA / G) must all pass."""
@@ -57,6 +84,7 @@ def power_curves(h: list[np.ndarray], i: list[np.ndarray]) -> Power:
     return weakest(words, *parts)
 
 
+@_unless_skipped
 def power_convergence(curves: list[np.ndarray], rel_tol: float, frac: float) -> Power:
     """``check_convergence``: the seeds' own mean gain G, no drift; gain > 0 and both
     sides of the equivalence |drift| < rel_tol gain must pass (margins G, rel_tol G)."""
@@ -70,11 +98,13 @@ def power_convergence(curves: list[np.ndarray], rel_tol: float, frac: float) -> 
                    power_of([d + rel_tol * g], [1.0], rel_tol * gm, words))
 
 
+@_unless_skipped
 def power_below(m: np.ndarray, bound: float, truth: float, words: str) -> Power:
     """A per-seed rate ``m`` below ``bound`` when its true mean is ``truth``."""
     return power_of([m], [1.0], bound - truth, words)
 
 
+@_unless_skipped
 def power_near(m: np.ndarray, target: float, tol: float = NEAR_TOL) -> Power:
     """``check_near`` when the true mean is the paper's ``target``: both sides pass."""
     words = f"a true mean equal to the paper's {target:.3g}"
@@ -82,6 +112,7 @@ def power_near(m: np.ndarray, target: float, tol: float = NEAR_TOL) -> Power:
                    power_of([m], [-1.0], tol * target, words))
 
 
+@_unless_skipped
 def power_trend(groups: Sequence[np.ndarray], ns: Sequence[int], slope: float) -> Power:
     """``check_trend`` when the true slope is ``slope`` per robot."""
     return power_of(list(groups), list(trend_weights(ns)), slope,
