@@ -41,7 +41,7 @@ COPY reports ./reports
 RUN --mount=type=secret,id=pip_ca \
     if [ -s /run/secrets/pip_ca ]; then export PIP_CERT=/run/secrets/pip_ca; fi; \
     /opt/venv/bin/pip install --quiet --no-deps .
-# Size (docs/decisions.md "Docker image size"): the packages' own test suites, C++ headers,
+# Size (docs/deployment.md, the image): the packages' own test suites, C++ headers,
 # Ray's Java jars and libraries the bench never imports (RLlib, Data, Serve, Tune, Train),
 # and the byte code of modules a run does not load (docker/prune_pyc.py).
 WORKDIR /opt/venv/lib/python3.11/site-packages

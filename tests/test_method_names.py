@@ -21,6 +21,7 @@ ALLOWED = {
     "bench/cli.py": "`bench perf --suite` names of benchmarks of the built-ins' own kernels",
     "bench/perf_methods.py": "benchmarks of the built-in methods' kernels",
     "bench/perf_baselines.py": "benchmarks of the built-in baselines' kernels",
+    "bench/perf_peers.py": "benchmarks the built-in decentralized trainer against TorchRL's MAPPO",
     "reports/claims.py": "the paper's own claims (Sec. IV) are about its method and baselines",
     "reports/calibrate.py": "simulates the paper's claims on synthetic rows of those methods",
     "reports/calibrate_data.py": "resamples the paper's claims from the committed rows of those methods",

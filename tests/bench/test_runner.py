@@ -12,7 +12,7 @@ from bench.cells import Cell
 from bench.grids import Grid
 from bench.runner import run_grid
 from bench.store import RunStore
-from tests.bench.conftest import snapshot, store_with_params, toy_spec
+from tests.bench.conftest import as_written_by_the_bench, snapshot, store_with_params, toy_spec
 
 pytestmark = pytest.mark.usefixtures("ray_local")
 METRICS = ["cell_id", "episode", "team_return", "success_rate", "collision_rate", "invalid_rate", "steps"]
@@ -149,6 +149,8 @@ def test_run__done_cell_with_missing_rows_is_run_again_to_identical_rows(toy: st
     lost_part.unlink()  # a training part of a finished cell disappears
     short = pq.read_table(store.eval_path(grid.cells[1].cell_id))
     pq.write_table(short.slice(0, 3), store.eval_path(grid.cells[1].cell_id))  # ... and eval rows go missing
+    as_written_by_the_bench(out)  # left so by the bench itself, not changed from outside (that is --repair's)
+    store.integrity().forget([lost_part])
     summary = run_grid(grid, out, workers=2, checkpoint_every=1)
     assert summary.done == 2 and set(summary.rerun) == {c.cell_id for c in grid.cells}
     assert "training it again from the start" in summary.rerun[grid.cells[0].cell_id]
@@ -192,6 +194,7 @@ def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_
     store = RunStore(out)
     cid = grid.cells[0].cell_id
     store_with_params(out, cid, lr=0.5)
+    as_written_by_the_bench(out)  # cells.parquet as an older bench with other defaults wrote it
     old_eval = store.eval_path(cid).read_bytes()
     with pytest.raises(Exception, match="--rerun-changed"):
         run_grid(grid, out, workers=1, checkpoint_every=2)

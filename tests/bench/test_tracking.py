@@ -54,7 +54,7 @@ def tracked_run(ray_local, tmp_path_factory) -> tuple[Path, Recorder]:
     from algorithms import registry
     from tests.bench.toy_method import TOY_PATH
 
-    registry.METHODS["toy"] = TOY_PATH
+    registry.register("toy", TOY_PATH)
     out = tmp_path_factory.mktemp("tracked") / "run"
     grid = Grid("toygrid", "test", tuple(Cell.make(**toy_spec(seed=s)) for s in (0, 1)))
     rec = Recorder()
@@ -168,7 +168,7 @@ def test_docs_tracking__the_custom_logger_example_runs_as_written(
     from tests.bench.conftest import REPO
     from tests.bench.toy_method import TOY_PATH
 
-    monkeypatch.setitem(registry.METHODS, "toy", TOY_PATH)
+    registry.register("toy", TOY_PATH)
     page = (REPO / "docs" / "tracking.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
     assert len(blocks) == 2 and "class BestReturn(Observer)" in blocks[0]
