@@ -276,8 +276,12 @@ def move_aside(store: Any, checksums: Checksums, damage: list[Damage], stamp: st
 
     if not damage:
         return None
-    dest = store.root / "superseded" / f"{REPAIR_PREFIX}{stamp}"
-    dest.mkdir(parents=True, exist_ok=True)
+    base = store.root / "superseded" / f"{REPAIR_PREFIX}{stamp}"
+    dest, k = base, 1
+    while dest.exists():  # a second repair within the same second keeps the first one's files
+        k += 1
+        dest = base.with_name(f"{base.name}-{k}")
+    dest.mkdir(parents=True)
     for d in damage:
         target = dest / d.rel
         target.parent.mkdir(parents=True, exist_ok=True)
