@@ -56,6 +56,9 @@ def recipe(doc: Path = DOC) -> dict[str, list[str]]:
     return roles
 
 
+RAY_CLIENT_PORT = 10001  # `ray start --head` opens it when grpcio for Ray's client is installed
+
+
 def documented_ports(lines: list[str]) -> set[int]:
     """Every port a set of `ray start` lines names: fixed ports and the worker port range."""
     ports = {int(p) for line in lines for p in re.findall(r"-port=(\d+)", line)}
@@ -219,6 +222,8 @@ def check(reference: Path | None, keep_going_s: float = 600) -> int:
         print("| host | address | port | process |\n|---|---|---|---|")
         for name, rows in table.items():
             allowed = documented_ports(roles["head" if name == "head" else "worker"])
+            if name == "head":  # Ray's client server on its default port, documented in docs/deployment.md
+                allowed.add(RAY_CLIENT_PORT)
             for addr, port, proc in rows:
                 print(f"| {name} | {addr} | {port} | {proc} |")
                 if port not in allowed:
