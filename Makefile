@@ -45,13 +45,13 @@ docs: setup
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict
 
 ## POGEMA and RWARE speed anchors live in their own venv (POGEMA needs pydantic 1);
-## bench/perf_env.py drives them through bench/anchors_script.py.
+## bench/perf/env.py drives them through bench/perf/anchors_script.py.
 anchors: .anchors-venv/.installed
 
-.anchors-venv/.installed: bench/anchors-requirements.txt
+.anchors-venv/.installed: bench/perf/anchors-requirements.txt
 	python3 -m venv .anchors-venv
 	.anchors-venv/bin/pip install --quiet --upgrade pip
-	.anchors-venv/bin/pip install --quiet -r bench/anchors-requirements.txt
+	.anchors-venv/bin/pip install --quiet -r bench/perf/anchors-requirements.txt
 	.anchors-venv/bin/python -c "import pogema, rware; print('anchors ready: pogema', pogema.__version__)"
 	touch $@
 
@@ -60,10 +60,10 @@ anchors: .anchors-venv/.installed
 ## `bench export --format marl-eval` with its data-processing functions there.
 marl-eval: .marl-eval-venv/.installed
 
-.marl-eval-venv/.installed: bench/marl-eval-requirements.txt
+.marl-eval-venv/.installed: bench/export/marl-eval-requirements.txt
 	python3 -m venv .marl-eval-venv
 	.marl-eval-venv/bin/pip install --quiet --upgrade pip
-	.marl-eval-venv/bin/pip install --quiet -r bench/marl-eval-requirements.txt
+	.marl-eval-venv/bin/pip install --quiet -r bench/export/marl-eval-requirements.txt
 	.marl-eval-venv/bin/pip install --quiet --no-deps "id-marl-eval==0.0.4"
 	.marl-eval-venv/bin/python -c "import marl_eval.utils.data_processing_utils, marl_eval.utils.diagnose_data_errors; print('marl-eval ready')"
 	touch $@

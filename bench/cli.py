@@ -86,14 +86,14 @@ def run(
     from bench.tracking import parse_log
 
     log_names = parse_log(log)
-    from bench.grid_files import check_run_name, load_grid_file
-    from bench.grids import get_grid
-    from bench.runner import sigterm_as_interrupt, sigterm_received
-    from bench.store import RunStore
+    from bench.design.grid_files import check_run_name, load_grid_file
+    from bench.design.grids import get_grid
+    from bench.execute.runner import sigterm_as_interrupt, sigterm_received
+    from bench.store.run_store import RunStore
 
     if (grid is None) == (grid_file is None):
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
-    from bench.limits import check_count
+    from bench.design.limits import check_count
 
     for option, field, value in (("--workers", "workers", workers), ("--checkpoint-every", "checkpoint_every", checkpoint_every),
                                  ("--stack-seeds", "stack_seeds", stack_seeds)):
@@ -112,8 +112,8 @@ def run(
             if not typer.confirm(f"Delete the {n_files} files the bench wrote in {out_dir} (other files "
                                  "stay) and start over?", default=False):
                 raise typer.Abort()
-    from bench.progress import make_progress
-    from bench.runner import run_grid
+    from bench.execute.progress import make_progress
+    from bench.execute.runner import run_grid
     from bench.tracking import make_observer
 
     observer = make_observer(log_names, out_dir, g.name)
@@ -159,10 +159,10 @@ def grids(
     from rich.console import Console
     from rich.table import Table
 
-    from bench import costs
-    from bench.cost_calibration import merged_rates, observed_costs, observed_rates
-    from bench.grid_files import load_grid_file
-    from bench.grids import BUILTIN, get_grid
+    from bench.design import costs
+    from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates
+    from bench.design.grid_files import load_grid_file
+    from bench.design.grids import BUILTIN, get_grid
 
     rates = None
     source = f"{costs.LABEL} on reproduction/paper"
@@ -248,7 +248,7 @@ def eval_(
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
-    from bench.quick_eval import quick_eval, summarize
+    from bench.execute.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
                             episodes, seed, horizon, execution=execution)
@@ -280,7 +280,7 @@ def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
 
 # ---------------------------------------------------------- report / replay
 def _run_dir(run: Path | None) -> Path:
-    from bench.store import RunStore
+    from bench.store.run_store import RunStore
 
     if run is None:
         found = sorted(Path("results").glob("*/manifest.json"), key=lambda p: p.stat().st_mtime)
@@ -311,7 +311,7 @@ def report(
     method of your own is judged against REF's committed baselines without retraining them."""
     import os
 
-    from bench.outputs import check_report_out
+    from bench.store.outputs import check_report_out
 
     run_dir = _run_dir(run)
     target = out if out is not None else run_dir / "report"
@@ -324,16 +324,16 @@ def report(
         from reports.build import build_report
     except ImportError as exc:
         raise BenchError(f"the report builder is not available: {exc}") from None
-    from bench.completeness import incomplete_cells
-    from bench.integrity import find_damage
-    from bench.store import RunStore
+    from bench.store.completeness import incomplete_cells
+    from bench.store.integrity import find_damage
+    from bench.store.run_store import RunStore
 
     store = RunStore(run_dir)
     damage = find_damage(store, store.integrity())
     broken = [d for d in damage if d.rel == "cells.parquet"]
     if broken:
         raise BenchError(f"{str(run_dir)!r}: {broken[0].line()}")
-    for d in damage:  # left out of the report (reports/store.py), never read as numbers
+    for d in damage:  # left out of the report (reports/data/store.py), never read as numbers
         typer.echo(f"bench: warning: {d.line()}", err=True)
     cells = store.read_cells()
     damaged = {d.cell_id for d in damage}
@@ -372,8 +372,8 @@ def matrix(
     """Robustness matrix: evaluate every trained checkpoint at other team sizes N', loss
     rates p' and bursty (Gilbert-Elliott) loss, on scenarios shared by every method, into
     RUN/matrix/. Rerunning skips the (cell, condition) units already written."""
-    from bench.limits import check_count
-    from bench.matrix import run_matrix
+    from bench.design.limits import check_count
+    from bench.execute.matrix import run_matrix
 
     check_count("--episodes", "eval_episodes", episodes)
     check_count("--workers", "workers", workers)
@@ -403,7 +403,7 @@ def export(
     yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing files at --out."),
 ) -> None:
     """Write a run's results for other evaluators: marl-eval JSON or tidy CSV tables."""
-    from bench.export_cmd import export_run
+    from bench.export.command import export_run
 
     written = export_run(_run_dir(run), fmt.value, out, execution=execution, balanced=balanced, overwrite=yes)
     for path in written:
@@ -432,7 +432,7 @@ def replay(
     force: bool = typer.Option(False, "--force", help="Replace an existing --out file (default: refused; the default path is rebuilt in place)."),
 ) -> None:
     """Render one evaluation episode of a cell, in one execution mode, as a captioned GIF or MP4."""
-    from bench.store import RunStore
+    from bench.store.run_store import RunStore
 
     run_dir = _run_dir(run)
     cells = RunStore(run_dir).read_cells()
@@ -442,7 +442,7 @@ def replay(
         from reports.replay import replay_progress, write_replay
     except ImportError as exc:
         raise BenchError(f"the replay writer is not available: {exc}") from None
-    from bench.outputs import check_replay_out
+    from bench.store.outputs import check_replay_out
 
     suffix = f"-{execution}" if execution else ""
     target = out if out is not None else run_dir / "replays" / f"{cell}-ep{episode}{suffix}.{fmt}"
@@ -470,12 +470,12 @@ def calibrate(
     from the store's own spread (and a normal case); exit 1 if an error rate is too high."""
     import pandas as pd
 
-    from reports.calibrate import calibration_report
+    from reports.claims.calibrate import calibration_report
 
     rep = calibration_report(sims, seed, coverage_sims=coverage_sims, run=run)
     text = json.dumps(rep, indent=2)
     if out is not None:
-        from bench.store import atomic_file
+        from bench.store.run_store import atomic_file
 
         with atomic_file(out) as fh:
             fh.write(text.encode())
@@ -490,12 +490,12 @@ def calibrate(
 
 # -------------------------------------------------------------------- perf
 PERF_SUITES = {
-    "env": ("bench.perf_env", "run_env_suite"),
-    "hierarchical": ("bench.perf_methods", "run_hierarchical_suite"),
-    "baselines": ("bench.perf_baselines", "run_baselines_suite"),
-    "pibt": ("bench.perf_pibt", "run_pibt_suite"),
-    "train": ("bench.perf_methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
-    "peers": ("bench.perf_peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
+    "env": ("bench.perf.env", "run_env_suite"),
+    "hierarchical": ("bench.perf.methods", "run_hierarchical_suite"),
+    "baselines": ("bench.perf.baselines", "run_baselines_suite"),
+    "pibt": ("bench.perf.pibt", "run_pibt_suite"),
+    "train": ("bench.perf.methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
+    "peers": ("bench.perf.peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
 }
 
 
@@ -524,7 +524,7 @@ def perf(
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     _print_frame(df, f"bench perf --suite {suite.value}")
     if json_path is not None:
-        from bench.store import atomic_file
+        from bench.store.run_store import atomic_file
 
         with atomic_file(json_path) as fh:
             fh.write(df.to_json(orient="records", indent=2).encode())
@@ -556,7 +556,7 @@ def main(argv: list[str] | None = None) -> None:
     """Console entry point: one-line errors with exit status 2 for user mistakes; Ctrl-C
     (exit 130) and SIGTERM (exit 143) stop every command with one line, its atomic writes
     having removed their temp files."""
-    from bench.signals import sigterm_as_interrupt, sigterm_received
+    from bench.execute.signals import sigterm_as_interrupt, sigterm_received
 
     try:
         with sigterm_as_interrupt():
@@ -606,7 +606,7 @@ def _exit_on(exc: BaseException) -> None:
         _error("interrupted; rerun the same command to resume")
         sys.exit(130)
     except OSError as exc:  # a full disk outside the store's own writes (which raise DiskFull)
-        from bench.store import DiskFull, is_disk_full
+        from bench.store.run_store import DiskFull, is_disk_full
 
         if not is_disk_full(exc):
             raise

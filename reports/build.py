@@ -1,11 +1,11 @@
 """``build_report``: rebuild every figure, table and page of the report from the store alone.
 
 The only function of ``reports`` that writes files. It reads the run's Parquet store
-(``reports.store``), calls the pure builders (figures, Table I, summary, claims, index)
+(``reports.data.store``), calls the pure builders (figures, Table I, summary, claims, index)
 and writes their outputs into ``<run>/report/`` (or ``bench report --out DIR``, e.g. for
 a read-only run folder), each atomically (temp file + rename, permissions from the
 umask), so an interrupted rebuild never leaves a half-written file; a full disk is one
-``DiskFull`` line. Done cells whose rows are incomplete (bench/completeness.py) are
+``DiskFull`` line. Done cells whose rows are incomplete (bench/store/completeness.py) are
 listed among the store's problems. Deterministic: bootstrap
 generators are seeded, so the same store gives the same numbers.
 
@@ -28,23 +28,27 @@ from pathlib import Path
 import pandas as pd
 from matplotlib.figure import Figure
 
-from bench.completeness import incomplete_cells
-from bench.store import DiskFull, RunStore, file_mode, is_disk_full
+from bench.store.completeness import incomplete_cells
+from bench.store.run_store import DiskFull, RunStore, file_mode, is_disk_full
 from envs.errors import BenchError
-from reports.ablation import ablation_frame, ablation_markdown, component_values, setting
-from reports.against import merge_against
-from reports.claims import all_claims
-from reports.claims_page import (
+from reports.claims.claims import all_claims
+from reports.claims.page import (
     calibration_markdown,
     claims_frame,
     claims_markdown,
     claims_table_markdown,
 )
-from reports.fig1_training import fig1_training
-from reports.fig2_success import fig2_modes, fig2_success
-from reports.fig3_payload import fig3_payload
-from reports.index import Entry, IndexData, index_html, index_markdown, markdown_tables
-from reports.leaderboard import (
+from reports.data.against import merge_against
+from reports.data.store import load_store
+from reports.data.variants import cell_variants, default_rows
+from reports.figures.fig1_training import fig1_training
+from reports.figures.fig2_success import fig2_modes, fig2_success
+from reports.figures.fig3_payload import fig3_payload
+from reports.figures.plotting import DPI
+from reports.matrix import matrix_entries
+from reports.pages.index import Entry, IndexData, index_html, index_markdown, markdown_tables
+from reports.tables.ablation import ablation_frame, ablation_markdown, component_values, setting
+from reports.tables.leaderboard import (
     aggregate_frame,
     leaderboard_display,
     leaderboard_frame,
@@ -53,26 +57,22 @@ from reports.leaderboard import (
     safety_frame,
     success_figure,
 )
-from reports.matrix import matrix_entries
-from reports.plotting import DPI
-from reports.progress import progress_markdown
-from reports.store import load_store
-from reports.success_table import success_markdown
-from reports.summary import (
+from reports.tables.progress import progress_markdown
+from reports.tables.success_table import success_markdown
+from reports.tables.summary import (
     SUMMARY_CAPTION,
     ci_display,
     summary_display,
     summary_frame,
     summary_markdown,
 )
-from reports.table1_safety import (
+from reports.tables.table1_safety import (
     table1_caption,
     table1_display,
     table1_frame,
     table1_latex,
     table1_markdown,
 )
-from reports.variants import cell_variants, default_rows
 
 REPORT_DIR = "report"
 ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
@@ -110,7 +110,7 @@ def _atomic(path: Path, write: Callable[[str], None]) -> Path:
 def remove_stale_temp_files(out: Path) -> int:
     """Delete the temp files ('.<name>.<random>.tmp') an earlier report left when it was
     killed (SIGKILL, power loss) before its atomic writes could clean up; returns how many."""
-    from bench.store import _temp_target
+    from bench.store.run_store import _temp_target
 
     if not out.is_dir() or out.is_symlink():
         return 0
@@ -160,7 +160,7 @@ def _study_entries(run_dir: Path, out: Path, problems: list[str] | None = None) 
     the entries and, when none is linked, a note saying how to link one. A study whose
     study.json or trials cannot be read is left out with a line in ``problems`` (it may be
     another run's: it never stops the report)."""
-    from bench.meta_schema import StudyConfig, validated
+    from bench.store.meta_schema import StudyConfig, validated
     from studies.export import CONFIG_FILE, TRIALS_FILE
     from studies.report import build_study_report
 
@@ -197,7 +197,7 @@ def _study_entries(run_dir: Path, out: Path, problems: list[str] | None = None) 
     return entries, "" if entries else HOW_TO_LINK.format(run=run.name)
 
 
-CALIBRATION = Path(__file__).with_name("calibration.json")  # `bench calibrate --out`, committed
+CALIBRATION = Path(__file__).parent / "claims" / "calibration.json"  # `bench calibrate --out`, committed
 
 
 def _calibration(out: Path) -> str | None:
@@ -226,7 +226,7 @@ def _shown_path(run_dir: Path) -> str:
 
 
 def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
-    """The method-agnostic part of every report (reports/leaderboard.py): every method of
+    """The method-agnostic part of every report (reports/tables/leaderboard.py): every method of
     the run by its declared name, each configuration's default variant."""
     board = leaderboard_frame(evals)
     iqm, poi = aggregate_frame(evals)
@@ -258,7 +258,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     listed, never fatal; a run directory without ``cells.parquet`` is a ``BenchError``.
     ``claims_at="run"`` also checks the claims at the run's own configurations. ``against``:
     a second run whose done cells at this run's configurations join the report
-    (reports/against.py: refused unless settings and scenarios match)."""
+    (reports/data/against.py: refused unless settings and scenarios match)."""
     store = load_store(run_dir)
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
     remove_stale_temp_files(out)
@@ -266,7 +266,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
         store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
     if against is not None:
         store = merge_against(store, against)
-    # Figures, Table I and the claims: each group's default variant only (reports.variants);
+    # Figures, Table I and the claims: each group's default variant only (reports.data.variants);
     # the summary and the success table show every variant in its own row.
     variants = cell_variants(store.cells)
     train, evals = default_rows(store.train, variants), default_rows(store.eval, variants)
@@ -274,7 +274,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     if len(paper_cells) < len(store.cells):
         store.problems.append(
             f"{len(store.cells) - len(paper_cells)} cells are variants of their configuration "
-            "(reports/variants.py): they have their own rows in the summary and success tables "
+            "(reports/data/variants.py): they have their own rows in the summary and success tables "
             "and are left out of the figures, Table I and the claims")
     entries: list[Entry] = []
 

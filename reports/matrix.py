@@ -1,6 +1,6 @@
 """The robustness-matrix section of the report (``bench matrix``, issue 17; beyond the paper).
 
-From ``RUN/matrix/`` (bench/matrix.py): success rate of every trained policy at other team
+From ``RUN/matrix/`` (bench/execute/matrix.py): success rate of every trained policy at other team
 sizes N', loss rates p' and loss models. Statistics: a seed's value is the mean over the
 condition's K paired episodes; the table and bands give the mean over seeds with a
 Student t 95% interval (reports/stats.py ``mean_ci``; one seed: no interval). Figures use
@@ -25,8 +25,15 @@ import seaborn as sns
 from matplotlib.axes import Axes
 
 from algorithms.common.execution import HEADLINE, PLANNER
-from reports.index import Entry
-from reports.plotting import Built, label_order, method_label, new_figure, paper_style, placeholder
+from reports.figures.plotting import (
+    Built,
+    label_order,
+    method_label,
+    new_figure,
+    paper_style,
+    placeholder,
+)
+from reports.pages.index import Entry
 from reports.stats import mean_ci
 
 KEYS = ["method", "train_n", "train_p", "eval_n", "eval_p", "loss_model", "burst_length", "execution"]
@@ -211,7 +218,7 @@ def matrix_entries(run_dir: Path | str, out: Path, save_figure: Callable[..., li
                    write_text: Callable[[Path, str], Path]) -> list[Entry]:
     """Build the section when ``RUN/matrix/`` holds units; [] otherwise. The writers come
     from reports/build.py (atomic writes)."""
-    from bench.matrix import read_matrix
+    from bench.execute.matrix import read_matrix
 
     problems: list[str] = []
     table_pa = read_matrix(run_dir, problems)

@@ -9,7 +9,7 @@ planner for PIBT), with hooks that record episode ``episode % eval_chunk`` step 
 The recorded episode's metrics are checked against its stored evaluation row of the same
 mode, so a GIF never shows an episode other than the one in the store.
 
-Each frame (reports/replay_frames.py, grid by ``envs.render.render_rgb``, at least 800 px
+Each frame (reports/figures/replay_frames.py, grid by ``envs.render.render_rgb``, at least 800 px
 wide) shows robots coloured by group, the goals of unfinished robots, collisions (red
 border), controls changed by the safety filter (black inner border: proposed != executed)
 and, for methods with a group channel, a row of the inter-group links of that step (red =
@@ -33,15 +33,21 @@ from algorithms.base import Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
-from bench.cells import Cell
-from bench.schema import EVAL_SCHEMA
-from bench.store import RunStore, load_checkpoint, read_table
+from bench.design.cells import Cell
+from bench.store.run_store import RunStore, load_checkpoint, read_table
+from bench.store.schema import EVAL_SCHEMA
 from envs.channel import LossProcess, comm_graph, group_assignment
 from envs.core import StepResult
 from envs.errors import BenchError
 from envs.render import render_rgb, write_gif
-from reports.plotting import method_label
-from reports.replay_frames import LegendSpec, compose, legend_panel, links_row, replay_cell_px
+from reports.figures.plotting import method_label
+from reports.figures.replay_frames import (
+    LegendSpec,
+    compose,
+    legend_panel,
+    links_row,
+    replay_cell_px,
+)
 
 CHECK_COLUMNS = ("team_return", "success_rate", "collision_rate", "steps")
 FORMATS = ("gif", "mp4")

@@ -1,6 +1,6 @@
-"""The effective rates a run's done cells observed (bench/cost_calibration.py), per method,
+"""The effective rates a run's done cells observed (bench/design/cost_calibration.py), per method,
 phase and N with their spread; ``--write`` stores them as the built-in rates of `bench
-grids` (bench/cost_rates.json). Run it on the reproduction whenever its state is committed:
+grids` (bench/design/cost_rates.json). Run it on the reproduction whenever its state is committed:
 
     .venv/bin/python scripts/calibrate_costs.py reproduction/paper --write
 """
@@ -10,8 +10,8 @@ import argparse
 import json
 from pathlib import Path
 
-from bench import costs
-from bench.cost_calibration import observed_costs, rates_file
+from bench.design import costs
+from bench.design.cost_calibration import observed_costs, rates_file
 
 
 def main() -> None:

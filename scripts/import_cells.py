@@ -23,9 +23,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.grids import get_grid
-from bench.schema import SCHEMA_VERSION
-from bench.store import RunStore
+from bench.design.grids import get_grid
+from bench.store.run_store import RunStore
+from bench.store.schema import SCHEMA_VERSION
 from envs.errors import BenchError
 
 
@@ -43,7 +43,7 @@ def import_cells(src: Path, dst: Path, grid_name: str) -> list[str]:
     for cid in rows.cell_id:
         if target.has_results(cid):
             raise BenchError(f"{str(dst)!r} already holds files of cell {cid}; not overwritten")
-    checks = target.integrity()  # a target whose checksums are in force keeps them (bench/integrity.py)
+    checks = target.integrity()  # a target whose checksums are in force keeps them (bench/store/integrity.py)
     if checks.active:
         checks.start_recording()
     for cid in rows.cell_id:

@@ -19,10 +19,10 @@ import pandas as pd
 import torch
 
 from algorithms.hierarchical.reference_probe import probe_reference
-from bench.cells import Cell
-from bench.plan import cell_spec
-from bench.store import load_checkpoint
-from bench.worker import build_method
+from bench.design.cells import Cell
+from bench.execute.plan import cell_spec
+from bench.execute.worker import build_method
+from bench.store.run_store import load_checkpoint
 
 
 def main() -> int:

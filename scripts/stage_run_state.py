@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.store import RunStore
+from bench.store.run_store import RunStore
 from envs.errors import BenchError
 
 DATA = ("cells.parquet", "manifest.json", "train", "eval", "matrix", "report")

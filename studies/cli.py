@@ -77,7 +77,7 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     if n_trials is not None and n_trials < 1:
         raise BenchError(f"--trials must be >= 1, got {n_trials}")
-    from bench.limits import check_count
+    from bench.design.limits import check_count
 
     check_count("--trials", "trials", n_trials)
     check_count("--workers", "workers", workers)
@@ -161,7 +161,7 @@ def _config(options: dict[str, Any]) -> dict[str, Any]:
     replicates = int(options.get("replicates", 2))
     if replicates < 1:
         raise BenchError(f"--replicates must be >= 1, got {replicates}")
-    from bench.limits import check_count
+    from bench.design.limits import check_count
 
     check_count("--replicates", "replicates", replicates)
     warmup = float(options.get("prune_warmup", WARMUP))

@@ -87,7 +87,7 @@ class SequentialExecutor:
 class RayExecutor:
     """One Ray actor (1 CPU) per running trial; segments are actor method calls.
 
-    Ray is started or joined as for ``bench run`` (bench/ray_cluster.py: embedded on
+    Ray is started or joined as for ``bench run`` (bench/execute/ray_cluster.py: embedded on
     loopback by default, ``address`` or ``RAY_ADDRESS`` joins a cluster, an already
     initialized Ray is used as is). ``capacity`` defaults to the cluster's CPUs. The
     driver never blocks longer than ``wait(timeout)``, so it can refresh trial leases.
@@ -96,7 +96,7 @@ class RayExecutor:
     def __init__(self, capacity: int | None = None, address: str | None = None) -> None:
         import ray
 
-        from bench.ray_cluster import connect
+        from bench.execute.ray_cluster import connect
 
         self.ray = ray
         self.context = connect(address, capacity)

@@ -5,7 +5,7 @@ one column per searched parameter), written atomically beside the journal; it re
 to the same frame. ``importances.json`` holds Optuna's parameter importances (or why there
 are none) and ``study.json`` the study's config (settings, space, search plan, pruner), so
 the report needs only these files, whatever the storage.
-``best_grid_snippet`` renders the best configuration as a grid file (bench/grid_files.py)
+``best_grid_snippet`` renders the best configuration as a grid file (bench/design/grid_files.py)
 that ``bench run --grid-file`` accepts.
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ import optuna
 import pandas as pd
 from optuna.trial import FrozenTrial, TrialState
 
-from bench.store import atomic_file
+from bench.store.run_store import atomic_file
 from envs.errors import BenchError
 from studies.space import ordered, plain
 from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
@@ -171,7 +171,7 @@ def best_grid_snippet(study: optuna.Study) -> str:
     base: dict[str, Any] = {k: settings[k] for k in (
         "method", "n_robots", "loss_p", "groups", "layout", "episodes", "horizon",
         "eval_episodes") if k in settings}
-    from bench.cells import Cell
+    from bench.design.cells import Cell
 
     base.update({k: plain(best[k]) for k in names if k in Cell.model_fields})
     params = dict(settings.get("params", {}))

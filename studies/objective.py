@@ -1,6 +1,6 @@
 """What one trial computes: train a hierarchical cell in segments, evaluate after each.
 
-A trial is a bench ``Cell`` (bench/cells.py) built from the study's ``TrialSettings`` (N,
+A trial is a bench ``Cell`` (bench/design/cells.py) built from the study's ``TrialSettings`` (N,
 p, layout and a smoke-scale budget by default), the sampled parameters (``ref_size``,
 ``search_radius``, optionally ``c_max``) and the trial's seed. The driver validates the
 cell and ships plain data (a ``TrialSpec``) to a ``TrialWorker``. Each ``step()`` trains ``eval_every`` updates through the
@@ -29,8 +29,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from algorithms.base import Method
 from algorithms.registry import method_class
-from bench.cells import Cell
-from bench.limits import limit, with_reasons
+from bench.design.cells import Cell
+from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 

@@ -11,7 +11,7 @@ import os
 import sys
 from dataclasses import dataclass
 
-from bench.progress import fmt_duration
+from bench.execute.progress import fmt_duration
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 curves, parameter importances.
 
 Pure builders take the trials frame (studies/export.py ``trials_frame``) or the stored
-importances and return a ``Built`` figure (reports/plotting.py); only
+importances and return a ``Built`` figure (reports/figures/plotting.py); only
 ``build_study_report`` writes files: ``<study_dir>/report/study_{history,landscape,curves,
 importances}.{png,pdf}``, ``study.md`` and ``study.html`` (studies/report_page.py). It reads
 ``trials.parquet``, ``importances.json`` and ``study.json`` alone, so ``bench report`` can
@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 
 from envs.errors import BenchError
-from reports.plotting import Built, new_figure, paper_style, placeholder
+from reports.figures.plotting import Built, new_figure, paper_style, placeholder
 from studies.export import CONFIG_FILE, IMPORTANCES_FILE, TRIALS_FILE, read_trials
 from studies.space import REF_SIZES, SEARCH_RADII
 

@@ -9,7 +9,7 @@ parsed here, so a snippet that fails when pasted fails CI:
   undefined ``seed``), and blocks that need no third-party RL library (TorchRL, SB3,
   SuperSuit: tests/interop runs those recipes) are executed in order;
 * ``toml`` and ``yaml`` blocks parse, and a grid (a block with ``base`` or ``axes``) loads
-  with ``bench.grid_files.load_grid_file``.
+  with ``bench.design.grid_files.load_grid_file``.
 """
 from __future__ import annotations
 
@@ -158,7 +158,7 @@ def _data_blocks() -> list[tuple[Path, str, str]]:
 @pytest.mark.parametrize("page,lang,code", _data_blocks(),
                          ids=[f"{_id(p)}: {lang} {i}" for i, (p, lang, _) in enumerate(_data_blocks())])
 def test_docs__toml_and_yaml_blocks_parse_and_grids_load(page, lang, code, tmp_path):
-    from bench.grid_files import load_grid_file
+    from bench.design.grid_files import load_grid_file
 
     data = tomllib.loads(code) if lang == "toml" else yaml.safe_load(code)
     assert isinstance(data, dict), f"{_id(page)}: a {lang} block that is not a table"

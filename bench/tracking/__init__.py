@@ -1,10 +1,10 @@
 """Experiment tracking for ``bench run --log tensorboard,mlflow,wandb`` (issue 38).
 
-Each logger is a ``bench.observers.RunObserver`` in a module of its own; this module
+Each logger is a ``bench.tracking.observers.RunObserver`` in a module of its own; this module
 names them, checks that the chosen ones can be imported (before a run writes anything),
 and builds one observer that feeds them all. Every logger writes under ``RUN/tracking/``:
 one tracker run per cell, named by the cell id, with the cell's config as parameters;
-per training update the mean of the update's train rows (``bench.observers.update_metrics``)
+per training update the mean of the update's train rows (``bench.tracking.observers.update_metrics``)
 at step = episodes trained, and at the end the evaluation means per execution mode.
 """
 from __future__ import annotations
@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.observers import Observers, RunObserver
+from bench.tracking.observers import Observers, RunObserver
 from envs.errors import BenchError
 
 TRACKING_DIR = "tracking"

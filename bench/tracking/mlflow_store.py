@@ -15,8 +15,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.observers import CellInfo, Observer, Row, update_metrics
 from bench.tracking import flat_params
+from bench.tracking.observers import CellInfo, Observer, Row, update_metrics
 
 MAX_PARAM = 500  # characters of a param value kept (MLflow's limit is 6000)
 BATCH = 900  # metrics per log_batch call (MLflow's limit is 1000)

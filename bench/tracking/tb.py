@@ -12,8 +12,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.observers import CellInfo, Observer, Row, update_metrics
 from bench.tracking import flat_params
+from bench.tracking.observers import CellInfo, Observer, Row, update_metrics
 
 
 class TensorBoardLogger(Observer):

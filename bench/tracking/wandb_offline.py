@@ -10,7 +10,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from bench.observers import CellInfo, Observer, Row, update_metrics
+from bench.tracking.observers import CellInfo, Observer, Row, update_metrics
 
 
 class WandbLogger(Observer):

@@ -24,7 +24,7 @@ from algorithms.common.execution import (
     sample_categorical,
 )
 from algorithms.registry import method_class
-from bench.cells import Cell
+from bench.design.cells import Cell
 from envs.channel import LossProcess
 from envs.config import EnvConfig
 from envs.errors import BenchError

@@ -68,7 +68,7 @@ def ray_local() -> Iterator[None]:
     """An embedded 2-CPU Ray for the module; the runner uses it and leaves it running."""
     import ray
 
-    from bench.ray_cluster import OBJECT_STORE_BYTES, _loopback_only
+    from bench.execute.ray_cluster import OBJECT_STORE_BYTES, _loopback_only
 
     with _loopback_only():
         ray.init(address="local", num_cpus=2, object_store_memory=OBJECT_STORE_BYTES, include_dashboard=False,
@@ -81,10 +81,10 @@ def write_finished_store(out: Path, grid: Any, checksums: bool = False) -> None:
     """A complete run directory for ``grid`` computed in this process (no Ray), written with
     the same store calls and in the same order as the runner; ``checksums``: recorded in
     checksums.json as by this bench's runner (else a store of an older bench)."""
-    from bench.plan import cell_spec, plan_run
-    from bench.schema import SCHEMA_VERSION
-    from bench.store import RunStore
-    from bench.worker import CellWorker
+    from bench.execute.plan import cell_spec, plan_run
+    from bench.execute.worker import CellWorker
+    from bench.store.run_store import RunStore
+    from bench.store.schema import SCHEMA_VERSION
 
     store = RunStore(out)
     states, _ = plan_run(store, grid, fresh=True)
@@ -118,7 +118,7 @@ def store_with_params(out: Path, cid: str, **old: Any) -> None:
     (defaults) differed: ``old`` replaces or adds those fields of its ``params_json``."""
     import json
 
-    from bench.store import RunStore
+    from bench.store.run_store import RunStore
 
     store = RunStore(out)
     cells = store.read_cells()
@@ -148,7 +148,7 @@ def one_error_line(err: str, *needles: str) -> None:
 @pytest.fixture
 def one_cell_run(toy: str, tmp_path: Path) -> Path:
     """A finished run directory of one toy cell (no checksums: as an older bench wrote it)."""
-    from bench.grid_files import load_grid_file
+    from bench.design.grid_files import load_grid_file
 
     grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0]}))
     write_finished_store(tmp_path / "run", grid)
@@ -159,7 +159,7 @@ def as_written_by_the_bench(out: Path) -> None:
     """Record the current bytes of every stored file in the run's checksums, as if the bench
     itself had written them (a test's stand-in for an older bench or a crash that left a
     short file), so the rerun sees an incomplete cell rather than outside damage."""
-    from bench.store import RunStore
+    from bench.store.run_store import RunStore
 
     checksums = RunStore(out).integrity()
     checksums.start_recording()

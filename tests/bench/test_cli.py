@@ -13,11 +13,11 @@ import pytest
 import tomllib
 
 from algorithms.common.episodes import EVAL_METRICS
-from bench import costs
 from bench.cli import main
-from bench.grid_files import load_grid_file
-from bench.grids import get_grid
-from bench.store import RunStore
+from bench.design import costs
+from bench.design.grid_files import load_grid_file
+from bench.design.grids import get_grid
+from bench.store.run_store import RunStore
 from tests.bench.conftest import (
     REPO,
     cli_argv,
@@ -211,7 +211,7 @@ def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -
 
 
 def test_grids__stack_seeds_and_a_runs_observed_rates(capsys: pytest.CaptureFixture[str]) -> None:
-    from bench.cost_calibration import merged_rates, observed_costs, observed_rates
+    from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates
 
     run = Path(__file__).resolve().parents[2] / "reproduction" / "paper"
     code, stdout, err = _cli(capsys, "grids", "--stack-seeds", "3", "--rates-from", str(run))

@@ -1,4 +1,4 @@
-"""Synthetic result stores in the bench's schema (bench/schema.py), built to make the
+"""Synthetic result stores in the bench's schema (bench/store/schema.py), built to make the
 paper's claims hold (``hold=True``) or fail (``hold=False``).
 
 Cells: hierarchical at N in {20,40,60,80,90,100} x p in {0.2,0.4,0.6}; decentralized at
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.schema import SCHEMA_VERSION
-from bench.store import RunStore
+from bench.store.run_store import RunStore
+from bench.store.schema import SCHEMA_VERSION
 
 D_M, Z = 3, 4
 HIER_N = (20, 40, 60, 80, 90, 100)
@@ -102,14 +102,14 @@ def _candidates(n: int, hold: bool) -> float:
 
 
 def joined(cells: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
-    """Rows with their cell's config columns, as reports.store gives them."""
+    """Rows with their cell's config columns, as reports.data.store gives them."""
     cfg = cells[["cell_id", "method", "n_robots", "loss_p", "seed", "groups", "safety_filter"]]
     return rows.merge(cfg, on="cell_id")
 
 
 def write_store(run: Path, cells: pd.DataFrame, train: pd.DataFrame, evals: pd.DataFrame,
                 manifest: dict | None = None) -> Path:
-    """Write the frames as a store under ``run`` with the bench's own writer (bench/store.py):
+    """Write the frames as a store under ``run`` with the bench's own writer (bench/store/run_store.py):
     training rows in two parts per cell, one evaluation file per cell."""
     rs = RunStore(run)
     rs.write_cells(cells.to_dict("records"))

@@ -14,9 +14,9 @@ import reports.replay as replay
 from algorithms.common.episodes import Decision
 from algorithms.pibt import PIBTMethod
 from algorithms.registry import method_class
-from bench.cells import Cell
-from bench.schema import SCHEMA_VERSION
-from bench.store import RunStore
+from bench.design.cells import Cell
+from bench.store.run_store import RunStore
+from bench.store.schema import SCHEMA_VERSION
 from envs.actions import WAIT
 from envs.channel import GroupChannel
 from envs.errors import BenchError
@@ -166,7 +166,7 @@ def _recorder_on(layout_name: str, n: int = 8, z: int = 4, steps: int = 2, propo
 
 
 def test_render_steps__movingai_frames_are_at_least_800_px_wide_with_the_legend_at_the_bottom():
-    from reports.replay_frames import LegendSpec, legend_panel
+    from reports.figures.replay_frames import LegendSpec, legend_panel
 
     layout, rec, groups, adj = _recorder_on("warehouse-10-20-10-2-1")
     frames = replay.render_steps(layout, rec, groups, adj, 60, "title")
@@ -178,7 +178,7 @@ def test_render_steps__movingai_frames_are_at_least_800_px_wide_with_the_legend_
 
 
 def test_legend__names_every_mark_the_frames_can_show():
-    from reports.replay_frames import LegendSpec, legend_items
+    from reports.figures.replay_frames import LegendSpec, legend_items
 
     full = [label for _, label in legend_items(LegendSpec(3, links=True, corrections=True), 12)]
     assert full[:3] == ["group 0", "group 1", "group 2"]
@@ -191,7 +191,7 @@ def test_legend__names_every_mark_the_frames_can_show():
 def test_font__is_matplotlibs_dejavu_truetype():
     from PIL import ImageFont
 
-    from reports.replay_frames import font
+    from reports.figures.replay_frames import font
 
     f = font(15)
     assert isinstance(f, ImageFont.FreeTypeFont) and "DejaVuSans" in f.path
@@ -256,7 +256,7 @@ def test_write_replay__mp4_has_one_frame_per_step(tmp_path):
 
 def test_cli_replay__progress_on_stderr_and_mp4_error_is_one_line(tmp_path, capsys, monkeypatch):
     from bench.cli import main
-    from bench.schema import SCHEMA_VERSION
+    from bench.store.schema import SCHEMA_VERSION
 
     cell, _ = _store(tmp_path)
     RunStore(tmp_path).write_manifest({"schema_version": SCHEMA_VERSION})

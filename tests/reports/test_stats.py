@@ -355,7 +355,7 @@ def test_metric_estimate__cuts_a_seed_t_interval_at_the_metrics_range() -> None:
     one stops at 0% (and at 100% above); the mean is untouched. A return is unbounded."""
     import pandas as pd
 
-    from reports.summary import metric_estimate
+    from reports.tables.summary import metric_estimate
 
     rows = pd.DataFrame({"cell_id": ["a", "b", "c"], "success_rate": [0.0, 0.1, 0.9],
                          "team_return": [0.0, 0.1, 0.9], "mean_candidates": [0.0, 0.1, 0.9]})
@@ -373,7 +373,7 @@ def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -
     negative); one seed falls back to a bootstrap over its episodes, inside their range."""
     import pandas as pd
 
-    from reports.summary import metric_estimate
+    from reports.tables.summary import metric_estimate
 
     two = pd.DataFrame({"cell_id": ["a", "b"], "payload_scalars_per_step": [0.0, 10.0],
                         "predictor_error": [0.0, 10.0]})
@@ -390,7 +390,7 @@ def test_metric_estimate__no_finite_value_gives_nan_and_the_bootstrap_is_seeded(
 
     import pandas as pd
 
-    from reports.summary import metric_estimate
+    from reports.tables.summary import metric_estimate
 
     empty = pd.DataFrame({"cell_id": ["a", "a"], "success_rate": [float("nan")] * 2})
     got = metric_estimate(empty, "success_rate")

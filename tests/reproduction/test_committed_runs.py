@@ -16,10 +16,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.completeness import incomplete_cells
-from bench.grids import BUILTIN, DEFAULT_SEEDS
-from bench.plan import params_changes
-from bench.store import RunStore
+from bench.design.grids import BUILTIN, DEFAULT_SEEDS
+from bench.execute.plan import params_changes
+from bench.store.completeness import incomplete_cells
+from bench.store.run_store import RunStore
 
 ROOT = Path(__file__).resolve().parents[2] / "reproduction"
 RUNS = [name for name in ("paper", "ablation") if (ROOT / name / "cells.parquet").is_file()]
@@ -39,7 +39,7 @@ def todays_cells(name: str) -> dict:
     """cell_id -> cell of what runs into reproduction/<name>: the ``name`` grid at its default
     seeds, and the committed grid files of that grid name (reproduction/*.toml, e.g. the
     Fig. 1(a) seeds 3-4, which share the paper grid's cell ids for those seeds)."""
-    from bench.grid_files import load_grid_file
+    from bench.design.grid_files import load_grid_file
 
     cells = {c.cell_id: c for c in BUILTIN[name](seeds=DEFAULT_SEEDS[name]).cells}
     for path in sorted(ROOT.glob("*.toml")):
@@ -152,8 +152,8 @@ def test_readme__claims_table_is_the_committed_reports() -> None:
 def test_fig1a_five_seed_grid_file__adds_exactly_the_paper_grids_seeds_3_and_4() -> None:
     """reproduction/fig1a-5seeds.toml repeats PAPER_SETTINGS by hand; if they drift, its cells
     would get new ids and land beside, not inside, the paper grid's Fig. 1(a) cells."""
-    from bench.grid_files import load_grid_file
-    from bench.grids import paper
+    from bench.design.grid_files import load_grid_file
+    from bench.design.grids import paper
 
     extra = load_grid_file(ROOT / "fig1a-5seeds.toml").cells
     five, three = {c.cell_id for c in paper(5).cells}, {c.cell_id for c in paper(3).cells}

@@ -10,7 +10,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.grids import get_grid
+from bench.design.grids import get_grid
 
 ROOT = Path(__file__).resolve().parents[2] / "reproduction"
 FULL, PAPER = ROOT / "full", ROOT / "paper"

@@ -46,7 +46,7 @@ def test_main__refuses_a_run_that_is_still_writing(tmp_path: Path, monkeypatch, 
     import os
     import sys
 
-    from bench.store import RunStore
+    from bench.store.run_store import RunStore
 
     run = tmp_path / "paper"
     run.mkdir()

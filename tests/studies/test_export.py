@@ -58,7 +58,7 @@ def test_export__trials_round_trip_through_parquet(finished_study, tmp_path: Pat
 
 
 def test_export__best_snippet_is_the_best_mean_and_parses_as_a_grid_file(finished_study, tmp_path: Path) -> None:  # noqa: ANN001
-    from bench.grid_files import load_grid_file
+    from bench.design.grid_files import load_grid_file
 
     frame = trials_frame(finished_study)
     means = frame.groupby(["ref_size", "search_radius"])["value"].mean()

@@ -1,0 +1,86 @@
+"""What a run's finished cells actually cost, in the units of ``bench/design/costs.py``.
+
+For every done cell of a run directory: its training seconds (the sum of its training
+rows' ``wall_s``, each an iteration's seconds divided by its episodes) and its evaluation
+seconds (the cell's ``wall_s`` minus those). Dividing the agent-steps ``costs`` charges the
+cell (``cell_agent_steps``: episodes x horizon x N, an upper bound) by these seconds gives
+*effective* rates, so that ``costs.cell_seconds`` of a cell at an observed rate is the
+seconds such a cell took. ``observed_rates`` takes the median per (method, N); ``bench
+grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
+(``bench/design/cost_rates.json``, ``rates_file``) are the committed reproduction's.
+
+Wall time: a cell's rate includes whatever else the machine was doing (the other worker,
+other processes), as a user's run will.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench.design import costs
+from bench.design.cells import Cell
+from bench.design.costs import Rates
+from bench.store.run_store import RunStore
+from envs.errors import BenchError
+
+
+def observed_costs(run_dir: Path | str) -> pd.DataFrame:
+    """One row per done cell of the run: ``method``, ``n_robots``, ``train_s``, ``eval_s``
+    and the effective ``train_rate`` / ``eval_rate`` (agent-steps per second; NaN where the
+    cell had no such phase, e.g. a planner's training)."""
+    store = RunStore(run_dir)
+    cells = store.read_cells()
+    if cells is None:
+        raise BenchError(f"no results store at {str(run_dir)!r}: cells.parquet not found")
+    return costs_of(cells, store.read_train())
+
+
+def costs_of(cells: pd.DataFrame, train: pd.DataFrame) -> pd.DataFrame:
+    """``observed_costs`` of a run's ``cells.parquet`` rows and training rows."""
+    done = cells[cells["status"] == "done"]
+    train_s = train[train["cell_id"].isin(done["cell_id"])].groupby("cell_id")["wall_s"].sum()
+    rows = []
+    for r in done.itertuples(index=False):
+        cell = Cell.model_validate_json(r.config_json)
+        train_steps, eval_steps = costs.cell_agent_steps(cell)
+        t = float(train_s.get(r.cell_id, 0.0))
+        e = float(r.wall_s) - t
+        rows.append(dict(cell_id=r.cell_id, method=cell.method, n_robots=cell.n_robots, train_s=t, eval_s=e,
+                         train_rate=train_steps / t if train_steps and t > 0 else np.nan,
+                         eval_rate=eval_steps / e if eval_steps and e > 0 else np.nan))
+    return pd.DataFrame(rows, columns=["cell_id", "method", "n_robots", "train_s", "eval_s",
+                                       "train_rate", "eval_rate"])
+
+
+def observed_rates(observed: pd.DataFrame) -> Rates:
+    """Median effective rate per method, phase and N, in the layout of
+    ``costs.AGENT_STEPS_PER_S`` (only the (method, phase, N) the run has)."""
+    out: Rates = {}
+    for (method, n), g in observed.groupby(["method", "n_robots"]):
+        for phase in ("train", "eval"):
+            vals = g[f"{phase}_rate"].dropna()
+            if len(vals):
+                out.setdefault(str(method), {}).setdefault(phase, {})[int(n)] = float(vals.median())
+    return out
+
+
+def merged_rates(observed: Rates, base: Rates | None = None) -> Rates:
+    """``base`` (default: the built-in rates) with each (method, phase) that ``observed``
+    has replaced by the observed points: a run's rates where it measured them."""
+    return costs.merge_rates(costs.AGENT_STEPS_PER_S if base is None else base, observed)
+
+
+def two_digits(x: float) -> float:
+    """``x`` rounded to 2 significant digits (the precision the rates deserve)."""
+    return round(x, 1 - int(math.floor(math.log10(abs(x))))) if x else 0.0
+
+
+def rates_file(observed: pd.DataFrame, run: str) -> dict:
+    """The content of ``bench/design/cost_rates.json`` for a run's observed costs."""
+    rates = observed_rates(observed)
+    return {"run": run, "done_cells": int(len(observed)),
+            "rates": {m: {ph: {str(n): two_digits(r) for n, r in sorted(pts.items())}
+                          for ph, pts in sorted(phases.items())} for m, phases in sorted(rates.items())}}

@@ -1,0 +1,5 @@
+"""Running it: the runner, its plan, worker actors and pool, the Ray cluster, progress,
+quick evaluation and the condition matrix.
+
+May import: envs, algorithms, bench.design, bench.store.run_store.
+"""

@@ -1,0 +1,513 @@
+"""Robustness matrices: every trained checkpoint of a run on a grid of evaluation conditions.
+
+The paper trains and evaluates a policy at the same team size N and loss rate p with
+i.i.d. loss (Sec. IV). ``bench matrix --run DIR`` evaluates each done cell's checkpoint
+at other conditions: team sizes N', mean loss probabilities p' and loss models
+(Bernoulli, and Gilbert-Elliott bursts of mean length b with the same mean p', envs/channel.py
+``LossProcess``), in every execution mode of the cell (argmax, sample, sample@T; planner).
+
+Pairing (docs/decisions/0100): the evaluation seed of a condition is
+a hash of its layout and N' alone, never of the cell, and every unit is evaluated in
+chunks of ``MATRIX_CHUNK`` episodes whatever the method's ``eval_chunk``. So episode k at
+N' has the same starts and goals for every method, training condition, training seed,
+p' and loss model (the ``scenario`` column is equal), and its loss draws come from the
+same uniforms (their link sets differ by architecture: Z x Z groups vs N x N robots).
+
+Layout of N': a run whose cells share one layout keeps it; otherwise the layout the run's
+cells trained at N' used (one per N, e.g. 'auto' presets); a run with several layouts and
+no cell at N' is a BenchError. The grouping Z stays the cell's (robot i in group i mod Z,
+any N' >= Z, algorithms/hierarchical/messages.py ``group_structure`` pads uneven groups),
+so N' < Z cannot run: such units are stored as one row with status 'unsupported' and the
+reason, as are checkpoints whose parameters do not load into the method built at N'.
+
+Storage: ``DIR/matrix/<cell_id>/<condition>.parquet`` per (cell, condition) unit, written
+atomically once all its chunks are in (``MATRIX_SCHEMA``: the eval metrics plus the
+training and evaluation conditions). A rerun skips every unit whose file is complete
+(K episodes x modes rows, or one 'unsupported' row); evaluation fans out on Ray over the
+runner's worker actors (bench/execute/worker.py ``CellWorker.eval_chunk``).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from bench.design.cells import Cell
+from bench.execute.plan import cell_spec, params_changes
+from bench.execute.worker import CellWorker, build_method
+from bench.store.completeness import expected_rows
+from bench.store.run_store import RunStore, read_meta, read_table, write_table
+from bench.store.schema import METRIC_FIELDS, rows_to_table
+from envs.config import EnvConfig, bursty_loss_error
+from envs.errors import BenchError
+from envs.layouts import load_layout, preset_for
+from envs.scenarios import main_region
+
+LOSS_MODELS = ("bernoulli", "gilbert_elliott")
+DEFAULT_P = (0.0, 0.2, 0.4, 0.6, 0.8)
+DEFAULT_BURSTS = (4.0, 16.0)
+MATRIX_CHUNK = 10  # episodes per evaluation chunk of every unit (pairing across methods)
+MATRIX_DIR = "matrix"
+OK, UNSUPPORTED = "ok", "unsupported"
+MAX_RETRIES = 3  # worker deaths tolerated per unit
+MAX_UNAVAILABLE = 60  # calls refused by a restarting worker per unit (about 2 min of restarts)
+RETRY_AFTER_S = 2.0  # a worker whose call failed gets no work for this long
+
+MATRIX_SCHEMA = pa.schema(
+    [pa.field("cell_id", pa.string(), nullable=False), pa.field("method", pa.string()),
+     pa.field("seed", pa.int64()), pa.field("train_n", pa.int64()), pa.field("train_p", pa.float64()),
+     pa.field("train_loss_model", pa.string()), pa.field("eval_n", pa.int64()),
+     pa.field("eval_p", pa.float64()), pa.field("loss_model", pa.string()),
+     pa.field("burst_length", pa.float64()), pa.field("layout", pa.string()),
+     pa.field("condition", pa.string()), pa.field("eval_seed", pa.int64()),
+     pa.field("status", pa.string()), pa.field("reason", pa.string()),
+     pa.field("episode", pa.int64(), nullable=False), pa.field("execution", pa.string()),
+     pa.field("scenario", pa.string())]
+    + METRIC_FIELDS
+)
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One evaluation condition: team size N', mean loss p', loss model, burst length, layout.
+    ``burst_length`` is NaN for Bernoulli loss (it has none)."""
+
+    n: int
+    p: float
+    loss_model: str
+    burst_length: float
+    layout: str
+
+    @property
+    def key(self) -> str:
+        """File stem, e.g. 'n8-p0.2-bernoulli' or 'n8-p0.2-ge-b16'."""
+        if self.loss_model == "bernoulli":
+            return f"n{self.n}-p{self.p:g}-bernoulli"
+        return f"n{self.n}-p{self.p:g}-ge-b{self.burst_length:g}"
+
+    @property
+    def seed(self) -> int:
+        """Evaluation seed: a hash of the layout and N' only (never of the cell), so every
+        method, training condition and seed sees the same scenarios here, and so do all
+        p' and loss models at this N': the channel then draws the same uniforms, so
+        Bernoulli losses are nested across p' (common random numbers, envs/channel.py)."""
+        text = json.dumps(["matrix", self.layout, self.n])
+        return int(hashlib.sha256(text.encode()).hexdigest()[:8], 16) % (2**31)
+
+    def env(self, cell: Cell) -> EnvConfig:
+        """The cell's environment at this condition (its Z, horizon, on_goal kept)."""
+        base = cell.to_env_config().model_dump()
+        base.update(n_robots=self.n, loss_p=self.p, loss_model=self.loss_model, layout=self.layout)
+        if not math.isnan(self.burst_length):
+            base["burst_length"] = self.burst_length
+        return EnvConfig.make(**base)
+
+
+def conditions(ns: Sequence[int], ps: Sequence[float], models: Sequence[str], bursts: Sequence[float],
+               layout_of: Callable[[int], str]) -> list[Condition]:
+    """The grid N' x p' x (Bernoulli, GE per burst). Gilbert-Elliott only for 0 < p' < 1:
+    at p' = 0 or 1 its chain is constant, the same channel as Bernoulli."""
+    out = []
+    for n in ns:
+        for p in ps:
+            for m in models:
+                if m == "bernoulli":
+                    out.append(Condition(n, p, m, math.nan, layout_of(n)))
+                elif 0.0 < p < 1.0:
+                    out.extend(Condition(n, p, m, float(b), layout_of(n)) for b in bursts)
+    return out
+
+
+def check_arguments(ns: Iterable[int], ps: Iterable[float], models: Iterable[str],
+                    bursts: Iterable[float], episodes: int | None) -> None:
+    """BenchError naming the first bad argument."""
+    for n in ns:
+        if int(n) < 1:
+            raise BenchError(f"--n {n}: a team needs at least 1 robot")
+    for p in ps:
+        if not (math.isfinite(p) and 0.0 <= p <= 1.0):
+            raise BenchError(f"--p {p}: a loss probability must be in [0, 1]")
+    for m in models:
+        if m not in LOSS_MODELS:
+            raise BenchError(f"--loss-model {m!r}: unknown loss model; choose {' or '.join(LOSS_MODELS)}")
+    for b in bursts:
+        if not (math.isfinite(b) and b >= 1.0):
+            raise BenchError(f"--burst {b}: a mean burst length must be >= 1 step")
+    if "gilbert_elliott" in models:
+        for p in ps:
+            for b in bursts:
+                why = bursty_loss_error(p, b)
+                if why is not None:
+                    raise BenchError(f"--p {p:g} with --burst {b:g}: {why}")
+    if episodes is not None and episodes < 1:
+        raise BenchError(f"--episodes {episodes}: evaluate at least 1 episode per condition")
+
+
+def layout_chooser(cells: Sequence[Cell]) -> Callable[[int], str]:
+    """The layout of N' (module docstring): the run's only layout, else the one its cells
+    trained at N' used."""
+    layouts = {c.layout for c in cells}
+    per_n: dict[int, set[str]] = {}
+    for c in cells:
+        per_n.setdefault(c.n_robots, set()).add(c.layout)
+
+    def choose(n: int) -> str:
+        if len(layouts) == 1:
+            return next(iter(layouts))
+        found = per_n.get(n, set())
+        if len(found) == 1:
+            return next(iter(found))
+        if found:
+            raise BenchError(f"--n {n}: the run's cells at N={n} use several layouts "
+                             f"({', '.join(sorted(found))}); cannot choose one")
+        raise BenchError(f"--n {n}: the run uses several layouts ({', '.join(sorted(layouts))}) and "
+                         f"no cell was trained at N={n}, so there is no layout for it "
+                         f"(the preset sized for it would be {preset_for(n)})")
+    return choose
+
+
+def check_fits(n: int, layout: str) -> None:
+    """BenchError when N' robots do not fit the layout's connected free cells."""
+    region = len(main_region(load_layout(layout)))
+    if n > region or (n == region == 1):
+        raise BenchError(f"--n {n}: {n} robots do not fit layout {layout!r} ({region} connected free cells)")
+
+
+@dataclass
+class Unit:
+    """One (cell, condition): its worker spec, chunks to do and rows collected."""
+
+    cell: Cell
+    cond: Condition
+    modes: tuple[str, ...]
+    episodes: int
+    spec: dict[str, Any] = field(default_factory=dict)
+    todo: list[tuple[str, int]] = field(default_factory=list)
+    rows: dict[tuple[str, int], list[dict[str, Any]]] = field(default_factory=dict)
+    retries: int = 0
+    unavailable: int = 0  # calls refused while Ray restarted the worker (not deaths)
+    error: str = ""
+
+    def chunks(self) -> list[tuple[str, int]]:
+        """Every (mode, chunk) of the unit, mode by mode (K episodes in MATRIX_CHUNK chunks)."""
+        return [(m, c) for m in self.modes for c in range(math.ceil(self.episodes / MATRIX_CHUNK))]
+
+    def columns(self) -> dict[str, Any]:
+        c, d = self.cell, self.cond
+        return {"cell_id": c.cell_id, "method": c.method, "seed": c.seed, "train_n": c.n_robots,
+                "train_p": c.loss_p, "train_loss_model": c.loss_model, "eval_n": d.n, "eval_p": d.p,
+                "loss_model": d.loss_model, "burst_length": d.burst_length, "layout": d.layout,
+                "condition": d.key, "eval_seed": d.seed}
+
+
+@dataclass
+class MatrixSummary:
+    out: Path
+    units: int
+    skipped: int  # complete before this call
+    written: int
+    unsupported: int
+    failed: dict[str, str]
+    wall_s: float
+
+
+def unit_path(run: Path, cell_id: str, cond: Condition) -> Path:
+    return Path(run) / MATRIX_DIR / cell_id / f"{cond.key}.parquet"
+
+
+def expected_unit_rows(cell: Cell, episodes: int, n_modes: int) -> int:
+    """Rows of a complete 'ok' unit: the eval rule of bench/store/completeness.py with K episodes."""
+    return expected_rows(True, 0, episodes, {}, n_modes).eval  # eval rows only: learned is moot
+
+
+def unit_complete(path: Path, cell: Cell, episodes: int, n_modes: int) -> bool:
+    """Whether a stored unit is complete for K = ``episodes`` (read from the footer)."""
+    if not path.exists():
+        return False
+    try:
+        meta = read_meta(path)
+        rows = pq.read_metadata(path).num_rows
+    except (BenchError, OSError):
+        return False
+    if meta.get("status") == json.dumps(UNSUPPORTED):
+        return rows == 1
+    return meta.get("episodes") == json.dumps(episodes) and rows == expected_unit_rows(cell, episodes, n_modes)
+
+
+def done_cells(store: RunStore) -> list[Cell]:
+    """Done cells of the run that have a checkpoint; BenchError when there is none."""
+    cells = store.read_cells()
+    if cells is None:
+        raise BenchError(f"{str(store.root)!r} has no cells.parquet; run `bench run` first")
+    done = cells[cells["status"] == "done"]
+    out = [Cell.from_json(str(js)) for js in done["config_json"]]
+    stale = [f"{c.cell_id} ({c.method}): {', '.join(d)}" for c, js in zip(out, done["params_json"], strict=True)
+             if (d := params_changes(str(js), c))]
+    if stale:  # the checkpoint would be loaded into the method built with today's defaults
+        raise BenchError(f"{str(store.root)!r}: {len(stale)} done cell(s) were trained with other method "
+                         f"parameters than this code resolves for them (a default changed since): "
+                         f"{'; '.join(stale[:5])}; run `bench run --rerun-changed` on this run first")
+    out = [c for c in out if store.ckpt_path(c.cell_id).exists()]
+    if not out:
+        raise BenchError(f"{str(store.root)!r} has no trained checkpoints of done cells "
+                         "(checkpoints/<cell_id>.pt); run `bench run` to completion first")
+    return out
+
+
+def support_reason(cell: Cell, cond: Condition, state: dict[str, Any] | None) -> str:
+    """'' when the cell's method runs at the condition, else why not (stored as 'unsupported')."""
+    if cond.n < cell.groups:
+        return (f"N'={cond.n} < Z={cell.groups}: the cell's {cell.groups} fixed groups (robot i in "
+                f"group i mod Z) need at least {cell.groups} robots")
+    try:
+        spec = {"method_path": cell.method_path(), "env": cond.env(cell).model_dump(mode="json"),
+                "params": cell.method_params().model_dump(mode="json"), "seed": cell.seed}
+        method = build_method(spec)
+        if state is not None:
+            method.load_state_dict(state)
+    except (BenchError, RuntimeError, ValueError, KeyError) as exc:
+        return f"{cell.method} cannot run at N'={cond.n}: {' '.join(str(exc).split())[:300]}"
+    return ""
+
+
+def plan_units(run: Path, ns: Sequence[int] | None = None, ps: Sequence[float] | None = None,
+               models: Sequence[str] | None = None, bursts: Sequence[float] | None = None,
+               episodes: int | None = None) -> tuple[list[Cell], list[Condition], list[Unit], int]:
+    """Validate the arguments and the run; returns (cells, conditions, units to do, skipped)."""
+    ns = list(ns or [])
+    ps = list(DEFAULT_P if ps is None or len(ps) == 0 else ps)
+    models = list(models or LOSS_MODELS)
+    bursts = list(DEFAULT_BURSTS if bursts is None or len(bursts) == 0 else bursts)
+    check_arguments(ns, ps, models, bursts, episodes)
+    store = RunStore(run)
+    store.require_run()
+    cells = done_cells(store)
+    ns = ns or sorted({c.n_robots for c in cells})
+    choose = layout_chooser(cells)
+    for n in dict.fromkeys(ns):
+        check_fits(int(n), choose(int(n)))
+    conds = conditions([int(n) for n in dict.fromkeys(ns)], [float(p) for p in dict.fromkeys(ps)],
+                       list(dict.fromkeys(models)), [float(b) for b in dict.fromkeys(bursts)], choose)
+    k = episodes if episodes is not None else max(c.eval_episodes for c in cells)
+    units, skipped = [], 0
+    for cell in cells:
+        modes = cell.execution_modes()
+        for cond in conds:
+            if unit_complete(unit_path(run, cell.cell_id, cond), cell, k, len(modes)):
+                skipped += 1
+                continue
+            units.append(Unit(cell, cond, modes, k))
+    return cells, conds, units, skipped
+
+
+def _prepare(unit: Unit) -> None:
+    """The worker spec of a unit (its cache key names the condition) and its chunks."""
+    params = unit.cell.method_params().model_dump(mode="json")
+    params["eval_chunk"] = MATRIX_CHUNK
+    unit.spec = {**cell_spec(unit.cell), "cell_id": f"{unit.cell.cell_id}@{unit.cond.key}",
+                 "env": unit.cond.env(unit.cell).model_dump(mode="json"), "params": params,
+                 "seed": unit.cond.seed}
+    unit.todo = unit.chunks()
+
+
+def _check_matrix_files(store: RunStore, repair: bool) -> bool:
+    """Refuse (or with ``repair`` move aside) damaged or misplaced files of RUN/matrix/; the
+    files written next are recorded in checksums.json when the run's checksums are in force."""
+    from datetime import datetime, timezone
+
+    from bench.store.integrity import find_damage, move_aside
+
+    checks = store.integrity()
+    damage = [d for d in find_damage(store, checks) if d.rel.startswith("matrix/")]
+    if damage and not repair:
+        raise BenchError(f"{store.root}: {damage[0].line()}")
+    if checks.active:
+        checks.start_recording()
+    return move_aside(store, checks, damage, datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")) is not None
+
+
+def _write_unit(run: Path, unit: Unit, status: str, reason: str = "", store: RunStore | None = None) -> None:
+    base = {**unit.columns(), "status": status, "reason": reason}
+    if status == UNSUPPORTED:
+        rows = [{**base, "episode": -1, "execution": ",".join(unit.modes), "scenario": "", "steps": None}]
+    else:  # mode by mode, episode by episode; the last chunk may run past K
+        rows = [{**r, **base} for u in unit.chunks() for r in unit.rows[u]
+                if int(r["episode"]) < unit.episodes]
+    meta = {"status": json.dumps(status), "episodes": json.dumps(unit.episodes)}
+    write_table(unit_path(run, unit.cell.cell_id, unit.cond), rows_to_table(rows, MATRIX_SCHEMA, meta),
+                store.checksums if store is not None else None)
+
+
+def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[float] | None = None,
+               models: Sequence[str] | None = None, bursts: Sequence[float] | None = None,
+               episodes: int | None = None, workers: int | None = None, address: str | None = None,
+               use_ray: bool = True, on_unit: Callable[[Unit], None] | None = None,
+               repair: bool = False) -> MatrixSummary:
+    """Evaluate every missing (cell, condition) unit of the run; see the module docstring.
+
+    A damaged or misplaced matrix file (bench/store/integrity.py) is a BenchError naming it, unless
+    ``repair``: then it moves to superseded/repair-<time>/ and its unit is evaluated again.
+    ``use_ray=False`` runs the same worker code in this process (tests, one core)."""
+    t0 = time.monotonic()
+    run = Path(run)
+    _, _, units, skipped = plan_units(run, ns, ps, models, bursts, episodes)
+    store = RunStore(run)
+    lock = store.lock()
+    try:
+        if _check_matrix_files(store, repair):  # moved aside: those units are to do again
+            _, _, units, skipped = plan_units(run, ns, ps, models, bursts, episodes)
+        states: dict[str, dict[str, Any] | None] = {}
+        support: dict[tuple[str, int, str], str] = {}
+        todo: list[Unit] = []
+        unsupported = 0
+        for unit in units:
+            cid = unit.cell.cell_id
+            if cid not in states:
+                ckpt = store.read_checkpoint(cid)
+                states[cid] = ckpt["state"] if ckpt is not None else None
+            key = (cid, unit.cond.n, unit.cond.layout)
+            if key not in support:
+                support[key] = support_reason(unit.cell, unit.cond, states[cid])
+            if support[key]:
+                _write_unit(run, unit, UNSUPPORTED, support[key], store)
+                unsupported += 1
+                if on_unit is not None:
+                    on_unit(unit)
+                continue
+            _prepare(unit)
+            todo.append(unit)
+        failed: dict[str, str] = {}
+        written = 0
+
+        def finish(unit: Unit) -> None:
+            nonlocal written
+            if unit.error:
+                failed[f"{unit.cell.cell_id}/{unit.cond.key}"] = unit.error
+                return
+            _write_unit(run, unit, OK, store=store)
+            written += 1
+            if on_unit is not None:
+                on_unit(unit)
+
+        if todo:
+            (_evaluate_ray if use_ray else _evaluate_local)(todo, states, finish, workers, address)
+    finally:
+        if lock is not None:
+            import os
+
+            os.close(lock)
+    return MatrixSummary(run, len(units) + skipped, skipped, written, unsupported, failed,
+                         time.monotonic() - t0)
+
+
+def _evaluate_local(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit], None],
+                    workers: int | None, address: str | None) -> None:
+    worker = CellWorker()
+    for unit in units:
+        state = states[unit.cell.cell_id]
+        try:
+            for mode, chunk in unit.todo:
+                unit.rows[(mode, chunk)] = worker.eval_chunk(unit.spec, [state] if state is not None else [],
+                                                             chunk, mode)["rows"]
+        except Exception as exc:  # the method raised: the unit fails, the others go on
+            unit.error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+        finish(unit)
+
+
+def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit], None],
+                  workers: int | None, address: str | None) -> None:
+    """Fan every (mode, chunk) of every unit out over the runner's worker actors."""
+    import ray
+
+    from bench.execute.ray_cluster import connect
+    from bench.execute.runner import MAX_RESTARTS, WAIT_S
+    from bench.execute.worker_pool import Slot, release_workers, take_workers
+
+    ctx = connect(address, workers)
+    try:
+        refs = {cid: ray.put(s) for cid, s in states.items() if s is not None}
+        remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
+        n = max(1, min(workers or ctx.cpus, ctx.cpus))
+        slots = [Slot(a, healthy=True) for a in take_workers(remote, n)]
+        queue = [(u, w) for u in units for w in u.todo]
+        left = {id(u): len(u.todo) for u in units}  # chunks of the unit not yet back
+        inflight: dict[Any, tuple[Slot, Unit, tuple[str, int]]] = {}
+
+        def settle(unit: Unit, k: int = 1) -> None:
+            left[id(unit)] -= k
+            if left[id(unit)] == 0:
+                finish(unit)
+
+        try:
+            while queue or inflight:
+                now = time.monotonic()
+                for slot in slots:
+                    if not slot.busy and queue and now >= slot.next_ping:  # a failed worker rests
+                        unit, (mode, chunk) = queue.pop(0)
+                        box = [refs[unit.cell.cell_id]] if unit.cell.cell_id in refs else []
+                        slot.busy = True
+                        ref = slot.actor.eval_chunk.remote(unit.spec, box, chunk, mode)
+                        inflight[ref] = (slot, unit, (mode, chunk))
+                if not inflight:  # every free worker is resting after a failure
+                    time.sleep(0.05)
+                    continue
+                ready, _ = ray.wait(list(inflight), num_returns=1, timeout=WAIT_S)
+                for ref in ready:
+                    slot, unit, work = inflight.pop(ref)
+                    slot.busy = False
+                    try:
+                        unit.rows[work] = ray.get(ref)["rows"]
+                    except ray.exceptions.RayTaskError as exc:  # the method raised: the unit fails
+                        cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+                        unit.error = unit.error or f"{type(cause).__name__}: {' '.join(str(cause).split())[:300]}"
+                    except ray.exceptions.RayError as exc:  # the worker died: retry the chunk
+                        slot.suspect = True
+                        slot.next_ping = time.monotonic() + RETRY_AFTER_S  # Ray restarts it meanwhile
+                        if isinstance(exc, ray.exceptions.ActorDiedError):  # restarts exhausted: replace
+                            ray.kill(slot.actor, no_restart=True)
+                            slot.actor = remote.remote()
+                        # A worker Ray is still restarting refuses the call (the chunk did not
+                        # fail; on a loaded machine a restart outlasts RETRY_AFTER_S): not a death.
+                        restarting = isinstance(exc, ray.exceptions.ActorUnavailableError)
+                        unit.unavailable += restarting
+                        unit.retries += not restarting
+                        if unit.retries <= MAX_RETRIES and unit.unavailable <= MAX_UNAVAILABLE:
+                            queue.insert(0, (unit, work))
+                            continue
+                        unit.error = unit.error or (
+                            f"worker died {unit.retries} times: {type(exc).__name__}" if unit.retries > MAX_RETRIES
+                            else f"worker unavailable {unit.unavailable} times (restarting)")
+                    if unit.error:  # drop its queued chunks: nothing of a failed unit is written
+                        dropped = [q for q in queue if q[0] is unit]
+                        queue = [q for q in queue if q[0] is not unit]
+                        settle(unit, 1 + len(dropped))
+                    else:
+                        settle(unit)
+        finally:
+            release_workers(slots, keep=not ctx.started_here)
+    finally:
+        ctx.shutdown()
+
+
+def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table | None:
+    """Every stored unit of ``DIR/matrix/`` as one table (None when there is none). With a
+    ``problems`` list, an unreadable file is skipped and named there instead of raising."""
+    root = Path(run) / MATRIX_DIR
+    files = sorted(p for p in root.glob("*/*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
+    tables = []
+    for p in files:
+        try:
+            tables.append(read_table(p, MATRIX_SCHEMA).select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA))
+        except BenchError as exc:
+            if problems is None:
+                raise
+            problems.append(f"matrix file skipped: {exc}")
+    return pa.concat_tables(tables) if tables else None

@@ -1,0 +1,510 @@
+"""Runs a grid on Ray and records it in the store (SPEC 4 "Execution on Ray", "Store").
+
+The driver owns every file and nothing else; workers (bench/execute/worker.py, one Ray actor per
+core, one torch thread each) only compute. The loop:
+
+1. plan (bench/execute/plan.py): read and validate the store, decide where each cell resumes;
+   connect to Ray; only then write (discard stale train parts, manifest, cells.parquet);
+2. dispatch: a free worker takes an evaluation unit (execution mode x chunk) of a trained
+   cell first, else starts
+   (or resumes from its checkpoint) the next cell; training is sticky: the worker that
+   trains a cell gets its next chunk of ``checkpoint_every`` iterations;
+3. collect with ``ray.wait`` (timeouts, never a blocking get loop): a training chunk's rows
+   are written as a part, then its checkpoint; after the last chunk the final state is
+   ``ray.put`` once and evaluation units (every chunk in every execution mode: argmax,
+   sample, sample@T; planner for PIBT) fan out to every free worker; when all are in, the
+   eval file (one row per episode and mode) is written once and the cell is done;
+4. failures: a method that raises fails its cell (error recorded, the rest go on); a
+   worker that dies (process killed, node removed) is restarted by Ray and its unit is
+   re-dispatched from the last checkpoint, up to ``MAX_RETRIES`` times per cell.
+
+Seeds come from the cell only and chunk boundaries from ``checkpoint_every``, so the
+numbers do not depend on the number of workers or on the order of execution.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from algorithms.registry import method_class
+from bench.design.grids import Grid
+from bench.execute.plan import CellState, machine, plan_run, versions, versions_json
+from bench.execute.progress import NullProgress, Progress, Snapshot
+from bench.execute.ray_cluster import RayContext, connect
+from bench.execute.signals import Terminated, sigterm_as_interrupt, sigterm_received  # noqa: F401 (re-exported)
+from bench.execute.worker import CellWorker
+from bench.execute.worker_pool import Slot, release_workers, take_workers
+from bench.store.integrity import RUN_FLAG
+from bench.store.run_store import DiskFull, RunStore, is_disk_full
+from bench.store.schema import SCHEMA_VERSION
+from bench.tracking.observers import RunObserver, dispatch
+from envs.errors import BenchError
+
+MAX_RETRIES = 3  # worker deaths tolerated per cell and run
+MAX_RESTARTS = 4  # Ray restarts of one worker actor
+STALL_TIMEOUT_S = 600.0  # no live worker for this long: remaining cells fail
+WAIT_S = 1.0
+PING_RETRY_S = 0.5  # probe interval of a restarting worker
+
+
+@dataclass
+class RunSummary:
+    out: Path
+    total: int
+    done: int
+    failed: int
+    wall_s: float
+    failures: dict[str, str] = field(default_factory=dict)
+    rerun: dict[str, str] = field(default_factory=dict)  # done cells run again: rows were incomplete
+    repaired: list[str] = field(default_factory=list)  # damaged files moved aside by --repair
+
+
+EventHook = Callable[[str, CellState], None]
+
+
+def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
+             fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
+             on_event: EventHook | None = None, command: list[str] | None = None,
+             rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False,
+             observer: RunObserver | None = None) -> RunSummary:
+    """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
+
+    ``observer`` (bench/tracking/observers.py) receives each cell's start, stored training rows,
+    evaluation summary and end, from the driver (loggers: ``bench run --log``).
+
+    Raises BenchError before writing anything when the store, the grid or the address is bad,
+    or when a file of the grid's cells is damaged or misplaced (bench/store/integrity.py) and not
+    ``repair``; with ``repair`` such files move to superseded/ and their cells are recomputed.
+    """
+    store = RunStore(out)
+    store.check_writable()
+    if fresh:
+        store.check_fresh()
+    lock = store.lock()
+    try:
+        repaired = [] if fresh else check_integrity(store, grid, repair)
+        states, others = plan_run(store, grid, fresh, rerun_changed)
+        if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
+            ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
+        else:
+            ctx = connect(address, workers)
+        try:
+            with sigterm_as_interrupt():
+                if lock is None:  # a new run directory: create and lock it now that all checks passed
+                    try:
+                        store.root.mkdir(parents=True, exist_ok=True)
+                    except OSError as exc:
+                        if is_disk_full(exc):
+                            raise DiskFull(store.root) from None
+                        raise
+                    lock = store.lock()
+                run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
+                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
+                           observer)
+                summary = run.execute()
+                summary.repaired = repaired
+                return summary
+        finally:
+            ctx.shutdown()
+    finally:
+        if lock is not None:
+            os.close(lock)
+
+
+def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
+    """Damaged or misplaced files of the grid's cells (and cells.parquet): a BenchError naming
+    the first, unless ``repair``, which moves them to superseded/repair-<time>/ (returns
+    one line per file moved). Reads only, without ``repair`` or without damage."""
+    if not store.exists():
+        return []
+    from bench.store.integrity import find_damage, move_aside
+
+    damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells}, True)
+              if not d.rel.startswith("matrix/")]  # bench matrix --repair's
+    if not damage:
+        return []
+    if not repair:
+        more = f" ({len(damage) - 1} more damaged or misplaced file(s))" if len(damage) > 1 else ""
+        raise BenchError(f"{store.root}: {damage[0].line()}{more}")
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    dest = move_aside(store, store.integrity(), damage, stamp)
+    return [f"moved damaged {d.rel} to {dest.relative_to(store.root) / d.rel} ({d.why}); "
+            + (f"recomputing cell {d.cell_id}" if d.cell_id else "cells.parquet is rebuilt from the cells' files")
+            for d in damage if dest is not None]
+
+
+class _Run:
+    def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
+                 ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
+                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
+                 observer: RunObserver | None = None) -> None:
+        self.grid, self.store, self.states, self.others = grid, store, states, others
+        self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
+        self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
+        self.on_event, self.command, self.observer = on_event, command, observer
+        self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
+        self.inflight: dict[Any, tuple[str, Slot, Any, Any]] = {}  # kind, worker, cell(s), unit
+        self.versions = versions_json()
+        self.t0 = time.monotonic()
+        self.start_progress = sum(s.progress() * s.weight for s in states)
+        self.total_weight = sum(s.weight for s in states) or 1.0
+        self.last_error = ""
+
+    # ------------------------------------------------------------------ setup
+    def _prepare_store(self) -> None:
+        store = self.store
+        if self.fresh:
+            store.wipe()
+            store.checksums = None
+        store.remove_temp_files()
+        store.integrity().start_recording()  # every file written from here on is recorded
+        stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+        for st in self.states:
+            if st.superseded is not None:  # run with other parameters: keep its files aside
+                store.supersede(st.cell_id, st.superseded, stamp)
+            if st.phase != "done":
+                store.discard_parts_from(st.cell_id, st.episodes_done if st.has_checkpoint else 0)
+        now = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        manifest = (None if self.fresh else store.read_manifest()) or {"created": now, "runs": []}
+        v = versions()
+        self.run_record = {"grid": self.grid.name, "started": now, "command": self.command,
+                           "git": v["git"], "machine": machine(), "workers": self.n_workers,
+                           "cells_done_before": sum(s.phase == "done" for s in self.states),
+                           RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/store/integrity.py)
+        runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
+        manifest.update({
+            "schema_version": SCHEMA_VERSION, "package_version": v["package"], "git_sha": v["git"],
+            "versions": v, "grid": self.grid.name, "command": self.command, "updated": now,
+            "runs": runs, "ray": self.ctx.address, "workers": self.n_workers,
+        })
+        store.write_manifest(manifest)
+        self._write_cells()
+
+    def _close_run_record(self) -> None:
+        """The manifest's entry of this run gets its end, wall time and cells finished
+        (issue 13: commit, machine and wall time of each part of a long run)."""
+        manifest = self.store.read_manifest()
+        if not manifest or not manifest.get("runs") or manifest["runs"][-1].get("started") != self.run_record["started"]:
+            return
+        done = sum(s.phase == "done" for s in self.states)
+        self.run_record.update({
+            "ended": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "wall_s": round(time.monotonic() - self.t0, 1),
+            "cells_done_in_run": done - self.run_record["cells_done_before"], "cells_done_after": done,
+        })
+        manifest["runs"][-1] = self.run_record
+        self.store.write_manifest(manifest)
+
+    def _write_cells(self) -> None:
+        self.store.write_cells(self.others + [s.row(self.grid.name) for s in self.states])
+
+    # ------------------------------------------------------------------- loop
+    def execute(self) -> RunSummary:
+        import ray
+
+        self._prepare_store()
+        slots: list[Slot] = []
+        if not all(s.finished for s in self.states):
+            self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
+            slots = [Slot(actor) for actor in take_workers(self.remote, self.n_workers)]
+        self._emit("start", None)
+        for st in self.states:  # said at once: an interrupted run never reaches the summary
+            if st.rerun:
+                self._emit("rerun", st)
+        stalled_since: float | None = None
+        try:
+            while not all(s.finished for s in self.states):
+                now = time.monotonic()
+                for slot in slots:
+                    if slot.healthy and not slot.busy:
+                        self._dispatch(slot)
+                    elif not slot.healthy and not slot.pinging and now >= slot.next_ping:
+                        slot.pinging = True
+                        self._submit(slot.actor.ping.remote(), "ping", slot, None, 0)
+                if any(s.healthy for s in slots):
+                    stalled_since = None
+                else:
+                    stalled_since = stalled_since or time.monotonic()
+                    if time.monotonic() - stalled_since > STALL_TIMEOUT_S:
+                        self._fail_remaining(f"no live Ray worker for {STALL_TIMEOUT_S:.0f} s")
+                        break
+                if self.inflight:
+                    ready, _ = ray.wait(list(self.inflight), num_returns=1, timeout=WAIT_S)
+                    if ready:
+                        more, _ = ray.wait(list(self.inflight), num_returns=len(self.inflight), timeout=0)
+                        for ref in dict.fromkeys(ready + more):
+                            self._collect(ref, slots)
+                else:
+                    time.sleep(0.05)
+                self.ctx.check_head()
+                self._emit("tick", None)
+        finally:
+            if slots and not self.ctx.lost:  # a lost cluster has no workers left to release
+                release_workers(slots, keep=not self.ctx.started_here)
+            self._write_cells()
+            self._close_run_record()
+            self.progress.close()
+        failed = {s.cell_id: s.error for s in self.states if s.phase == "failed"}
+        return RunSummary(self.store.root, len(self.states), sum(s.phase == "done" for s in self.states),
+                          len(failed), time.monotonic() - self.t0, failed,
+                          {s.cell_id: s.rerun for s in self.states if s.rerun})
+
+    def _dispatch(self, slot: Slot) -> None:
+        """Give a free worker an evaluation chunk, else the next cell to train."""
+        for st in self.states:
+            if st.phase == "evaluating" and st.eval_todo:
+                mode, chunk = unit = st.eval_todo.pop(0)
+                ref = slot.actor.eval_chunk.remote(st.spec, [st.state_ref], chunk, mode)
+                self._submit(ref, "eval", slot, st, unit)
+                return
+        pending = [s for s in self.states if s.phase == "pending"]
+        if pending:
+            st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
+            if st.trained:  # trained before the interruption: evaluate now
+                self._start(st)
+                self._dispatch(slot)
+                return
+            group = [st] + self._stack_mates(st, pending)
+            for mate in group:
+                self._start(mate)
+            slot.sticky = group
+            self._submit_train(slot, group)
+
+    def _stack_mates(self, st: CellState, pending: list[CellState]) -> list[CellState]:
+        """Up to ``stack_seeds - 1`` other pending, untrained cells that differ from ``st``
+        only in their seed, when its method trains seed-stacked (``--stack-seeds``)."""
+        if self.stack_seeds < 2 or not _stackable(st.spec):
+            return []
+        key = _stack_key(st.spec)
+        return [s for s in pending if s is not st and not s.trained and _stack_key(s.spec) == key
+                ][: self.stack_seeds - 1]
+
+    def _start(self, st: CellState) -> None:
+        import ray
+
+        st.attempts += 1
+        if st.state_ref is None and st.has_checkpoint:
+            ckpt = self.store.read_checkpoint(st.cell_id)
+            st.state_ref = ray.put(ckpt["state"]) if ckpt is not None else None
+        st.versions_json = self.versions
+        if st.trained:
+            self._begin_eval(st)
+        else:
+            st.phase = "training"
+        self._write_cells()
+        self._emit("started", st)
+
+    def _submit_train(self, slot: Slot, group: list[CellState]) -> None:
+        """The next training chunk of the cells of ``group`` (one cell, or a seed stack)."""
+        boxes = [[st.state_ref] if st.state_ref is not None else [] for st in group]
+        ref = slot.actor.train_stack.remote([st.spec for st in group], boxes,
+                                            [st.iterations for st in group], self.k)
+        self._submit(ref, "train", slot, group, 0)
+
+    def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: Any) -> None:
+        slot.busy = kind != "ping"
+        self.inflight[ref] = (kind, slot, st, chunk)
+
+    def _begin_eval(self, st: CellState) -> None:
+        st.phase, st.trained = "evaluating", True
+        st.eval_todo = [u for u in st.eval_units() if u not in st.eval_rows]
+
+    # --------------------------------------------------------------- results
+    def _collect(self, ref: Any, slots: list[Slot]) -> None:
+        import ray
+
+        kind, slot, st, chunk = self.inflight.pop(ref)
+        try:
+            result = ray.get(ref, timeout=0)
+        except ray.exceptions.RayTaskError as exc:  # the method raised: the cell fails
+            cause = exc.cause if getattr(exc, "cause", None) is not None else exc
+            if isinstance(cause, ray.exceptions.RayError) and not isinstance(cause, ray.exceptions.RayTaskError):
+                self._worker_lost(kind, slot, st, chunk, cause, slots)  # e.g. a lost state object
+                return
+            slot.busy = False
+            if kind == "train":
+                slot.sticky = None
+            for cell in _cells(st):
+                if not cell.finished:
+                    self._fail(cell, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
+            return
+        except ray.exceptions.RayError as exc:  # the worker died: retry elsewhere
+            self._worker_lost(kind, slot, st, chunk, exc, slots)
+            return
+        if kind == "ping":
+            slot.healthy, slot.pinging, slot.suspect = True, False, False
+            return
+        slot.busy = False
+        if kind == "train":
+            self._train_done(slot, st, result)
+            return
+        if st is None or st.finished:
+            return
+        st.wall_s += float(result["wall_s"])
+        st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
+        self._eval_done(st, chunk, result["rows"])
+
+    def _train_done(self, slot: Slot, group: list[CellState], results: list[dict[str, Any]]) -> None:
+        """Store a training chunk of every cell of ``group``; the cells that are not finished
+        get their next chunk on the same worker (which holds their methods)."""
+        going = []
+        for st, result in zip(group, results, strict=True):
+            if st.finished:
+                continue
+            st.wall_s += float(result["wall_s"])
+            st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
+            if self._train_chunk_done(st, result):
+                going.append(st)
+        if going:
+            slot.sticky = going
+            self._submit_train(slot, going)
+        else:
+            slot.sticky = None
+
+    def _train_chunk_done(self, st: CellState, result: dict[str, Any]) -> bool:
+        """Write one cell's chunk (rows, then checkpoint); True while it has training left."""
+        import ray
+
+        rows = result["rows"]
+        if rows:
+            assert int(rows[0]["episode"]) == st.episodes_done, "train rows out of order"
+            self.store.write_train_part(st.cell_id, st.episodes_done, rows)
+        st.iterations, st.episodes_done = int(result["iterations"]), int(result["episodes_done"])
+        self.store.write_checkpoint(st.cell_id, {
+            "cell": st.cell.canonical_json(), "method": st.cell.method, "iterations": st.iterations,
+            "episodes_done": st.episodes_done, "finished": bool(result["finished"]),
+            "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
+            "state": result["state"],
+        })
+        st.has_checkpoint = True
+        st.state_ref = ray.put(result["state"])
+        self._emit("train_chunk", st, rows)
+        if result["finished"]:
+            self._begin_eval(st)
+            self._write_cells()
+            return False
+        return True
+
+    def _eval_done(self, st: CellState, unit: tuple[str, int], rows: list[dict[str, Any]]) -> None:
+        st.eval_rows[unit] = rows
+        self._emit("eval_chunk", st)
+        units = st.eval_units()
+        if any(u not in st.eval_rows for u in units):
+            return
+        # Mode by mode, episode by episode; the last chunk may run past eval_episodes.
+        all_rows = [r for u in units for r in st.eval_rows[u] if int(r["episode"]) < st.cell.eval_episodes]
+        self.store.write_eval(st.cell_id, all_rows, {
+            "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
+            "train_episodes_done": st.episodes_done,
+        })
+        st.phase, st.state_ref = "done", None
+        self._write_cells()
+        self._emit("done", st)
+
+    def _fail(self, st: CellState, error: str) -> None:
+        st.phase, st.error, st.state_ref, st.eval_todo = "failed", error, None, []
+        self._write_cells()
+        self._emit("failed", st)
+
+    def _fail_remaining(self, error: str) -> None:
+        for st in self.states:
+            if not st.finished:
+                st.phase, st.error = "failed", error
+
+    def _worker_lost(self, kind: str, slot: Slot, st_or_group: CellState | list[CellState] | None, chunk: Any,
+                     exc: BaseException, slots: list[Slot]) -> None:
+        """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
+        import ray
+
+        if kind == "ping":
+            slot.pinging = False
+            slot.suspect = True
+            if isinstance(exc, ray.exceptions.ActorDiedError):
+                ray.kill(slot.actor, no_restart=True)  # restarts exhausted or node gone: a new worker
+                slot.actor = self.remote.remote()
+            else:  # restarting (ActorUnavailableError): probe again shortly
+                slot.next_ping = time.monotonic() + PING_RETRY_S
+            return
+        slot.busy, slot.healthy, slot.suspect, slot.next_ping = False, False, True, time.monotonic()
+        for st in _cells(st_or_group):
+            if st.finished:
+                continue
+            st.retries += 1
+            self.last_error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+            if st.retries > MAX_RETRIES:
+                self._fail(st, f"worker died {st.retries} times: {type(exc).__name__}")
+            elif kind == "train":
+                slot.sticky = None
+                st.phase = "pending"  # resumes from st.state_ref (the last checkpoint) on any worker
+                self._emit("retry", st)
+            else:
+                st.eval_todo.insert(0, chunk)
+                self._emit("retry", st)
+
+    # --------------------------------------------------------------- progress
+    def _emit(self, kind: str, st: CellState | None, rows: list[dict[str, Any]] | None = None) -> None:
+        message = event_message(kind, st, self.last_error) if st is not None else ""
+        if self.on_event is not None and st is not None:
+            self.on_event(kind, st)
+        if self.observer is not None:
+            dispatch(self.observer, kind, st, self.grid.name, rows)
+        done_w = sum(s.progress() * s.weight for s in self.states)
+        left = self.total_weight - self.start_progress
+        frac = (done_w - self.start_progress) / left if left > 1e-9 else 1.0
+        snap = Snapshot(
+            total=len(self.states), done=sum(s.phase == "done" for s in self.states),
+            running=sum(s.phase in ("training", "evaluating") for s in self.states),
+            failed=sum(s.phase == "failed" for s in self.states), fraction=min(max(frac, 0.0), 1.0),
+            elapsed_s=time.monotonic() - self.t0, message=message, kind=kind,
+        )
+        self.progress.update(snap)
+
+
+def event_message(kind: str, st: CellState, last_error: str = "") -> str:
+    """The progress line's news for one event of cell ``st`` (printed once, with the event).
+
+    A resumed cell says where it resumes; a training chunk says how far the cell is and
+    that its checkpoint is written; an evaluation unit how many of the cell's units are in."""
+    label = st.label()
+    if kind == "started":
+        if st.trained:
+            return f"started {label}: evaluation"
+        return f"started {label}" + (f" from episode {st.episodes_done}" if st.episodes_done else "")
+    if kind == "train_chunk":
+        return f"trained {label}: {st.episodes_done}/{st.cell.episodes} episodes, checkpoint written"
+    if kind == "eval_chunk":
+        return f"evaluated {label}: {len(st.eval_rows)}/{len(st.eval_units())} units"
+    if kind == "failed":
+        return f"failed {label}: {st.error}"
+    if kind == "retry":
+        return f"retry {label} after {last_error[:80]}"
+    if kind == "rerun":
+        return f"{label} {st.rerun}"
+    return f"{kind} {label}"
+
+
+def _cells(st: CellState | list[CellState] | None) -> list[CellState]:
+    """The cells of an in-flight unit: a training chunk's group, or an evaluation's cell."""
+    return [] if st is None else list(st) if isinstance(st, list) else [st]
+
+
+def _stack_key(spec: dict[str, Any]) -> str:
+    """Cells with equal keys differ only in their seed (and cell id)."""
+    return json.dumps({k: spec[k] for k in ("method_path", "env", "params")}, sort_keys=True, default=str)
+
+
+def _stackable(spec: dict[str, Any]) -> bool:
+    return bool(method_class(str(spec["method_path"])).stackable(spec["params"]))
+
+
+def _nanmax(a: float, b: float) -> float:
+    if a != a:  # NaN: nothing measured yet
+        return b
+    return a if b != b else max(a, b)

@@ -1,0 +1,315 @@
+"""The method-agnostic view of a run: every method it holds, by the name it declares.
+
+Pure functions of the evaluation rows (one row per cell, execution mode and episode, with
+the cell's config columns; reports/data/store.py), seed as the unit everywhere:
+
+* ``leaderboard_frame``: per configuration (N, p) and execution mode, each method's
+  success rate: the mean over seeds of per-seed means with a 95% Student t CI over seeds
+  (``reports.stats.mean_ci``), and its rank within the configuration;
+* ``aggregate_frame``: across the configurations every method of the run covers, per
+  learned execution mode (a planner's one mode counts in each), the interquartile mean
+  of the (seed x configuration) success matrix (rliable's ``aggregate_iqm``) with a 95%
+  stratified bootstrap CI (seeds resampled within each configuration: ``scipy.stats.
+  bootstrap`` over one sample per configuration), and the probability of improvement of
+  each ordered pair (rliable's ``probability_of_improvement``, averaged over
+  configurations) with its stratified bootstrap CI;
+* ``safety_frame``: per method, configuration and mode, the safety columns of Table I for
+  every method: collision rate, correction rate, fallback rate and candidates examined
+  (NaN where no filter runs), and the payload it measured (scalars per step);
+* ``success_figure``: success with its 95% CI against N at each p, or against p at each
+  N, one row of panels per execution mode; ``profile_figure``: performance profiles
+  (fraction of (seed, configuration) runs with success > tau).
+
+Seeds: aggregates need the same seeds in every configuration (a score matrix), so they
+use the seeds every covered configuration of the method has (``common_seeds``) and say
+how many; per-configuration rows use every seed.
+"""
+from __future__ import annotations
+
+from itertools import permutations
+
+import numpy as np
+import pandas as pd
+from rliable import metrics as rly_metrics
+from scipy import stats as sps
+
+from reports.data.store import execution_order, fmt_p
+from reports.figures.plotting import (
+    Built,
+    label_order,
+    method_color,
+    method_label,
+    new_figure,
+    paper_style,
+    placeholder,
+)
+from reports.stats import mean_ci
+
+LEVEL = 0.95
+N_BOOT = 2000
+PLANNER = "planner"
+SAFETY = ("collision_rate", "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step")
+
+
+def _methods(df: pd.DataFrame) -> list[str]:
+    return sorted(df["method"].unique(), key=lambda m: (label_order(method_label(m)), m))
+
+
+def seed_scores(evals: pd.DataFrame, metric: str = "success_rate") -> pd.DataFrame:
+    """Per (method, n_robots, loss_p, execution, seed): the mean of ``metric`` over episodes."""
+    keys = ["method", "n_robots", "loss_p", "execution", "seed"]
+    return evals.groupby(keys, sort=True)[metric].mean().reset_index()
+
+
+def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
+    """One row per (N, p, execution mode, method): seeds, success mean and 95% CI over
+    seeds, and rank (1 = highest mean) among the methods of that configuration and mode
+    (a planner's ``planner`` mode ranks with every learned mode)."""
+    scores = seed_scores(evals)
+    rows = []
+    for (n, p, mode, method), g in scores.groupby(["n_robots", "loss_p", "execution", "method"], sort=True):
+        mean, lo, hi = mean_ci(g["success_rate"].to_numpy(), LEVEL)
+        lo, hi = (float(np.clip(v, 0.0, 1.0)) if np.isfinite(v) else v for v in (lo, hi))  # a rate
+        rows.append({"n_robots": int(n), "loss_p": float(p), "execution": mode, "method": method,
+                     "label": method_label(method), "seeds": len(g), "success": mean,
+                     "success_lo": lo, "success_hi": hi})
+    out = pd.DataFrame(rows, columns=["n_robots", "loss_p", "execution", "method", "label", "seeds",
+                                      "success", "success_lo", "success_hi"])
+    if out.empty:
+        return out.assign(rank=pd.Series(dtype="int64"))
+    out["rank"] = 0
+    learned_modes = [m for m in execution_order(out["execution"]) if m != PLANNER] or [PLANNER]
+    for _, g in out.groupby(["n_robots", "loss_p"]):
+        planners = g[g["execution"] == PLANNER]
+        for k, mode in enumerate(learned_modes):
+            mine = g[g["execution"] == mode] if mode != PLANNER else g.iloc[:0]
+            ranks = pd.concat([mine, planners])["success"].rank(ascending=False, method="min").fillna(0)
+            for idx in mine.index.tolist() + (planners.index.tolist() if k == 0 else []):
+                out.at[idx, "rank"] = int(ranks[idx])
+    order = {m: i for i, m in enumerate(execution_order(out["execution"]))}
+    out = out.assign(_m=out["execution"].map(order), _l=out["method"].map(lambda m: label_order(method_label(m))))
+    return out.sort_values(["n_robots", "loss_p", "_m", "_l", "method"]).drop(columns=["_m", "_l"]).reset_index(drop=True)
+
+
+def score_matrices(evals: pd.DataFrame, mode: str) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
+    """Per method, its (seeds x configurations) success matrix in mode ``mode`` (a planner in
+    ``planner``) over the configurations every method covers, using the seeds every one of
+    those configurations has; the configurations; the seeds used per method."""
+    scores = seed_scores(evals)
+    scores = scores[(scores["execution"] == mode) | (scores["execution"] == PLANNER)]
+    methods = _methods(scores)
+    configs = None
+    for m in methods:
+        have = set(map(tuple, scores.loc[scores["method"] == m, ["n_robots", "loss_p"]].drop_duplicates().to_numpy()))
+        configs = have if configs is None else configs & have
+    cfgs = sorted((int(n), float(p)) for n, p in (configs or set()))
+    mats, used = {}, {}
+    for m in methods:
+        part = scores[scores["method"] == m]
+        per = [part[(part["n_robots"] == n) & np.isclose(part["loss_p"], p)] for n, p in cfgs]
+        seeds = sorted(set.intersection(*(set(g["seed"]) for g in per))) if per else []
+        if not seeds:
+            continue
+        mats[m] = np.stack([g.set_index("seed").loc[seeds, "success_rate"].to_numpy() for g in per], axis=1)
+        used[m] = len(seeds)
+    return mats, cfgs, used
+
+
+def _stratified_ci(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[float, float]:
+    """95% percentile CI of ``statistic(*samples, axis=-1)`` with each sample (a
+    configuration's seeds) resampled on its own: the stratified bootstrap
+    (``scipy.stats.bootstrap``, vectorized: every sample arrives shaped (..., n))."""
+    if any(len(s) < 2 for s in samples):
+        return np.nan, np.nan
+    res = sps.bootstrap(samples, statistic, n_resamples=N_BOOT, confidence_level=LEVEL, method="percentile",
+                        vectorized=True, random_state=np.random.default_rng(seed))
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def _iqm(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
+    """rliable's ``aggregate_iqm`` (the 25%-trimmed mean of every score of the matrix) of
+    the matrix whose columns are ``cols`` (each (..., seeds)), batched over leading axes."""
+    flat = np.concatenate([np.moveaxis(c, axis, -1) for c in cols], axis=-1)
+    return sps.trim_mean(flat, 0.25, axis=-1)
+
+
+def _poi(k: int):
+    """rliable's ``probability_of_improvement`` of X's first ``k`` columns over Y's ``k``,
+    batched: per configuration P(X > Y) + P(X = Y) / 2 over all seed pairs, averaged."""
+    def stat(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
+        per = []
+        for x, y in zip(cols[:k], cols[k:], strict=True):
+            x, y = np.moveaxis(x, axis, -1)[..., :, None], np.moveaxis(y, axis, -1)[..., None, :]
+            per.append(((x > y) + 0.5 * (x == y)).mean(axis=(-2, -1)))
+        return np.mean(per, axis=0)
+    return stat
+
+
+def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(IQM per mode and method, probability of improvement per mode and ordered pair) over
+    the configurations every method covers; see the module docstring."""
+    iqm_rows, poi_rows = [], []
+    modes = [m for m in execution_order(evals["execution"]) if m != PLANNER] or [PLANNER]
+    for mode in modes:
+        mats, cfgs, used = score_matrices(evals, mode)
+        for m, mat in mats.items():
+            cols = [mat[:, j] for j in range(mat.shape[1])]
+            lo, hi = _stratified_ci(cols, _iqm)
+            iqm_rows.append({"execution": mode, "method": m, "label": method_label(m), "configurations": len(cfgs),
+                             "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)), "iqm_lo": lo, "iqm_hi": hi})
+        for x, y in permutations(mats, 2):
+            a, b = mats[x], mats[y]
+            k = a.shape[1]
+            cols = [a[:, j] for j in range(k)] + [b[:, j] for j in range(k)]
+            lo, hi = _stratified_ci(cols, _poi(k))
+            poi_rows.append({"execution": mode, "method": x, "over": y, "label": method_label(x),
+                             "over_label": method_label(y), "configurations": k,
+                             "poi": float(rly_metrics.probability_of_improvement(a, b)), "poi_lo": lo, "poi_hi": hi})
+    return pd.DataFrame(iqm_rows), pd.DataFrame(poi_rows)
+
+
+def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
+    """Per method, N, p and mode: seeds and the mean over seeds of each column of ``SAFETY``
+    (NaN when the method never ran a filter: its rows hold NaN)."""
+    keys = ["method", "n_robots", "loss_p", "execution"]
+    per_seed = evals.groupby([*keys, "seed"], sort=True)[list(SAFETY)].mean().reset_index()
+    out = per_seed.groupby(keys, sort=True).agg(seeds=("seed", "nunique"), **{c: (c, "mean") for c in SAFETY})
+    out = out.reset_index()
+    out.insert(1, "label", out["method"].map(method_label))
+    return out
+
+
+def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFrame, safety: pd.DataFrame) -> str:
+    """The leaderboard page: per configuration, aggregates, pairwise improvement, safety."""
+    def pct(v: float) -> str:
+        return "—" if not np.isfinite(v) else f"{100 * v:.1f}%"
+
+    def ci(v: float, lo: float, hi: float) -> str:
+        return pct(v) + ("" if not np.isfinite(lo) else f" [{pct(lo)}, {pct(hi)}]")
+
+    lines = ["# Leaderboard: every method of the run", "",
+             "Success rate (robots at their goal per episode): the mean over seeds of per-seed means, "
+             "[95% Student t CI over seeds]; rank 1 = highest mean among the methods at that "
+             "configuration and mode (a planner's one mode ranks with every learned mode).", ""]
+    if board.empty:
+        return "\n".join(lines + ["No evaluated cell yet.", ""])
+    lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
+    for r in board.itertuples(index=False):
+        lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
+                     f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+    lines += ["", "## Across configurations", "",
+              "Interquartile mean (rliable) of the seed x configuration success matrix over the "
+              "configurations every method covers, [95% stratified bootstrap CI: seeds resampled "
+              "within each configuration]; seeds: those every such configuration of the method has.", ""]
+    if iqm.empty:
+        lines += ["No configuration is covered by every method.", ""]
+    else:
+        lines += ["| execution | method | configurations | seeds | IQM success [95% CI] |", "|---|---|---|---|---|"]
+        for r in iqm.itertuples(index=False):
+            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
+        lines += ["", "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
+                  "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
+                  "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
+        for r in poi.itertuples(index=False):
+            lines.append(f"| {r.execution} | {r.label} | {r.over_label} | {ci(r.poi, r.poi_lo, r.poi_hi)} |")
+    lines += ["", "## Safety and payload of every method", "",
+              "Means over seeds; correction rate, fallback rate and candidates are NaN (—) where no "
+              "safety filter ran; payload: the scalars the method reported sending per step.", "",
+              "| method | N | p | execution | seeds | collision rate | correction rate | fallback rate | "
+              "candidates | payload (scalars/step) |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in safety.itertuples(index=False):
+        cand = "—" if not np.isfinite(r.mean_candidates) else f"{r.mean_candidates:.1f}"
+        pay = "—" if not np.isfinite(r.payload_scalars_per_step) else f"{r.payload_scalars_per_step:,.1f}"
+        lines.append(f"| {r.label} | {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.seeds} | "
+                     f"{pct(r.collision_rate) if r.collision_rate >= 1e-3 or r.collision_rate == 0 else f'{100 * r.collision_rate:.3g}%'} | "
+                     f"{pct(r.correction_rate)} | {pct(r.fallback_rate)} | {cand} | {pay} |")
+    return "\n".join(lines) + "\n"
+
+
+def leaderboard_display(board: pd.DataFrame) -> pd.DataFrame:
+    """The per-configuration leaderboard as the index page shows it (one row per
+    configuration and mode, one column per method: success [95% CI] (rank))."""
+    if board.empty:
+        return pd.DataFrame()
+
+    def cell(r: pd.Series) -> str:
+        lo = "" if not np.isfinite(r["success_lo"]) else f" [{100 * r['success_lo']:.1f}, {100 * r['success_hi']:.1f}]"
+        return f"{100 * r['success']:.1f}%{lo} ({int(r['rank'])})"
+
+    shown = board.assign(value=board.apply(cell, axis=1), p=board["loss_p"].map(fmt_p))
+    wide = shown.pivot_table(index=["n_robots", "p", "execution"], columns="label", values="value", aggfunc="first",
+                             sort=False).reset_index()
+    labels = [method_label(m) for m in _methods(board)]
+    return wide[["n_robots", "p", "execution", *[c for c in labels if c in wide]]].rename(
+        columns={"n_robots": "N"}).fillna("")
+
+
+def success_figure(board: pd.DataFrame, against: str) -> Built:
+    """Success with its 95% CI over seeds against ``against`` ("n_robots" or "loss_p"), one
+    panel per value of the other axis, one row per learned execution mode (planners drawn
+    in every row), every method of the run in its declared colour."""
+    other = "loss_p" if against == "n_robots" else "n_robots"
+    modes = [m for m in execution_order(board["execution"]) if m != PLANNER] or [PLANNER] if len(board) else []
+    panels = sorted(board[other].unique()) if len(board) else []
+    with paper_style():
+        fig = new_figure(1.5 * max(len(modes), 1) + 0.4, 3.5 if len(panels) <= 2 else 7.0)
+        if not len(board):
+            placeholder(fig.add_subplot(), "no evaluated cell yet")
+            return Built(fig, ["no evaluated cell"], "")
+        axes = fig.subplots(len(modes), len(panels), squeeze=False, sharey=True)
+        for i, mode in enumerate(modes):
+            for j, val in enumerate(panels):
+                ax = axes[i][j]
+                part = board[np.isclose(board[other], val) & board["execution"].isin([mode, PLANNER])]
+                for m in _methods(part):
+                    g = part[part["method"] == m].sort_values(against)
+                    x = g[against].to_numpy(dtype=float)
+                    ax.plot(x, g["success"], "o-", color=method_color(m), label=method_label(m), ms=2.5)
+                    ax.fill_between(x, g["success_lo"], g["success_hi"], color=method_color(m), alpha=0.15, lw=0)
+                ax.set_ylim(-0.02, 1.02)
+                ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, {mode}")
+                ax.set_xticks(sorted(part[against].unique()) if len(part) else [])
+                if i == len(modes) - 1:
+                    ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")
+                if j == 0:
+                    ax.set_ylabel("success rate")
+        handles, labels = axes[0][0].get_legend_handles_labels()
+        for row in axes:
+            for ax in row:
+                for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                    if lab not in labels:
+                        handles.append(h)
+                        labels.append(lab)
+        fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4), frameon=False)
+    seeds = board.groupby("method")["seeds"].agg(["min", "max"])
+    seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
+                          for m, r in seeds.iterrows())
+    caption = (f"Success rate against {'team size N' if against == 'n_robots' else 'loss probability p'} "
+               f"for every method of the run, mean over seeds with a 95% Student t CI over seeds "
+               f"(seeds per point: {seed_text}); one row per execution mode, planners in every row.")
+    return Built(fig, [], caption)
+
+
+def profile_figure(evals: pd.DataFrame) -> Built:
+    """Performance profiles: per method, the fraction of its (seed, configuration) runs whose
+    success exceeds tau, over the configurations every method covers (argmax; planners)."""
+    modes = [m for m in execution_order(evals["execution"]) if m != PLANNER] if len(evals) else []
+    mode = modes[0] if modes else PLANNER
+    mats, cfgs, used = score_matrices(evals, mode) if len(evals) else ({}, [], {})
+    taus = np.linspace(0.0, 1.0, 101)
+    with paper_style():
+        fig = new_figure(2.2)
+        ax = fig.add_subplot()
+        if not mats:
+            placeholder(ax, "no configuration covered by every method")
+            return Built(fig, ["no configuration covered by every method"], "")
+        for m, mat in mats.items():
+            ax.plot(taus, [(mat > t).mean() for t in taus], color=method_color(m), label=method_label(m))
+        ax.set_xlabel(r"success rate $\tau$")
+        ax.set_ylabel(r"fraction of runs with success $> \tau$")
+        ax.legend(frameon=False)
+    caption = (f"Performance profiles ({mode} execution; planners in their own mode): the fraction of each "
+               f"method's (seed, configuration) runs with success above tau, over the {len(cfgs)} "
+               f"configurations every method covers (seeds per method: "
+               + ", ".join(f"{method_label(m)} {k}" for m, k in used.items()) + ").")
+    return Built(fig, [], caption)

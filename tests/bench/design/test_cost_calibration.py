@@ -1,0 +1,188 @@
+"""Cost estimates against what cells cost: the effective rates of a run's done cells, the
+seed-stacking gain model, and the built-in rates against the committed reproduction."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.design import costs
+from bench.design.cost_calibration import (
+    merged_rates,
+    observed_costs,
+    observed_rates,
+    rates_file,
+    two_digits,
+)
+from bench.design.grids import get_grid
+
+REPRODUCTION = Path(__file__).resolve().parents[3] / "reproduction" / "paper"
+
+
+def test_observed_rates__median_per_method_phase_and_n_skipping_missing_phases() -> None:
+    obs = pd.DataFrame([
+        dict(method="a", n_robots=20, train_rate=1.0, eval_rate=10.0),
+        dict(method="a", n_robots=20, train_rate=3.0, eval_rate=30.0),
+        dict(method="a", n_robots=20, train_rate=8.0, eval_rate=20.0),
+        dict(method="a", n_robots=40, train_rate=5.0, eval_rate=np.nan),
+        dict(method="p", n_robots=20, train_rate=np.nan, eval_rate=7.0),
+    ])
+    assert observed_rates(obs) == {"a": {"train": {20: 3.0, 40: 5.0}, "eval": {20: 20.0}},
+                                   "p": {"eval": {20: 7.0}}}
+
+
+def test_merged_rates__observed_points_replace_a_phase_and_the_rest_stays_built_in() -> None:
+    base = {"a": {"train": {20: 1.0, 100: 2.0}, "eval": {20: 3.0}}, "b": {"train": {20: 4.0}, "eval": {20: 5.0}}}
+    out = merged_rates({"a": {"train": {40: 9.0}}, "new": {"eval": {20: 6.0}}}, base)
+    assert out["a"] == {"train": {40: 9.0}, "eval": {20: 3.0}}
+    assert out["b"] == base["b"]
+    assert out["new"] == {"eval": {20: 6.0}, "train": costs.DEFAULT_RATE["train"]}
+    assert base["a"]["train"] == {20: 1.0, 100: 2.0}  # not modified in place
+
+
+def test_stack_gain__is_the_measured_three_seed_gain_and_the_fixed_cost_model_elsewhere() -> None:
+    assert costs.stack_gain("hierarchical", 40, 1) == 1.0
+    assert costs.stack_gain("hierarchical", 40, 3) == pytest.approx(1.47)
+    assert costs.stack_gain("hierarchical", 100, 3) == pytest.approx(1.22)
+    assert costs.stack_gain("hierarchical", 70, 3) == pytest.approx((1.47 + 1.22) / 2)
+    x = 1.5 * (1 - 1 / 1.47)  # share of a cell's training that S seeds share: cost x/S + (1 - x)
+    assert costs.stack_gain("hierarchical", 40, 2) == pytest.approx(1 / (x / 2 + 1 - x))
+    assert 1.0 < costs.stack_gain("hierarchical", 40, 2) < 1.47 < costs.stack_gain("hierarchical", 40, 5)
+    assert costs.stack_gain("ic3net", 40, 3) == 1.0  # does not stack
+
+
+def test_stack_sizes__configurations_of_stackable_methods_in_stacks_of_up_to_k() -> None:
+    cells = get_grid("paper").cells
+    hier = [i for i, c in enumerate(cells) if c.method == "hierarchical"]
+    assert costs.stack_sizes(cells, 1) == [1] * len(cells)
+    three = costs.stack_sizes(cells, 3)
+    assert [three[i] for i in hier] == [3] * len(hier)
+    assert all(three[i] == 1 for i in range(len(cells)) if i not in hier)
+    two = costs.stack_sizes(cells, 2)
+    by_config: dict[str, list[int]] = {}
+    for i in hier:
+        by_config.setdefault(cells[i].model_copy(update={"seed": 0}).canonical_json(), []).append(two[i])
+    assert all(sizes == [2, 2, 1] for sizes in by_config.values())  # seeds 0, 1 | 2
+
+
+def test_grid_cost__stacking_shortens_only_the_hierarchical_training() -> None:
+    cells = get_grid("paper").cells
+    plain, stacked = costs.grid_cell_hours(cells), costs.grid_cell_hours(cells, stack_seeds=3)
+    saved = sum(costs.cell_agent_steps(c)[0] / costs.rate(c.method, "train", c.n_robots)
+                * (1 - 1 / costs.stack_gain(c.method, c.n_robots, 3))
+                for c in cells if c.method == "hierarchical") / 3600
+    assert saved > 0 and plain - stacked == pytest.approx(saved)
+
+
+@pytest.fixture(scope="module")
+def reproduction() -> pd.DataFrame:
+    if not (REPRODUCTION / "cells.parquet").is_file():
+        pytest.skip("no committed reproduction in this checkout")
+    return observed_costs(REPRODUCTION)
+
+
+def test_observed_costs__split_each_cell_into_its_training_rows_and_the_rest(reproduction: pd.DataFrame) -> None:
+    from reports.data.store import load_store
+
+    store = load_store(REPRODUCTION)
+    assert set(reproduction["cell_id"]) == set(store.done["cell_id"])
+    walls = store.done.set_index("cell_id")["wall_s"]
+    row = reproduction.iloc[0]
+    assert row.train_s + row.eval_s == pytest.approx(walls[row.cell_id])
+    assert row.train_s == pytest.approx(store.train.loc[store.train.cell_id == row.cell_id, "wall_s"].sum())
+    assert (reproduction.loc[reproduction.method != "pibt", ["train_s", "eval_s"]] > 0).all().all()
+
+
+def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None:
+    """A learned cell's training seconds are its training rows' sum and the rest of its wall
+    time is evaluation; a planner without training rows trains 0 s at no rate; a phase
+    under a second still gets its rate; pending cells are left out."""
+    from bench.design import cost_calibration
+
+    grid = get_grid("paper").cells
+    learned = next(c for c in grid if c.method == "decentralized")
+    planner = next(c for c in grid if c.method == "pibt")
+    pending = next(c for c in grid if c.method == "ic3net")
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status=s, wall_s=w, config_json=c.canonical_json())
+                          for c, s, w in ((learned, "done", 100.5), (planner, "done", 0.25),
+                                          (pending, "running", 9.0))])
+    train = pd.DataFrame(dict(cell_id=[learned.cell_id] * 3 + [pending.cell_id], wall_s=[40.0, 50.0, 10.0, 5.0]))
+    out = cost_calibration.costs_of(cells, train)
+    assert list(out.columns) == ["cell_id", "method", "n_robots", "train_s", "eval_s", "train_rate", "eval_rate"]
+    assert list(out["cell_id"]) == [learned.cell_id, planner.cell_id]
+    assert list(out["method"]) == ["decentralized", "pibt"]
+    assert list(out["n_robots"]) == [learned.n_robots, planner.n_robots]
+    assert list(out["train_s"]) == [100.0, 0.0] and list(out["eval_s"]) == [0.5, 0.25]
+    (lt, le), (_, pe) = costs.cell_agent_steps(learned), costs.cell_agent_steps(planner)
+    assert out["train_rate"][0] == pytest.approx(lt / 100.0) and np.isnan(out["train_rate"][1])
+    assert list(out["eval_rate"]) == pytest.approx([le / 0.5, pe / 0.25])
+
+
+def test_observed_costs__a_phase_with_no_time_has_no_rate_and_no_cells_give_no_rows() -> None:
+    """Edge cells: a learned cell without training rows, one whose training took all of its
+    wall time (half a second); a store without done cells still has every column."""
+    from bench.design import cost_calibration
+
+    a, b = [c for c in get_grid("paper").cells if c.method == "decentralized"][:2]
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=w, config_json=c.canonical_json())
+                          for c, w in ((a, 30.0), (b, 0.5))])
+    train = pd.DataFrame(dict(cell_id=[b.cell_id], wall_s=[0.5]))
+    out = cost_calibration.costs_of(cells, train)
+    assert list(out["train_s"]) == [0.0, 0.5] and list(out["eval_s"]) == [30.0, 0.0]
+    assert np.isnan(out["train_rate"][0]) and np.isnan(out["eval_rate"][1])
+    assert out["train_rate"][1] == pytest.approx(costs.cell_agent_steps(b)[0] / 0.5)
+    empty = cost_calibration.costs_of(cells.assign(status="pending"), train)
+    assert empty.empty and list(empty.columns) == list(out.columns)
+    assert observed_rates(empty) == {}
+
+
+def test_merged_rates__default_base_is_the_builtin_rates() -> None:
+    out = merged_rates({"decentralized": {"train": {40: 9.0}}})
+    assert out["decentralized"]["train"] == {40: 9.0}
+    assert out["ic3net"] == costs.AGENT_STEPS_PER_S["ic3net"]
+
+
+def test_builtin_rates__are_the_committed_reproductions(reproduction: pd.DataFrame) -> None:
+    """Rebuild with `scripts/calibrate_costs.py reproduction/paper --write` when the
+    reproduction's state is committed."""
+    assert json.loads(costs.RATES_FILE.read_text()) == rates_file(reproduction, "reproduction/paper")
+    for method, phases in observed_rates(reproduction).items():
+        for phase, points in phases.items():
+            for n, r in points.items():
+                assert costs.rate(method, phase, n) == pytest.approx(r, rel=0.05), (method, phase, n)
+
+
+def test_two_digits__rounds_to_two_significant_digits() -> None:
+    assert [two_digits(x) for x in (0.0, 0.01234, 7.0, 12_345.0, 98_765.0, 330_000.0)] == \
+        [0.0, 0.012, 7.0, 12_000.0, 99_000.0, 330_000.0]
+
+
+def test_rates_file__observed_rates_keyed_by_n_in_numeric_order() -> None:
+    obs = pd.DataFrame([dict(cell_id="x", method="a", n_robots=n, train_s=1.0, eval_s=1.0,
+                             train_rate=1234.0 * n, eval_rate=np.nan) for n in (100, 20, 40)])
+    out = rates_file(obs, "runs/x")
+    assert out == {"run": "runs/x", "done_cells": 3,
+                   "rates": {"a": {"train": {"20": 25_000.0, "40": 49_000.0, "100": 120_000.0}}}}
+    assert list(out["rates"]["a"]["train"]) == ["20", "40", "100"]
+
+
+def test_builtin_rates__fall_back_for_a_method_the_reproduction_has_not_finished(
+        tmp_path: Path) -> None:
+    path = tmp_path / "rates.json"
+    path.write_text(json.dumps({"run": "r", "done_cells": 1, "rates": {"hierarchical": {"train": {"40": 5.0}}}}))
+    rates = costs.merge_rates(costs.FALLBACK_RATES, costs.read_rates_file(path))
+    assert rates["hierarchical"] == {"train": {40: 5.0}, "eval": costs.DEFAULT_RATE["eval"]}
+    assert rates["pibt"] == costs.FALLBACK_RATES["pibt"]
+
+
+def test_builtin_estimate__of_the_reproductions_done_cells_is_their_measured_cost(
+        reproduction: pd.DataFrame) -> None:
+    """Medians against totals: within 25% over the whole run (the old, 2-4x too small
+    training rates fail this)."""
+    cells = {c.cell_id: c for c in get_grid("paper").cells}
+    done = [cells[cid] for cid in reproduction["cell_id"] if cid in cells]
+    measured = (reproduction["train_s"].sum() + reproduction["eval_s"].sum()) / 3600
+    assert costs.grid_cell_hours(done) == pytest.approx(measured, rel=0.25)
