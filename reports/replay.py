@@ -34,7 +34,8 @@ from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
 from bench.design.cells import Cell
-from bench.store.run_store import RunStore, load_checkpoint, read_table
+from bench.store.checkpoints import load_checkpoint
+from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA
 from envs.channel import LossProcess, comm_graph, group_assignment
 from envs.core import StepResult

@@ -22,7 +22,7 @@ from algorithms.hierarchical.reference_probe import probe_reference
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import build_method
-from bench.store.run_store import load_checkpoint
+from bench.store.checkpoints import load_checkpoint
 
 
 def main() -> int:

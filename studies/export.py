@@ -22,8 +22,10 @@ from optuna.trial import FrozenTrial, TrialState
 
 from bench.store.run_store import atomic_file
 from envs.errors import BenchError
+from studies.points import best_point
 from studies.space import ordered, plain
 from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
+from studies.trial_columns import TRIAL_COLUMNS, param_columns
 
 TRIALS_FILE = "trials.parquet"
 IMPORTANCES_FILE = "importances.json"
@@ -33,12 +35,6 @@ IMPORTANCE_CAVEAT = (
     "fANOVA importances from {n} complete trials of a noisy objective (pruned trials left "
     "out): a rough ranking of which parameter moved the objective in this study, not a "
     "measured effect; compare the per-configuration means and CIs instead.")
-TRIAL_COLUMNS = (
-    "study", "number", "state", "value", "value_return", "success_rate", "team_return",
-    "seed", "replicate", "cell_id", "retry_of", "last_step", "pruned_at_step", "prune_rho",
-    "prune_n", "episodes", "wall_s",
-    "datetime_start", "datetime_complete", "duration_s", "intermediate_json", "error",
-)
 
 
 def trials_frame(study: optuna.Study) -> pd.DataFrame:
@@ -144,7 +140,6 @@ def replicates_of(study: optuna.Study) -> int:
 def best_configuration(study: optuna.Study) -> pd.Series:
     """The configuration with the highest mean objective over its replicates, with its CI
     (studies/points.py ``best_point``; BenchError while no configuration qualifies)."""
-    from studies.points import best_point
     from studies.schedule import resolve_mode
     from studies.space import space_size
 
@@ -163,8 +158,6 @@ def best_grid_snippet(study: optuna.Study) -> str:
     The base cell repeats the study's N, p, layout, Z and budgets with the best
     parameters; raise ``episodes``/``eval_episodes`` for a full-length run.
     """
-    from studies.points import param_columns
-
     best = best_configuration(study)
     names = param_columns(trials_frame(study))
     settings = dict(study.user_attrs.get(CONFIG_ATTR) or {})

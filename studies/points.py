@@ -20,7 +20,8 @@ import pandas as pd
 from scipy import stats
 
 from envs.errors import BenchError
-from studies.space import ordered, plain
+from studies.space import plain
+from studies.trial_columns import param_columns
 
 CONFIDENCE = 0.95
 
@@ -37,14 +38,6 @@ def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
         return mean, math.nan, math.nan
     half = float(stats.t.ppf(0.5 + confidence / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
     return mean, mean - half, mean + half
-
-
-def param_columns(trials: pd.DataFrame) -> list[str]:
-    """The searched parameters present in the frame (``ref_size``, ``search_radius``, ``lr``,
-    ...): every column that is not one of the trial columns of studies/export.py."""
-    from studies.export import TRIAL_COLUMNS
-
-    return ordered(c for c in trials.columns if c not in TRIAL_COLUMNS and trials[c].notna().any())
 
 
 def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:

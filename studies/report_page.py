@@ -17,9 +17,9 @@ from typing import Any
 
 import pandas as pd
 
-from studies.export import TRIAL_COLUMNS
-from studies.points import coverage, param_columns, point_table
+from studies.points import coverage, point_table
 from studies.pruning import step_correlations
+from studies.trial_columns import TRIAL_COLUMNS, param_columns
 
 FIGURES = (("study_history", "Optimization history"),
            ("study_landscape", "L x |R_z| landscape (complete and pruned trials)"),

@@ -18,7 +18,7 @@ from algorithms.common.execution import parse_execution
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import CellWorker
-from bench.store.run_store import load_checkpoint
+from bench.store.checkpoints import load_checkpoint
 from envs.errors import BenchError
 from envs.layouts import preset_for
 

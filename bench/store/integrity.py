@@ -36,6 +36,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
+from bench.store.checkpoints import load_checkpoint
 from envs.errors import BenchError
 
 CHECKSUMS_FILE = "checksums.json"
@@ -260,8 +261,6 @@ def _readable(path: Path) -> str:
 
 
 def _loadable(path: Path) -> str:
-    from bench.store.run_store import load_checkpoint
-
     try:
         load_checkpoint(path)
     except BenchError as exc:

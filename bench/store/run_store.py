@@ -28,6 +28,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bench.store.atomic import DiskFull, _suppress_oserror, atomic_file, file_mode, is_disk_full
+from bench.store.checkpoints import CHECKPOINT_FORMAT, load_checkpoint, short_error
 from bench.store.integrity import CHECKSUMS_FILE, Checksums
 from bench.store.meta_schema import EvalMeta, Manifest, validated
 from bench.store.schema import (
@@ -40,13 +41,9 @@ from bench.store.schema import (
 )
 from envs.errors import BenchError
 
-__all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full", "load_checkpoint",
+__all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full",
            "read_meta", "read_table", "write_table"]
 
-CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
-# Results schema versions whose checkpoints this bench loads: version 2 changed the eval
-# rows (execution modes) only, not the checkpoint (cell JSON and the method's state_dict).
-CHECKPOINT_VERSIONS = (1, SCHEMA_VERSION)
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
 CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/design/cells.py: 12 hex digits of SHA-256
 
@@ -73,7 +70,7 @@ def read_table(path: Path, expected: pa.Schema) -> pa.Table:
     try:
         table = pq.read_table(path, page_checksum_verification=True)
     except (OSError, pa.ArrowException) as exc:
-        raise BenchError(f"corrupt Parquet file {str(path)!r}: {_short(exc)}") from None
+        raise BenchError(f"corrupt Parquet file {str(path)!r}: {short_error(exc)}") from None
     _check_version(path, table.schema.metadata)
     missing = [n for n in expected.names if n not in table.schema.names]
     if missing:
@@ -86,7 +83,7 @@ def read_meta(path: Path) -> dict[str, str]:
     try:
         meta = pq.read_schema(path).metadata or {}
     except (OSError, pa.ArrowException) as exc:
-        raise BenchError(f"corrupt Parquet file {str(path)!r}: {_short(exc)}") from None
+        raise BenchError(f"corrupt Parquet file {str(path)!r}: {short_error(exc)}") from None
     _check_version(path, meta)
     return {k.decode(): v.decode() for k, v in meta.items() if k != b"ARROW:schema"}
 
@@ -98,51 +95,6 @@ def _check_version(path: Path, meta: Mapping[bytes, bytes] | None) -> None:
             f"{str(path)!r} was written with results schema version {version}, this bench "
             f"reads version {SCHEMA_VERSION}; use another --out or --fresh"
         )
-
-
-def _short(exc: BaseException) -> str:
-    return " ".join(str(exc).split())[:200]
-
-
-def load_checkpoint(path: str | Path) -> dict[str, Any]:
-    """A bench checkpoint, loaded with ``weights_only=True`` (no pickle is executed).
-
-    Keys: format, schema_version, cell (canonical cell JSON), method, episodes_done,
-    wall_s, peak_mem_mb, attempts, state (the method's state_dict).
-    """
-    import pickle
-
-    import torch
-
-    path = Path(path)
-    try:
-        data = torch.load(path, map_location="cpu", weights_only=True)
-    except FileNotFoundError:
-        raise BenchError(f"checkpoint {str(path)!r} does not exist") from None
-    except pickle.UnpicklingError as exc:
-        # Never pass on torch's text: it advises weights_only=False, which would execute code
-        # from a results folder. A refused global is named; anything else is corruption.
-        found = re.search(r"Unsupported global: GLOBAL (\S+)", str(exc))
-        if found is None:
-            tail = str(exc).partition("WeightsUnpickler error:")[2]
-            why = next((ln.strip() for ln in tail.splitlines() if ln.strip()), "not a torch file")
-            raise BenchError(f"corrupt checkpoint {str(path)!r}: {why[:200]}") from None
-        raise BenchError(
-            f"refusing checkpoint {str(path)!r}: it holds a pickled Python object "
-            f"({found.group(1)}), and the bench loads only tensors and plain data "
-            "(weights_only=True) so that no code from a results folder is executed; it was not "
-            "written by this bench"
-        ) from None
-    except Exception as exc:  # torch raises many types for truncated or foreign files
-        raise BenchError(f"corrupt checkpoint {str(path)!r}: {_short(exc)}") from None
-    if not isinstance(data, dict) or data.get("format") != CHECKPOINT_FORMAT:
-        raise BenchError(f"{str(path)!r} is not a bench checkpoint")
-    if data.get("schema_version") not in CHECKPOINT_VERSIONS:
-        raise BenchError(
-            f"checkpoint {str(path)!r} has schema version {data.get('schema_version')}, "
-            f"this bench reads versions {', '.join(map(str, CHECKPOINT_VERSIONS))}"
-        )
-    return data
 
 
 class RunStore:
@@ -207,7 +159,7 @@ class RunStore:
         try:
             data = json.loads(self.manifest_path.read_text())
         except (OSError, ValueError) as exc:
-            raise BenchError(f"corrupt manifest {str(self.manifest_path)!r}: {_short(exc)}") from None
+            raise BenchError(f"corrupt manifest {str(self.manifest_path)!r}: {short_error(exc)}") from None
         if not isinstance(data, dict) or data.get("schema_version") != SCHEMA_VERSION:
             found = data.get("schema_version") if isinstance(data, dict) else None
             raise BenchError(

@@ -422,7 +422,9 @@ def all_claims(train: pd.DataFrame, evals: pd.DataFrame, at: str = "paper",
         h = cells[(cells["method"] == "hierarchical") & cells["safety_filter"].astype(bool)]
         lemma = sorted({(int(a), int(b), int(c), int(d)) for a, b, c, d in
                         h[["n_robots", "groups", "search_radius", "c_max"]].itertuples(index=False)})
-    from reports.claims import table1_claims as T  # imports this module: Table I's further statements
+    from reports.claims import (
+        table1_claims as T,  # imports this module: Table I's further statements
+    )
     return [claim_hier_above_dec(train, run=fig1), claim_gap_widens(train, run=gaps),
             claim_convergence(train, run=hier_t), claim_above_ic3net(evals, run=fig2),
             claim_no_collisions(evals, run=hier_e), T.claim_collisions_printed(evals, run=hier_e),

@@ -21,6 +21,8 @@ from typing import Any
 import pandas as pd
 
 from reports.claims.claims import Claim
+from reports.pages.index_claims import badge, grouped_checks_html
+from reports.pages.layout import PAGE_CSS, Anchors, html_table, scroll_box, toc_html
 
 
 @dataclass(frozen=True)
@@ -142,15 +144,6 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
     return out
 
 
-def html_table(frame: pd.DataFrame, caption: str, uid: str) -> str:
-    """``frame`` (display strings) as an HTML ``<table>`` with ``<caption>``; cells, headers
-    and caption escaped. ``uid`` makes the element ids deterministic."""
-    sty = (frame.style.hide(axis="index").format(escape="html")
-           .format_index(escape="html", axis=1).set_caption(html.escape(caption))
-           .set_uuid("".join(c if c.isalnum() else "_" for c in uid)))
-    return sty.to_html(table_attributes='class="data"')
-
-
 def _table(head: list[str], rows: list[list[str]], caption: str) -> str:
     """A small table of already-escaped cell HTML (verdict badges, code) with a caption."""
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
@@ -160,9 +153,6 @@ def _table(head: list[str], rows: list[list[str]], caption: str) -> str:
 
 
 def index_html(d: IndexData) -> str:
-    from reports.pages.index_claims import badge, grouped_checks_html
-    from reports.pages.layout import PAGE_CSS, Anchors, scroll_box, toc_html
-
     e = html.escape
     anchor = Anchors()
     toc: list[tuple[str, str, list[tuple[str, str]]]] = []

@@ -17,8 +17,7 @@ from collections.abc import Callable, Mapping
 import pandas as pd
 
 from reports.claims.verdicts import NOT_ENOUGH, VERDICTS
-from reports.pages.index import html_table
-from reports.pages.layout import scroll_box
+from reports.pages.layout import html_table, scroll_box
 
 ROW_COLUMNS = ["scope", "configuration", "execution", "verdict", "numbers", "test"]
 

@@ -2,7 +2,8 @@
 window, and tables that fit or scroll inside their own box.
 
 Pure helpers for ``reports.pages.index``: ``PAGE_CSS``; ``Anchors`` (deterministic, unique
-element ids from headings); ``toc_html`` (the nested list of links to those ids) and
+element ids from headings); ``toc_html`` (the nested list of links to those ids);
+``html_table`` (a frame of display strings as an escaped ``<table>``) and
 ``scroll_box`` (a table wrapped in a box that scrolls both ways, header row sticky, so a
 wide or long table never widens or stretches the page).
 """
@@ -11,6 +12,8 @@ from __future__ import annotations
 import html
 import re
 from collections.abc import Sequence
+
+import pandas as pd
 
 # The TOC is a sticky side column on a wide window and a block on top of a narrow one.
 # Figures keep their natural width (700 px, the PNG's) with the caption and notes beside
@@ -69,3 +72,12 @@ def scroll_box(table: str, wrap: bool = False) -> str:
     """``table`` (HTML) inside a box that scrolls when the table is wider or longer; cells
     stay on one line (rows short, the box scrolls sideways) unless ``wrap`` (long text)."""
     return f"<div class='box{' wrap' if wrap else ''}'>{table}</div>"
+
+
+def html_table(frame: pd.DataFrame, caption: str, uid: str) -> str:
+    """``frame`` (display strings) as an HTML ``<table>`` with ``<caption>``; cells, headers
+    and caption escaped. ``uid`` makes the element ids deterministic."""
+    sty = (frame.style.hide(axis="index").format(escape="html")
+           .format_index(escape="html", axis=1).set_caption(html.escape(caption))
+           .set_uuid("".join(c if c.isalnum() else "_" for c in uid)))
+    return sty.to_html(table_attributes='class="data"')

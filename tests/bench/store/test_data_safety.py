@@ -20,8 +20,9 @@ from bench.design.cells import MAX_HORIZON, Cell
 from bench.design.grid_files import load_grid_file
 from bench.execute.plan import params_changes, plan_run
 from bench.store import run_store as store_mod
+from bench.store.checkpoints import load_checkpoint
 from bench.store.completeness import expected_for_cell, incomplete_cells, stored_rows
-from bench.store.run_store import DiskFull, RunStore, atomic_file, load_checkpoint, write_table
+from bench.store.run_store import DiskFull, RunStore, atomic_file, write_table
 from envs.errors import BenchError
 from reports.data.store import load_store
 from tests.bench.conftest import (

@@ -10,7 +10,8 @@ import pyarrow.parquet as pq
 import pytest
 import torch
 
-from bench.store.run_store import RunStore, atomic_file, load_checkpoint, read_table
+from bench.store.checkpoints import load_checkpoint
+from bench.store.run_store import RunStore, atomic_file, read_table
 from bench.store.schema import (
     CELLS_SCHEMA,
     EVAL_SCHEMA,
