@@ -56,7 +56,7 @@ anchors: .anchors-venv/.installed
 	touch $@
 
 ## marl-eval (PyPI id-marl-eval) pins pandas==1.4.4, which has no build for Python 3.11, so it
-## lives in its own venv, installed without its declared pins; tests/bench/test_export.py loads
+## lives in its own venv, installed without its declared pins; tests/bench/export/test_export.py loads
 ## `bench export --format marl-eval` with its data-processing functions there.
 marl-eval: .marl-eval-venv/.installed
 

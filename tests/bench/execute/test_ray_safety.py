@@ -125,7 +125,7 @@ import json, os, sys, time
 sys.path.insert(0, {repo!r})
 import ray
 from bench.execute.ray_cluster import connect, CLUSTER_MODE_ENV
-from tests.bench.test_ray_safety import _listeners, _ray_pids
+from tests.bench.execute.test_ray_safety import _listeners, _ray_pids
 ctx = connect(None, 1)
 @ray.remote
 def ping():
