@@ -50,9 +50,12 @@ from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout
 
-__all__ = ["UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
+__all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
 
 UNRANKED = 100  # legend_rank of a method that declares none: after the paper's methods
+# ``Method.paper_role``: the paper's own method, one of the baselines it is compared with, or
+# neither ("", every method a user brings), which the claims page judges against each baseline.
+REFERENCE, BASELINE = "reference", "baseline"
 
 
 class MethodParams(BaseModel):
@@ -98,7 +101,10 @@ class Method(ABC):
     sends per step are counted, shown by ``bench methods``), ``display_name`` and ``color``
     (legend label and hex colour in every report figure; default: the name, grey),
     ``line_style`` and
-    ``legend_rank`` (order in legends and tables; default after the built-ins).
+    ``legend_rank`` (order in legends and tables; default after the built-ins), and
+    ``paper_role`` (``REFERENCE`` for the paper's method, ``BASELINE`` for a baseline it is
+    compared with; "" for any other method, which the claims page checks for being above
+    each baseline of the run).
     """
 
     name: ClassVar[str]
@@ -110,6 +116,7 @@ class Method(ABC):
     color: ClassVar[str] = "#4d4d4d"
     line_style: ClassVar[str] = "-"  # matplotlib line style, so lines stay apart in greyscale
     legend_rank: ClassVar[int] = UNRANKED  # position in legends and tables (lower first)
+    paper_role: ClassVar[str] = ""  # REFERENCE, BASELINE or "" (a method of your own)
 
     @classmethod
     def label(cls) -> str:

@@ -33,7 +33,7 @@ from pydantic import Field
 from torch import nn
 from torch.nn import functional as F
 
-from algorithms.base import LearnedParams, Method, masked_logits
+from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
 from algorithms.common.episodes import Decision, EpisodeBatch
@@ -135,6 +135,7 @@ class DecentralizedMethod(Method):
     display_name = "Decentralized"
     color = "#de8f05"
     legend_rank = 1
+    paper_role = BASELINE  # compared with the paper's method (Sec. IV)
     line_style = "--"
     payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams

@@ -59,7 +59,7 @@ import torch
 from pydantic import Field
 from torch import nn
 
-from algorithms.base import LearnedParams, Method, masked_logits
+from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
@@ -214,6 +214,7 @@ class IC3NetMethod(Method):
     display_name = "IC3Net"
     color = "#029e73"
     legend_rank = 2
+    paper_role = BASELINE  # compared with the paper's method (Sec. IV)
     line_style = "-."
     payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams

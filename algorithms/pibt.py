@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.base import Method, MethodParams
+from algorithms.base import BASELINE, Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from envs.actions import WAIT
@@ -132,6 +132,7 @@ class PIBTMethod(Method):
     display_name = "PIBT"
     color = "#949494"
     legend_rank = 3
+    paper_role = BASELINE  # compared with the paper's method (Sec. IV)
     line_style = ":"
     payload_model = "not modelled: a centralized planner with full information (NaN in the eval rows)"
     learned = False

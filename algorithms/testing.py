@@ -29,7 +29,7 @@ import pandas as pd
 import pytest
 import torch
 
-from algorithms.base import Method, MethodParams
+from algorithms.base import BASELINE, REFERENCE, Method, MethodParams
 from algorithms.common.episodes import EVAL_METRICS, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.registry import method_class
@@ -78,6 +78,7 @@ class MethodContract:
         assert _HEX.match(cls.color), f"color must be '#rrggbb', got {cls.color!r}"
         assert isinstance(cls.payload_model, str) and cls.payload_model
         assert issubclass(cls.Params, MethodParams)
+        assert cls.paper_role in (REFERENCE, BASELINE, ""), f"paper_role must be REFERENCE, BASELINE or '', got {cls.paper_role!r}"
         modes = cls.execution_modes()
         assert modes and (modes == ("planner",)) == (not cls.learned)
 

@@ -32,6 +32,7 @@ from bench.store.completeness import incomplete_cells
 from bench.store.run_store import DiskFull, RunStore, file_mode, is_disk_full
 from envs.errors import BenchError
 from reports.claims.claims import all_claims
+from reports.claims.method_claims import method_claims
 from reports.claims.page import (
     calibration_markdown,
     claims_frame,
@@ -328,7 +329,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
                                   ci_display(g, ABLATION_LABELS, ABLATION_METRICS))
                                  for mode, g in ablation.groupby("execution", sort=False))))
 
-    claims = all_claims(train, evals, at=claims_at, cells=paper_cells)
+    claims = all_claims(train, evals, at=claims_at, cells=paper_cells) + method_claims(evals)
     cal = _calibration(out)
     write_text(out / "claims.md", claims_markdown(claims, cal))
     write_text(out / "claims_table.md", claims_table_markdown(claims))  # the README's table

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from pydantic import Field
 
-from algorithms.base import LearnedParams, Method
+from algorithms.base import REFERENCE, LearnedParams, Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice, sample_categorical
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
@@ -118,6 +118,7 @@ class HierarchicalMethod(Method):
     display_name = "Hierarchical (ours)"
     color = "#0173b2"
     legend_rank = 0
+    paper_role = REFERENCE  # the paper's own method
     safety_filter_default = True  # Sec. III-C: the predictive safety filter is part of the method
     payload_model = "inter-group messages on delivered links: (Z - 1) N d_m per step at most (Sec. III-A)"
     Params = HierarchicalParams

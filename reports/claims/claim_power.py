@@ -62,6 +62,12 @@ def power_greater(a: np.ndarray, b: np.ndarray) -> Power:
 
 
 @_unless_skipped
+def power_success(a: np.ndarray, b: np.ndarray) -> Power:
+    """``check_greater`` on per-seed mean success (a run's method above a baseline): +``EFFECT_SUCCESS``."""
+    return power_of([a, b], [1.0, -1.0], EFFECT_SUCCESS, f"+{EFFECT_SUCCESS:g} mean success")
+
+
+@_unless_skipped
 def power_gap(groups: Sequence[np.ndarray]) -> Power:
     """``check_gap`` (hier large, dec large, hier small, dec small): the gap at the large N
     wider by 10% of decentralized's mean final reward there."""

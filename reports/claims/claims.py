@@ -103,6 +103,7 @@ class Claim:
     statement: str  # what the paper says, with its place
     criterion: str  # how the data decides
     checks: list[Check] = field(default_factory=list)
+    home: str = "paper"  # the scope whose checks give the claim's verdict ("run": a method of the run's own)
 
     def verdict_at(self, scope: str) -> str | None:
         """Combined verdict of the checks of ``scope``; None if it has none."""
@@ -111,12 +112,14 @@ class Claim:
 
     @property
     def verdict(self) -> str:
-        """The verdict at the paper's configurations (every execution mode)."""
-        return self.verdict_at("paper") or NOT_ENOUGH
+        """The verdict at the claim's home scope (the paper's configurations; a run
+        method's claim: the run's), every execution mode."""
+        return self.verdict_at(self.home) or NOT_ENOUGH
 
-    def verdict_by_mode(self, scope: str = "paper") -> dict[str, str]:
-        """Combined verdict per execution mode of the checks of ``scope`` (modes in first
-        appearance order; "-" for checks without data)."""
+    def verdict_by_mode(self, scope: str | None = None) -> dict[str, str]:
+        """Combined verdict per execution mode of the checks of ``scope`` (default the
+        claim's home; modes in first appearance order; "-" for checks without data)."""
+        scope = self.home if scope is None else scope
         modes: dict[str, list[str]] = {}
         for c in self.checks:
             if c.scope == scope:
@@ -195,21 +198,28 @@ Configs = Sequence[tuple]
 
 def _each(claim: Claim, paper: Configs, run: Configs,
           fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
+    """``decide_scope`` at the paper's configurations, then at the run's own ones that are
+    not paper ones (``--claims-at run``)."""
+    decide_scope(claim, "paper", paper, fn)
+    return decide_scope(claim, "run", [c for c in run if c not in paper], fn)
+
+
+def decide_scope(claim: Claim, scope: str, configs: Configs,
+                 fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
     """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
-    test[, power])] per scope (``power`` a ``reports.claims.power.Power``, only with a verdict
-    that has seeds); run configurations that are paper ones are not repeated.
+    test[, power])] as the checks of ``scope`` (``power`` a ``reports.claims.power.Power``,
+    only with a verdict that has seeds).
 
     A scope's k checks decide one claim, and one contradicted check contradicts it, so
     each check may contradict only at TEST_ALPHA / k (Bonferroni; ``reports.claims.verdicts``):
     a first pass counts the checks, the second decides at that level."""
-    for scope, configs in (("paper", paper), ("run", [c for c in run if c not in paper])):
-        first = [fn(c, TEST_ALPHA) for c in configs]
-        k = sum(len(rows) for rows in first)
-        decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
-        for rows in decided:
-            for label, ex, v, nums, test, *power in rows:
-                pw = power[0] if power and v != NOT_ENOUGH else NO_POWER
-                claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text()))
+    first = [fn(c, TEST_ALPHA) for c in configs]
+    k = sum(len(rows) for rows in first)
+    decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
+    for rows in decided:
+        for label, ex, v, nums, test, *power in rows:
+            pw = power[0] if power and v != NOT_ENOUGH else NO_POWER
+            claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text()))
     return claim
 
 

@@ -27,7 +27,7 @@ def claims_frame(claims: Sequence[Claim]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=CHECK_COLUMNS)
 
 
-def _by_mode(c: Claim, scope: str = "paper") -> str:
+def _by_mode(c: Claim, scope: str | None = None) -> str:
     return "; ".join(f"{m}: {v}" for m, v in c.verdict_by_mode(scope).items() if m != "-")
 
 
@@ -93,7 +93,9 @@ def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None) -> str:
 def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None) -> str:
     """The claims page: a verdict table, then per claim the statement, the test and one
     row per configuration and execution mode."""
-    run_scope = any(k.scope == "run" for c in claims for k in c.checks)
+    own = [c for c in claims if c.home != "paper"]  # claims of the run's own methods (method_claims)
+    paper = [c for c in claims if c.home == "paper"]
+    run_scope = any(k.scope == "run" for c in paper for k in c.checks)
     lines = ["# Claims of the paper's Sec. IV against this run", "",
              "Verdicts: " + ", ".join(f"**{v}**" for v in VERDICTS) + ". Tests take the seed as "
              "the unit (per-seed means, Welch / one-sample t, level 0.0125: a quarter of 0.05, the "
@@ -111,11 +113,21 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
     head = "| claim | name | verdict (paper configurations) | per execution mode |"
     lines += [head + (" verdict (run configurations) |" if run_scope else ""),
               "|---|---|---|---|" + ("---|" if run_scope else "")]
-    for c in claims:
+    for c in paper:
         row = f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
         lines.append(row + (f" {c.verdict_at('run') or '-'} |" if run_scope else ""))
+    if own:
+        lines += ["", "## Methods of this run above each baseline", "",
+                  "Each method of the run that is neither the paper's method nor a baseline (its "
+                  "`paper_role`), checked against every baseline of the run at every configuration "
+                  "both ran, per execution mode: the same one-sided Welch t over per-seed means at "
+                  "0.0125, contradicted at 0.0125 / k over the claim's k checks, power beside each "
+                  "check, and calibrated with the paper's claims (the family `above_baselines`).", "",
+                  "| claim | name | verdict (run configurations) | per execution mode |", "|---|---|---|---|"]
+        lines += [f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
+                  for c in own]
     for c in claims:
-        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*Paper:* {c.statement}", "",
+        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*{'Paper' if c.home == 'paper' else 'Claim'}:* {c.statement}", "",
                   f"*Test:* {c.criterion}", "", f"**Verdict: {c.verdict}**", "",
                   "| scope | configuration | execution | verdict | numbers | test | power |",
                   "|---|---|---|---|---|---|---|"]

@@ -84,7 +84,11 @@ def index_markdown(d: IndexData) -> str:
     lines = [f"# Report: {title}", "", f"Run directory: `{d.run_dir}`", ""]
     head, missing = _cell_lines(d.cells)
     lines += ["## Claims of the paper (Sec. IV)", "", "| claim | verdict |", "|---|---|"]
-    lines += [f"| {c.key} | **{c.verdict}** |" for c in d.claims]
+    lines += [f"| {c.key} | **{c.verdict}** |" for c in d.claims if c.home == "paper"]
+    own = [c for c in d.claims if c.home != "paper"]  # reports.claims.method_claims
+    if own:
+        lines += ["", "## Methods of this run above each baseline", "", "| claim | verdict (run configurations) |",
+                  "|---|---|"] + [f"| {c.key} | **{c.verdict}** |" for c in own]
     lines += ["", "Details, numbers and tests: [claims.md](claims.md)", "", "## Figures and tables", ""]
     for e in d.entries:
         links = ", ".join(f"[{f}]({f})" for f in e.files)
@@ -166,10 +170,17 @@ def index_html(d: IndexData) -> str:
     parts = [f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", h2("Claims of the paper (Sec. IV)")]
     claims_toc = toc[-1][2]  # each claim's block of checks, nested under the claims' heading
     claim_ids = {c.key: anchor(f"claim {c.key}") for c in d.claims}
-    parts.append(scroll_box(_table(["claim", "key", "verdict"], [
-        [f"<a href='#{e(claim_ids[c.key])}'>{e(c.name)}</a>", f"<code>{e(c.key)}</code>", badge(c.verdict)]
-        for c in d.claims], "Verdict of each claim at the paper's configurations (its checks per "
-        "configuration and execution mode under \"Claims of Sec. IV\" below)")))
+    paper, own = [c for c in d.claims if c.home == "paper"], [c for c in d.claims if c.home != "paper"]
+
+    def verdicts(claims: list[Claim], caption: str) -> str:
+        return scroll_box(_table(["claim", "key", "verdict"], [
+            [f"<a href='#{e(claim_ids[c.key])}'>{e(c.name)}</a>", f"<code>{e(c.key)}</code>", badge(c.verdict)]
+            for c in claims], caption))
+    parts.append(verdicts(paper, "Verdict of each claim at the paper's configurations (its checks per "
+                          "configuration and execution mode under \"Claims of Sec. IV\" below)"))
+    if own:  # reports.claims.method_claims
+        parts.append(verdicts(own, "Methods of this run above each baseline: verdict at the run's "
+                              "configurations (its checks under \"Claims of Sec. IV\" below)"))
     parts.append(h2("Figures and tables"))
     for k, en in enumerate(d.entries):
         uid = anchor(en.title)
@@ -185,7 +196,8 @@ def index_html(d: IndexData) -> str:
             parts.append(f"<p>Files: {links}</p>")
         if en.checks is not None:
             block, claim_toc = grouped_checks_html(en.checks, {c.key: c.verdict for c in d.claims},
-                                                   lambda key: claim_ids.get(key) or anchor(f"claim {key}"))
+                                                   lambda key: claim_ids.get(key) or anchor(f"claim {key}"),
+                                                   {c.key for c in own})
             parts.append(block)
             claims_toc += claim_toc
         for j, (caption, frame) in enumerate(en.tables):

@@ -12,7 +12,7 @@ Pure: ``checks`` is ``reports.claims.page.claims_frame``'s frame.
 from __future__ import annotations
 
 import html
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 
 import pandas as pd
 
@@ -46,10 +46,12 @@ def undecided_text(rows: pd.DataFrame) -> str:
 
 
 def grouped_checks_html(checks: pd.DataFrame, claim_verdicts: Mapping[str, str],
-                        claim_id: Callable[[str], str]) -> tuple[str, list[tuple[str, str]]]:
+                        claim_id: Callable[[str], str], own: Collection[str] = ()
+                        ) -> tuple[str, list[tuple[str, str]]]:
     """HTML of every claim's checks, and the (name, element id) of each claim's block for
-    the table of contents. ``claim_verdicts``: claim key -> its verdict at the paper's
-    configurations; ``claim_id``: claim key -> the element id of its block."""
+    the table of contents. ``claim_verdicts``: claim key -> its verdict (at the paper's
+    configurations; for the keys in ``own``, claims of the run's own methods, at the run's);
+    ``claim_id``: claim key -> the element id of its block."""
     e = html.escape
     out, toc = [], []
     for key, rows in checks.groupby("claim", sort=False):
@@ -72,7 +74,8 @@ def grouped_checks_html(checks: pd.DataFrame, claim_verdicts: Mapping[str, str],
                 cols = [c for c in cols if c != "scope"]
             body.append(scroll_box(html_table(
                 decided[cols].astype(str).reset_index(drop=True),
-                f"Claims of the paper's Sec. IV: {name}: the checks that were decided", f"c_{key}"), wrap=True))
+                ("" if key in own else "Claims of the paper's Sec. IV: ") + f"{name}: the checks that were decided",
+                f"c_{key}"), wrap=True))
         if len(undecided):
             body.append(f"<p class='thin'><span class='not-enough-seeds'>Not enough seeds</span> (fewer "
                         f"than 3 on a side) at {len(undecided)} check(s): {e(undecided_text(undecided))}</p>")
