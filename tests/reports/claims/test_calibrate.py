@@ -22,7 +22,7 @@ def test_calibrate__every_scenario_at_every_seed_count_and_truth(quick):
     assert len(quick) == len(SCENARIOS) * 2
     assert set(quick["truth"]) == {"null", "effect"}
     assert set(quick["test"]) == {"hier_above_dec", "gap_widens", "convergence", "above_ic3net",
-                                  "no_collisions", "few_corrections"}
+                                  "no_collisions", "few_corrections", "above_baselines"}
 
 
 def test_calibrate__nothing_wildly_off_with_few_simulations(quick):
@@ -36,7 +36,7 @@ def test_calibrate__nothing_wildly_off_with_few_simulations(quick):
 
 def test_calibrate__a_subset_of_scenarios_gives_the_same_rows(quick):
     sub = calibrate(sims=24, seed=0, seed_counts=(3,), scenarios=FAMILIES)
-    assert len(sub) == 2 * len(FAMILIES) == 6
+    assert len(sub) == 2 * len(FAMILIES) == 8
     whole = quick[quick["scenario"].isin(sub["scenario"])].reset_index(drop=True)
     pd.testing.assert_frame_equal(sub.reset_index(drop=True), whole)
 

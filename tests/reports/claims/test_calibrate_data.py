@@ -147,13 +147,14 @@ def test_committed_calibration__every_claim_checked_within_the_limit(committed):
     assert rep["all_null_ok"] and rep["meta"]["sims"] >= 5000 and rep["meta"]["run"] == "reproduction/paper"
     assert set(cal["test"]) == {"hier_above_dec", "gap_widens", "convergence", "above_ic3net", "no_collisions",
                                 "collisions_printed", "few_corrections", "table1_candidates", "searches_grow",
-                                "normal_search"}
+                                "normal_search", "above_baselines"}
     null = cal[cal["truth"] == "null"]
     assert (null["mc_se"] <= 0.005).all() and (null["contra_se"] <= 0.005).all()
     assert (null["rate"] <= D.null_limit(5000)).all()
     assert cal["contra_ok"].all() and cal["null_ok"].all()
     whole = cal[cal["check"].str.startswith("whole claim")]
     assert set(whole["test"]) >= {"hier_above_dec", "gap_widens", "convergence", "above_ic3net",
-                                  "few_corrections", "collisions_printed", "table1_candidates", "normal_search"}
+                                  "few_corrections", "collisions_printed", "table1_candidates", "normal_search",
+                                  "above_baselines"}
     assert "5 vs 3" in set(cal["seeds"])  # the unequal seed counts of Fig. 2 at N = 40, p = 0.2
     assert set(cal["source"]) == {"resampled", "normal", "binomial"}
