@@ -4,8 +4,9 @@
 #   examples/external_method  pip-installed, its methods registered by entry point;
 #   examples/module_path      not installed, named as module:Class on PYTHONPATH.
 # Each goes through bench methods, its contract tests, bench run, bench report (also
-# --against reproduction/paper), bench tune and bench eval; at the end, no tracked file of
-# this package differs from before. `make example-check`; .ci/run calls it.
+# --against reproduction/paper), bench tune and bench eval; their claims ("M above each
+# baseline") must be on the claims pages; at the end, no tracked file of this package
+# differs from before. `make example-check`; .ci/run calls it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV="${VENV:-.venv}"
@@ -33,9 +34,14 @@ PYTHONPATH=examples/module_path "$BENCH" eval --method wmb_random:RandomWalk --n
 for want in "Greedy (example)|$OUT/smoke/report/leaderboard.md" "Linear (example)|$OUT/smoke/report/leaderboard.md" \
             "Random walk (example)|$OUT/module-path/report/leaderboard.md" \
             "Greedy (example)|$OUT/vs-paper/report/leaderboard.md" "Hierarchical (ours)|$OUT/vs-paper/report/leaderboard.md" \
-            "merged with|$OUT/vs-paper/report/index.md"; do
+            "merged with|$OUT/vs-paper/report/index.md" \
+            "## above_baselines_greedy|$OUT/vs-paper/report/claims.md" \
+            "Greedy (example) above each baseline (mean success)|$OUT/vs-paper/report/claims.md" \
+            "vs PIBT, N = 20, p = 0.2|$OUT/vs-paper/report/claims.md" \
+            "Greedy (example) above each baseline|$OUT/vs-paper/report/index.html" \
+            "## above_baselines_wmb_random:RandomWalk|$OUT/module-path/report/claims.md"; do
   grep -q "${want%%|*}" "${want#*|}" || { echo "example-check: '${want%%|*}' missing from ${want#*|}" >&2; exit 1; }
 done
 after=$(git status --porcelain -- $PACKAGE; git diff -- $PACKAGE | sha256sum)
 [ "$before" = "$after" ] || { echo "example-check: files of this package changed" >&2; exit 1; }
-echo "example-check: both outside packages ran through methods, run, report (--against), tune and eval; this package unchanged"
+echo "example-check: both outside packages ran through methods, run, report (--against), tune and eval, their claims on the claims pages; this package unchanged"
