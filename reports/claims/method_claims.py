@@ -23,7 +23,16 @@ import pandas as pd
 from algorithms.base import BASELINE, REFERENCE
 from algorithms.registry import find_method
 from reports.claims.claim_power import power_success
-from reports.claims.claims import Claim, _cfg, _mode_key, decide_scope, mode_pairs, run_configs, seed_means, with_execution
+from reports.claims.claims import (
+    Claim,
+    _cfg,
+    _mode_key,
+    decide_scope,
+    mode_pairs,
+    run_configs,
+    seed_means,
+    with_execution,
+)
 from reports.claims.power import NO_POWER
 from reports.claims.verdicts import NOT_ENOUGH, TEST_ALPHA, check_greater
 from reports.data.store import select

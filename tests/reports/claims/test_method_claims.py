@@ -10,7 +10,12 @@ import pandas as pd
 from algorithms.base import BASELINE, REFERENCE
 from algorithms.registry import method_class
 from reports.claims.claims import claim_above_ic3net
-from reports.claims.method_claims import claim_above_baselines, method_claims, methods_by_role, paper_role
+from reports.claims.method_claims import (
+    claim_above_baselines,
+    method_claims,
+    methods_by_role,
+    paper_role,
+)
 from reports.claims.page import claims_frame, claims_markdown
 from reports.claims.verdicts import CONTRADICTED, NOT_ENOUGH, SUPPORTED, TEST_ALPHA
 
