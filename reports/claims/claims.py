@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from algorithms.hierarchical.safety_filter import lemma1_count
 from reports.claims.claim_power import (
     power_below,
     power_convergence,
@@ -54,7 +55,6 @@ from reports.claims.verdicts import (
     check_gap,
     check_greater,
     combine,
-    lemma1_bound,
     per_seed_means,
     seeds_msg,
 )
@@ -397,7 +397,7 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
     def one(c: tuple, _: float) -> list:  # arithmetic: no error to control
         n, z, radius, c_max = c
         n_z = -(-n // z)
-        b = lemma1_bound(n_z, radius)
+        b = lemma1_count(n_z, radius)
         v = BY_CONSTRUCTION if b <= c_max else CONDITION_NOT_MET
         return [(f"N = {n}, Z = {z}, L = {radius}, C_max = {c_max}", "-", v,
                  f"n_z = {n_z}: bound {b:,} {'<=' if b <= c_max else '>'} C_max = {c_max}",
