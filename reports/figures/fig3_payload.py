@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FixedLocator
 
+from bench.design.paper import PAPER_FIG3_P
 from reports.data.store import fmt_p, select
 from reports.figures.plotting import (
     Built,
@@ -33,8 +34,6 @@ from reports.figures.plotting import (
 from reports.figures.seed_counts import counts_text, seed_counts
 from reports.figures.ticks import log_ticks, spaced_formatter
 
-PAPER_P = 0.2
-
 
 def payload_points(evals: pd.DataFrame) -> pd.DataFrame:
     """One row per hierarchical (N, Z): measured C_hier, C_dec, ratio and bound.
@@ -46,9 +45,9 @@ def payload_points(evals: pd.DataFrame) -> pd.DataFrame:
     cols = ["n_robots", "groups", "d_m", "c_hier", "c_dec", "c_dec_source", "ratio", "ratio_max",
             "bound", "c_hier_bound", "episodes", "p_used"]
     ev = evals
-    if any(np.isclose(PAPER_P, q) for q in ev["loss_p"].dropna().astype(float)):
-        ev = select(ev, loss_p=PAPER_P)
-        p_used = fmt_p(PAPER_P)
+    if any(np.isclose(PAPER_FIG3_P, q) for q in ev["loss_p"].dropna().astype(float)):
+        ev = select(ev, loss_p=PAPER_FIG3_P)
+        p_used = fmt_p(PAPER_FIG3_P)
     else:
         p_used = "all"
     hier = select(ev, "hierarchical")
@@ -105,13 +104,13 @@ def fig3_payload(evals: pd.DataFrame) -> Built:
     """Build Fig. 3 from evaluation rows joined with their cell config."""
     notes: list[str] = []
     pts = payload_points(evals)
-    ev = select(evals, loss_p=PAPER_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
+    ev = select(evals, loss_p=PAPER_FIG3_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
     base = {m: select(ev, m).groupby("n_robots")["payload_scalars_per_step"].mean() for m in BASELINES}
     dec = base["decentralized"]
     if pts.empty:
         notes.append("the run has no hierarchical evaluation rows: nothing to plot")
     elif pts["p_used"].iloc[0] == "all":
-        notes.append(f"no p = {fmt_p(PAPER_P)} in the run; payloads pooled over every p")
+        notes.append(f"no p = {fmt_p(PAPER_FIG3_P)} in the run; payloads pooled over every p")
     if dec.empty:
         notes.append("no decentralized evaluation rows: C_dec is the all-to-all reference N(N-1)d_m")
     if base["ic3net"].empty:

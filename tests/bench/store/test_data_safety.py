@@ -160,13 +160,13 @@ class _FullFile:
 
 @pytest.fixture
 def full_disk(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every file opened by atomic_file (os.fdopen) fails its first write with ENOSPC."""
-    real = os.fdopen
+    """Every file opened by atomic_file (envs/atomic.py) fails its first write with ENOSPC."""
+    import envs.atomic
 
-    def fdopen(fd: int, *args: object, **kw: object) -> object:
-        return _FullFile(real(fd, *args, **kw), room=0)
+    def full_open(path: str, *args: object, **kw: object) -> object:
+        return _FullFile(open(path, *args, **kw), room=0)  # type: ignore[call-overload]
 
-    monkeypatch.setattr(store_mod.os, "fdopen", fdopen)
+    monkeypatch.setattr(envs.atomic, "open", full_open, raising=False)
 
 
 def test_disk_full__a_write_is_one_bench_error_and_the_old_file_stays(tmp_path: Path, full_disk: None) -> None:
