@@ -72,8 +72,8 @@ from reports.claims.verdicts import (
     per_seed_means,
     seeds_msg,
 )
+from reports.data.payload import payload_points
 from reports.data.store import fmt_p, select
-from reports.figures.fig3_payload import payload_points
 
 RATIO_TOL = 0.01  # payload ratio "equal" to the bound: within 1%
 TRAINING = "training (sampled)"
