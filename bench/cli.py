@@ -475,7 +475,7 @@ def calibrate(
     rep = calibration_report(sims, seed, coverage_sims=coverage_sims, run=run)
     text = json.dumps(rep, indent=2)
     if out is not None:
-        from bench.store.run_store import atomic_file
+        from envs.atomic import atomic_file
 
         with atomic_file(out) as fh:
             fh.write(text.encode())
@@ -524,7 +524,7 @@ def perf(
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     _print_frame(df, f"bench perf --suite {suite.value}")
     if json_path is not None:
-        from bench.store.run_store import atomic_file
+        from envs.atomic import atomic_file
 
         with atomic_file(json_path) as fh:
             fh.write(df.to_json(orient="records", indent=2).encode())
@@ -606,7 +606,7 @@ def _exit_on(exc: BaseException) -> None:
         _error("interrupted; rerun the same command to resume")
         sys.exit(130)
     except OSError as exc:  # a full disk outside the store's own writes (which raise DiskFull)
-        from bench.store.run_store import DiskFull, is_disk_full
+        from envs.atomic import DiskFull, is_disk_full
 
         if not is_disk_full(exc):
             raise

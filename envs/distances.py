@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 import weakref
 from pathlib import Path
 
@@ -28,6 +27,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from envs.atomic import DiskFull, atomic_file
 from envs.layouts import Layout
 
 UNREACHABLE = np.iinfo(np.int32).max // 4
@@ -155,18 +155,11 @@ class DistanceCache:
 
 
 def _atomic_save(path: Path, table: np.ndarray) -> None:
-    """Write ``table`` as .npy via a temp file and rename; a read-only cache is skipped."""
+    """Write ``table`` as .npy atomically (envs/atomic.py); a read-only or full cache is skipped."""
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.save(fh, table)
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError:
+        with atomic_file(path) as fh:
+            np.save(fh, table)
+    except (OSError, DiskFull):
         pass  # no writable cache: the table still serves this process
 
 

@@ -260,9 +260,6 @@ def preset_for(n_robots: int) -> str:
 
 
 MAPS_DIR = Path(__file__).parent / "maps"
-# The paper's warehouse layouts are not published; this standard MAPF warehouse map
-# (5,699 free cells) is the bundled stand-in used by the paper and full grids.
-PAPER_MAP = "warehouse-10-20-10-2-1"
 
 
 def bundled_maps() -> list[str]:

@@ -21,13 +21,13 @@ Frame legend (``render_rgb``):
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
+from envs.atomic import atomic_path
 from envs.errors import BenchError
 
 # Ten group colours (tab10 without red, which marks collisions and lost links).
@@ -278,7 +278,7 @@ def show_in_terminal(text: str, stream: TextIO) -> None:
 
 def write_gif(frames: Sequence[np.ndarray] | np.ndarray, path: str | os.PathLike[str],
               fps: float = 8.0) -> Path:
-    """Write (T, H, W, 3) uint8 frames as a looping GIF, atomically (temp file + rename).
+    """Write (T, H, W, 3) uint8 frames as a looping GIF, atomically (envs/atomic.py).
 
     GIF encoders merge identical consecutive frames; so that the file keeps one frame per
     step, the corner pixel of a frame equal to its predecessor is inverted.
@@ -294,16 +294,6 @@ def write_gif(frames: Sequence[np.ndarray] | np.ndarray, path: str | os.PathLike
     for t in range(1, len(stack)):
         if np.array_equal(stack[t], stack[t - 1]):
             stack[t, 0, 0] = 255 - stack[t, 0, 0]
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         iio.imwrite(tmp, stack, extension=".gif", duration=int(round(1000 / fps)), loop=0)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a GIF follows the umask like any file
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path

@@ -19,17 +19,15 @@ calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 
 import pandas as pd
-from matplotlib.figure import Figure
 
 from bench.store.completeness import incomplete_cells
-from bench.store.run_store import DiskFull, RunStore, file_mode, is_disk_full
+from bench.store.run_store import RunStore
+from bench.store.study_files import CONFIG_FILE, LINK_KEY, REPORT_PAGES, report_files
+from bench.store.study_files import REPORT_DIR as STUDY_REPORT_DIR
+from envs.atomic import temp_target
 from envs.errors import BenchError
 from reports.claims.claims import all_claims
 from reports.claims.method_claims import method_claims
@@ -45,7 +43,6 @@ from reports.data.variants import cell_variants, default_rows
 from reports.figures.fig1_training import fig1_training
 from reports.figures.fig2_success import fig2_modes, fig2_success
 from reports.figures.fig3_payload import fig3_payload
-from reports.figures.plotting import DPI
 from reports.matrix import matrix_entries
 from reports.pages.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.tables.ablation import ablation_frame, ablation_markdown, component_values, setting
@@ -74,6 +71,7 @@ from reports.tables.table1_safety import (
     table1_latex,
     table1_markdown,
 )
+from reports.writers import copy_file, save_figure, write_text
 
 REPORT_DIR = "report"
 ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
@@ -89,108 +87,53 @@ def mode_slug(mode: str) -> str:
     return "".join(c if c.isalnum() else {"@": "_at_", ".": "p"}.get(c, "_") for c in mode)
 
 
-def _atomic(path: Path, write: Callable[[str], None]) -> Path:
-    """Call ``write(tmp)`` on a temp file next to ``path``, then rename it into place."""
-    tmp = ""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.close(fd)
-        write(tmp)
-        os.chmod(tmp, file_mode())  # mkstemp creates 0600; a report follows the umask like any file
-        os.replace(tmp, path)
-    except BaseException as exc:
-        if tmp:
-            Path(tmp).unlink(missing_ok=True)
-        if is_disk_full(exc):
-            raise DiskFull(path) from None
-        raise
-    return path
-
-
 def remove_stale_temp_files(out: Path) -> int:
     """Delete the temp files ('.<name>.<random>.tmp') an earlier report left when it was
     killed (SIGKILL, power loss) before its atomic writes could clean up; returns how many."""
-    from bench.store.run_store import _temp_target
-
     if not out.is_dir() or out.is_symlink():
         return 0
-    stale = [p for p in out.rglob(".*.tmp") if p.is_file() and not p.is_symlink() and _temp_target(p.name)]
+    stale = [p for p in out.rglob(".*") if p.is_file() and not p.is_symlink() and temp_target(p.name)]
     for p in stale:
         p.unlink(missing_ok=True)
     return len(stale)
 
 
-def write_text(path: Path, text: str) -> Path:
-    return _atomic(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
-
-
-def save_figure(fig: Figure, stem: Path, caption: str = "") -> list[Path]:
-    """``stem``.png (200 dpi) and ``stem``.pdf; with a caption, also ``stem``.txt holding it
-    and the caption in the files' metadata (PDF Subject, PNG Description); the PDF has no
-    creation date, so rebuilding a report gives the same bytes."""
-    keys = {"png": "Description", "pdf": "Subject"}
-    # No creation date in the PDF: a rebuilt report is byte-identical (tests/reproduction).
-    fixed = {"png": {}, "pdf": {"CreationDate": None}}
-    out = [_atomic(stem.with_suffix(f".{fmt}"),
-                   lambda tmp, fmt=fmt: fig.savefig(
-                       tmp, format=fmt, dpi=DPI,
-                       metadata={**fixed[fmt], **({keys[fmt]: caption} if caption else {})}))
-           for fmt in ("png", "pdf")]
-    if caption:
-        out.append(write_text(stem.with_suffix(".txt"), caption + "\n"))
-    return out
-
-
-STUDY_LINK_KEY = "run"  # studies/<name>/study.json: the run folder name the study was launched for
 HOW_TO_LINK = ("No study records this run. A study is linked when its studies/<name>/study.json "
                "(beside the run folder) holds \"run\": \"{run}\"; its report is then copied into "
                "this report's studies/<name>/ folder.")
 
 
-def _copy(src: Path, dst: Path) -> str:
-    """Copy ``src`` to ``dst`` atomically; returns ``dst``'s name relative to its report."""
-    _atomic(dst, lambda tmp: shutil.copyfile(src, tmp))
-    return dst.name
-
-
 def _study_entries(run_dir: Path, out: Path, problems: list[str] | None = None) -> tuple[list[Entry], str]:
     """Optuna studies launched for this run (``<run>/../studies/<name>/study.json`` naming
-    the run folder under ``"run"``): their reports are rebuilt, copied into
-    ``<report>/studies/<name>/`` (links stay inside the report folder) and linked. Returns
-    the entries and, when none is linked, a note saying how to link one. A study whose
-    study.json or trials cannot be read is left out with a line in ``problems`` (it may be
-    another run's: it never stops the report)."""
+    the run folder under ``"run"``): the report ``bench tune`` built for each
+    (``studies/<name>/report/``) is copied into ``<report>/studies/<name>/`` (links stay
+    inside the report folder) and linked. Returns the entries and, when none is linked, a
+    note saying how to link one. A study whose study.json cannot be read, or whose report
+    was never built, is left out with a line in ``problems`` (it may be another run's: it
+    never stops the report)."""
     from bench.store.meta_schema import StudyConfig, validated
-    from studies.export import CONFIG_FILE, TRIALS_FILE
-    from studies.report import build_study_report
 
     problems = problems if problems is not None else []
-
     entries = []
     run = run_dir.resolve()
-    for trials in sorted((run.parent / "studies").glob(f"*/{TRIALS_FILE}")):
-        cfg_path = trials.parent / CONFIG_FILE
-        shown = f"studies/{trials.parent.name}"
+    for cfg_path in sorted((run.parent / "studies").glob(f"*/{CONFIG_FILE}")):
+        name = cfg_path.parent.name
+        shown = f"studies/{name}"
         try:
-            cfg = validated(StudyConfig, json.loads(cfg_path.read_text(encoding="utf-8")),
-                            cfg_path) if cfg_path.exists() else {}
+            cfg = validated(StudyConfig, json.loads(cfg_path.read_text(encoding="utf-8")), cfg_path)
         except (OSError, ValueError, BenchError) as exc:
             why = str(exc) if isinstance(exc, BenchError) else " ".join(str(exc).split())[:160]
             problems.append(f"study {shown} beside the run was left out: its {CONFIG_FILE} is unreadable ({why})")
             continue
-        if str(cfg.get(STUDY_LINK_KEY, "")) not in (run.name, str(run)):
+        if str(cfg.get(LINK_KEY, "")) not in (run.name, str(run)):
             continue
-        name = trials.parent.name
-        try:
-            files = build_study_report(trials.parent)
-        except DiskFull:
-            raise
-        except (OSError, ValueError, BenchError) as exc:
-            problems.append(f"study {shown} was left out: its report cannot be built ({' '.join(str(exc).split())[:160]})")
+        built = cfg_path.parent / STUDY_REPORT_DIR
+        files = [built / f for f in report_files() if (built / f).is_file()]
+        if not any(f.name in REPORT_PAGES for f in files):
+            problems.append(f"study {shown} was left out: it has no built report ({shown}/{STUDY_REPORT_DIR}/ "
+                            "holds no study page; `bench tune` writes it when the study's trials finish)")
             continue
-        rel = tuple(f"studies/{name}/{_copy(f, out / 'studies' / name / f.name)}"
-                    for f in files if f.suffix in (".html", ".md", ".png", ".pdf"))
+        rel = tuple(f"studies/{name}/{copy_file(f, out / 'studies' / name / f.name).name}" for f in files)
         image = next((r for r in rel if r.endswith("study_landscape.png")), None)
         entries.append(Entry(f"Study {name}: |R_z| x L (bench tune)",
                              tuple(r for r in rel if r.endswith((".html", ".md"))) + rel, image=image,
@@ -206,7 +149,7 @@ def _calibration(out: Path) -> str | None:
     table when absent); returns its name for the claims page, None without a table."""
     cached = out / "calibration.json"
     if not cached.exists() and CALIBRATION.exists():
-        _atomic(cached, lambda tmp: shutil.copyfile(CALIBRATION, tmp))
+        copy_file(CALIBRATION, cached)
     if not cached.exists():
         return None
     rep = json.loads(cached.read_text(encoding="utf-8"))
@@ -343,14 +286,14 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
 
     studies, studies_note = _study_entries(Path(run_dir), out, store.problems)
     entries += studies
-    entries += matrix_entries(run_dir, out, save_figure, write_text)  # RUN/matrix/ (bench matrix)
+    entries += matrix_entries(run_dir, out)  # RUN/matrix/ (bench matrix)
 
     # Replays written by `bench replay` (default RUN/replays/) are copied into the report
     # folder, so its links stay inside it.
     kinds = ("*.gif", "*.mp4")
     for clip in sorted(c for k in kinds for c in (Path(run_dir) / "replays").glob(k)):
         if clip.resolve().parent != (out / "replays").resolve():
-            _copy(clip, out / "replays" / clip.name)
+            copy_file(clip, out / "replays" / clip.name)
     replays = sorted(str(p.relative_to(out)) for k in kinds for p in out.glob(f"replays/{k}"))
     data = IndexData(_shown_path(Path(run_dir)), store.manifest, store.cells, entries, claims,
                      store.problems, replays, studies_note)

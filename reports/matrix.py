@@ -15,7 +15,6 @@ unsupported units with their reason) and matrix.csv.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +34,7 @@ from reports.figures.plotting import (
 )
 from reports.pages.index import Entry
 from reports.stats import mean_ci
+from reports.writers import save_figure, write_text
 
 KEYS = ["method", "train_n", "train_p", "eval_n", "eval_p", "loss_model", "burst_length", "execution"]
 METRIC = "success_rate"
@@ -214,10 +214,9 @@ def matrix_markdown(table: pd.DataFrame, sentences: list[str], unsupported: pd.D
     return "\n".join(lines) + "\n"
 
 
-def matrix_entries(run_dir: Path | str, out: Path, save_figure: Callable[..., list[Path]],
-                   write_text: Callable[[Path, str], Path]) -> list[Entry]:
-    """Build the section when ``RUN/matrix/`` holds units; [] otherwise. The writers come
-    from reports/build.py (atomic writes)."""
+def matrix_entries(run_dir: Path | str, out: Path) -> list[Entry]:
+    """Build the section when ``RUN/matrix/`` holds units; [] otherwise (files written by
+    reports/writers.py, atomically)."""
     from bench.execute.matrix import read_matrix
 
     problems: list[str] = []

@@ -198,8 +198,7 @@ def render_steps(layout: Any, rec: Recorder, groups: np.ndarray, adjacency: np.n
 def write_mp4(frames: list[np.ndarray], path: Path | str, fps: float = 8.0) -> Path:
     """Write frames as H.264 MP4 (yuv420p) atomically; frames are padded white to a multiple
     of 16 px. BenchError when ``imageio-ffmpeg`` is not installed."""
-    import os
-    import tempfile
+    from envs.atomic import atomic_path
 
     ffmpeg = require_mp4()
     path = Path(path)
@@ -207,23 +206,13 @@ def write_mp4(frames: list[np.ndarray], path: Path | str, fps: float = 8.0) -> P
         raise BenchError(f"write_mp4 {str(path)!r}: no frames to write")
     h, w = frames[0].shape[:2]
     ph, pw = -(-h // 16) * 16, -(-w // 16) * 16
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp.mp4", dir=path.parent)
-    os.close(fd)
-    try:
-        writer = ffmpeg.write_frames(tmp, (pw, ph), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
+    with atomic_path(path, suffix=".mp4") as tmp:  # ffmpeg picks the container by the suffix
+        writer = ffmpeg.write_frames(str(tmp), (pw, ph), fps=fps, codec="libx264", pix_fmt_out="yuv420p",
                                      macro_block_size=16, quality=8, ffmpeg_log_level="error")
         writer.send(None)
         for f in frames:
             writer.send(np.ascontiguousarray(np.pad(f, ((0, ph - h), (0, pw - w), (0, 0)), constant_values=255)))
         writer.close()
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; a video is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     return path
 
 

@@ -16,8 +16,8 @@ import numpy as np
 import torch
 
 from algorithms.hierarchical.method import HierarchicalMethod
+from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
-from envs.layouts import PAPER_MAP
 
 VARIANTS = {
     "paper": {}, "oracle messages": {"messages": "oracle"}, "last-received": {"messages": "last"},

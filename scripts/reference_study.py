@@ -20,8 +20,8 @@ from algorithms.common.execution import ActionChoice
 from algorithms.hierarchical.method import HierarchicalMethod
 from algorithms.hierarchical.reference_probe import probe_reference
 from algorithms.hierarchical.training import policy_update
+from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
-from envs.layouts import PAPER_MAP
 
 
 def gradient_agreement(m: HierarchicalMethod, seed: int, pairs: int = 2) -> dict[str, float]:

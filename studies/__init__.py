@@ -2,6 +2,8 @@
 
 ``bench tune`` (studies/cli.py) searches |R_z| (``ref_size``) and L (``search_radius``),
 optionally C_max, for a chosen N, p and layout; see docs/studies.md.
+
+May import: envs, algorithms, bench, reports (the top layer of .importlinter).
 """
 from __future__ import annotations
 

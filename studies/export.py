@@ -20,16 +20,14 @@ import optuna
 import pandas as pd
 from optuna.trial import FrozenTrial, TrialState
 
-from bench.store.run_store import atomic_file
+from bench.store.study_files import CONFIG_FILE, IMPORTANCES_FILE, TRIALS_FILE
+from envs.atomic import atomic_file
 from envs.errors import BenchError
 from studies.points import best_point
 from studies.space import ordered, plain
 from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
 from studies.trial_columns import TRIAL_COLUMNS, param_columns
 
-TRIALS_FILE = "trials.parquet"
-IMPORTANCES_FILE = "importances.json"
-CONFIG_FILE = "study.json"
 MIN_IMPORTANCE_TRIALS = 10  # complete trials before fANOVA importances are computed
 IMPORTANCE_CAVEAT = (
     "fANOVA importances from {n} complete trials of a noisy objective (pruned trials left "

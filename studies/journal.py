@@ -25,7 +25,7 @@ from typing import Any
 from optuna.storages.journal import JournalFileBackend
 from optuna.storages.journal._file import get_lock_file
 
-from bench.store.atomic import DiskFull, atomic_file, is_disk_full
+from envs.atomic import DiskFull, atomic_file, is_disk_full
 from envs.errors import BenchError
 
 RECORD_START = b'{"op_code":'  # every record Optuna writes starts so (json.dumps, compact)

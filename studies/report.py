@@ -5,8 +5,9 @@ Pure builders take the trials frame (studies/export.py ``trials_frame``) or the 
 importances and return a ``Built`` figure (reports/figures/plotting.py); only
 ``build_study_report`` writes files: ``<study_dir>/report/study_{history,landscape,curves,
 importances}.{png,pdf}``, ``study.md`` and ``study.html`` (studies/report_page.py). It reads
-``trials.parquet``, ``importances.json`` and ``study.json`` alone, so ``bench report`` can
-include a study from any storage.
+``trials.parquet``, ``importances.json`` and ``study.json`` alone (names:
+bench/store/study_files.py); ``bench report`` of the run a study was launched for copies
+the built files into the run's report.
 """
 from __future__ import annotations
 
@@ -17,12 +18,19 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from bench.store.study_files import (
+    CONFIG_FILE,
+    IMPORTANCES_FILE,
+    REPORT_DIR,
+    REPORT_FIGURES,
+    REPORT_PAGES,
+    TRIALS_FILE,
+)
 from envs.errors import BenchError
 from reports.figures.plotting import Built, new_figure, paper_style, placeholder
-from studies.export import CONFIG_FILE, IMPORTANCES_FILE, TRIALS_FILE, read_trials
+from studies.export import read_trials
 from studies.space import REF_SIZES, SEARCH_RADII
 
-REPORT_DIR = "report"
 PARAM_LABELS = {"ref_size": r"$|\mathcal{R}_z|$ (reference-space size)", "search_radius": r"$L$ (search radius)",
                 "c_max": r"$C_{\max}$ (candidate budget)"}
 
@@ -187,7 +195,7 @@ def importance_figure(imp: dict[str, Any]) -> Built:
 def build_study_report(study_dir: Path | str) -> list[Path]:
     """Write the study's figures (PNG + PDF), ``study.md`` and ``study.html`` into
     ``study_dir/report`` from ``trials.parquet`` (+ ``importances.json``, ``study.json``)."""
-    from reports.build import save_figure, write_text
+    from reports.writers import save_figure, write_text
     from studies.report_page import study_page
 
     study_dir = Path(study_dir)
@@ -200,13 +208,15 @@ def build_study_report(study_dir: Path | str) -> list[Path]:
     config = json.loads(cfg_path.read_text()) if cfg_path.exists() else {}
     out_dir = study_dir / REPORT_DIR
     out: list[Path] = []
-    figures = {"study_history": history_figure(trials),
-               "study_landscape": landscape_figure(trials),
-               "study_curves": curves_figure(trials, config.get("warmup_step")),
-               "study_importances": importance_figure(imp)}
+    history, landscape, curves, importances = REPORT_FIGURES
+    figures = {history: history_figure(trials),
+               landscape: landscape_figure(trials),
+               curves: curves_figure(trials, config.get("warmup_step")),
+               importances: importance_figure(imp)}
     for stem, built in figures.items():
         out += save_figure(built.fig, out_dir / stem)
     page = study_page(trials, imp, config, {stem: built.notes for stem, built in figures.items()})
-    out.append(write_text(out_dir / "study.md", page.markdown()))
-    out.append(write_text(out_dir / "study.html", page.html()))
+    md, html = REPORT_PAGES
+    out.append(write_text(out_dir / md, page.markdown()))
+    out.append(write_text(out_dir / html, page.html()))
     return out

@@ -47,7 +47,9 @@ MAX_LEVEL_CANDIDATES = 20_000_000
 
 
 def lemma1_count(n_z: int, radius: int, m: int = N_ACTIONS) -> int:
-    """Number of joint controls within deviation ``radius`` of a proposal (Lemma 1)."""
+    """Number of joint controls within deviation ``radius`` of a proposal (Lemma 1): the
+    budget the filter needs to examine them all, and the bound the Lemma 1 claim checks."""
+    # eq:lemma:safety_bound: sum_{d=0}^{L} C(n_z, d) (m - 1)^d, m = |U|
     return sum(math.comb(n_z, d) * (m - 1) ** d for d in range(min(radius, n_z) + 1))
 
 

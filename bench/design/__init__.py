@@ -1,4 +1,5 @@
-"""What to run: cells (one validated config), grids and grid files, cost estimates.
+"""What to run: cells (one validated config), grids and grid files, cost estimates, the
+paper's settings (paper.py).
 
-May import: envs, algorithms, bench.store.run_store.
+May import: envs, algorithms, bench.store, bench.about (the layers of .importlinter).
 """

@@ -14,18 +14,21 @@ from typing import Any
 
 from algorithms.registry import method_class
 from bench.design.cells import Cell
-from envs.errors import BenchError
-from envs.layouts import PAPER_MAP
-
-PAPER_N = (20, 40, 60, 80, 90, 100)  # Sec. IV: "teams of 20, 40, 60, 80, 90, and 100 robots"
-PAPER_P = (0.2, 0.4, 0.6)  # Sec. IV: "p in {0.2, 0.4, 0.6}"
-# Sec. IV: Z=4, L=2, C_max=500, 2000 training episodes, horizon 500, 100 eval episodes.
-# The paper's layouts are unpublished; the bundled MovingAI warehouse map stands in for
-# them at every N (docs/decisions/0012: the dense presets freeze the paper's filter).
-PAPER_SETTINGS: dict[str, Any] = dict(
-    groups=4, search_radius=2, c_max=500, episodes=2000, horizon=500, eval_episodes=100,
-    layout=PAPER_MAP,
+from bench.design.paper import (
+    PAPER_FIG1_P,
+    PAPER_FIG1A_N,
+    PAPER_FIG1B_N,
+    PAPER_FIG2_N,
+    PAPER_FIG2_P,
+    PAPER_FIG3_P,
+    PAPER_N,
+    PAPER_P,
+    PAPER_SETTINGS,
+    PAPER_TABLE1_N,
+    PAPER_TABLE1_P,
 )
+from envs.errors import BenchError
+
 ALL_METHODS = ("hierarchical", "decentralized", "ic3net", "pibt")
 
 
@@ -84,16 +87,16 @@ def paper_specs() -> list[dict[str, Any]]:
     """(method, N, p) behind the paper's figures and table, in figure order (duplicates kept)."""
     out: list[tuple[str, int, float]] = []
     # Fig. 1(a): hierarchical vs decentralized at N=20,40,60; Fig. 1(b): hierarchical 80..100.
-    out += [(m, n, 0.2) for n in (20, 40, 60) for m in ("hierarchical", "decentralized")]
-    out += [("hierarchical", n, 0.2) for n in (80, 90, 100)]
+    out += [(m, n, PAPER_FIG1_P) for n in PAPER_FIG1A_N for m in ("hierarchical", "decentralized")]
+    out += [("hierarchical", n, PAPER_FIG1_P) for n in PAPER_FIG1B_N]
     # Fig. 2: hierarchical vs IC3Net at N=40,60 and every p.
-    out += [(m, n, p) for n in (40, 60) for p in PAPER_P for m in ("hierarchical", "ic3net")]
+    out += [(m, n, p) for n in PAPER_FIG2_N for p in PAPER_FIG2_P for m in ("hierarchical", "ic3net")]
     # Fig. 3: payload of hierarchical vs decentralized over every N at p=0.2.
-    out += [(m, n, 0.2) for n in PAPER_N for m in ("hierarchical", "decentralized")]
+    out += [(m, n, PAPER_FIG3_P) for n in PAPER_N for m in ("hierarchical", "decentralized")]
     # Table I: safety filter of hierarchical at N=40..100, p=0.2.
-    out += [("hierarchical", n, 0.2) for n in (40, 60, 80, 90, 100)]
+    out += [("hierarchical", n, PAPER_TABLE1_P) for n in PAPER_TABLE1_N]
     # Beyond the paper: PIBT as a planner reference at the same N (full information).
-    out += [("pibt", n, 0.2) for n in PAPER_N]
+    out += [("pibt", n, PAPER_TABLE1_P) for n in PAPER_N]
     return [_planner_settings(dict(method=m, n_robots=n, loss_p=p, **PAPER_SETTINGS)) for m, n, p in out]
 
 
@@ -144,9 +147,9 @@ ABLATION_VARIANTS = (
             "eq:reference_policy: r drawn every step -> held 10 steps, no entropy bonus on mu"),
     Variant("decentralized", "decentralized", {}, "the baseline of Sec. IV (no hierarchy, no filter)"),
 )
+# The paper's Z, L, C_max, evaluation budget and layout at N = 40, p = 0.2; shorter training.
 ABLATION_SETTINGS: dict[str, Any] = dict(
-    n_robots=40, loss_p=0.2, layout=PAPER_MAP, episodes=1000, horizon=300, eval_episodes=100, groups=4,
-    search_radius=2, c_max=500,
+    PAPER_SETTINGS, n_robots=40, loss_p=0.2, episodes=1000, horizon=300,
 )
 
 

@@ -42,9 +42,10 @@ from bench.execute.signals import Terminated, sigterm_as_interrupt, sigterm_rece
 from bench.execute.worker import CellWorker
 from bench.execute.worker_pool import Slot, release_workers, take_workers
 from bench.store.integrity import RUN_FLAG
-from bench.store.run_store import DiskFull, RunStore, is_disk_full
+from bench.store.run_store import RunStore
 from bench.store.schema import SCHEMA_VERSION
 from bench.tracking.observers import RunObserver, dispatch
+from envs.atomic import DiskFull, is_disk_full
 from envs.errors import BenchError
 
 MAX_RETRIES = 3  # worker deaths tolerated per cell and run

@@ -9,7 +9,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from bench.store.run_store import RunStore, atomic_file
+from bench.store.run_store import RunStore
+from envs.atomic import atomic_file
 from envs.errors import BenchError
 
 CSV_TABLES = ("cells", "train", "eval")

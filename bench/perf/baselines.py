@@ -25,9 +25,9 @@ import torch
 from algorithms.base import Method
 from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
+from bench.design.paper import PAPER_EVAL_EPISODES, PAPER_HORIZON
 from envs.layouts import preset_for
 
-PAPER_EPISODES, PAPER_HORIZON, PAPER_EVAL_EPISODES = 2000, 500, 100
 BASELINES = ("decentralized", "ic3net")
 
 

@@ -35,7 +35,8 @@ from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
-from bench.perf.baselines import PAPER_EPISODES, PAPER_HORIZON, time_training
+from bench.design.paper import PAPER_C_MAX, PAPER_EPISODES, PAPER_HORIZON, PAPER_SEARCH_RADIUS
+from bench.perf.baselines import time_training
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
 
@@ -169,7 +170,7 @@ class _TimedFilter:
 
 
 def measure_filter(n_robots: int, layout: str, horizon: int = 100, batch_episodes: int = 8,
-                   loss_p: float = 0.2, search_radius: int = 2, c_max: int = 500,
+                   loss_p: float = 0.2, search_radius: int = PAPER_SEARCH_RADIUS, c_max: int = PAPER_C_MAX,
                    seed: int = 0) -> dict[str, Any]:
     """Safety-filter cost in one rollout of the (untrained) hierarchical method."""
     torch.set_num_threads(1)

@@ -27,11 +27,11 @@ import pandas as pd
 from algorithms.common.episodes import EVAL_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.pibt import PIBTMethod
+from bench.design.paper import PAPER_EVAL_EPISODES
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
 
 REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the MovingAI map
-PAPER_EVAL_EPISODES = 100
 
 
 def time_pibt(

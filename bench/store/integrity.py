@@ -156,7 +156,7 @@ class Checksums:
             self._write()
 
     def _write(self) -> None:
-        from bench.store.atomic import atomic_file
+        from envs.atomic import atomic_file
 
         body = {"format": CHECKSUMS_FORMAT, "version": 1, "algorithm": "sha256",
                 "files": dict(sorted(self.files.items()))}

@@ -6,7 +6,7 @@
     <run>/eval/<cell_id>.parquet   written once, after every evaluation chunk
     <run>/checkpoints/<cell_id>.pt
 
-Every write is atomic (bench/store/atomic.py: temp file, fsync, rename; permissions from the
+Every write is atomic (envs/atomic.py: temp file, fsync, rename; permissions from the
 umask; a full disk is one ``DiskFull`` line naming the file, the old file kept). Tables
 and checkpoints are serialized in memory first, so the only disk write is one ``write``
 of the temp file. Crash consistency of training rows: a part covering episodes [a, b) is written
@@ -20,6 +20,7 @@ import json
 import os
 import re
 from collections.abc import Mapping, Sequence
+from contextlib import suppress
 from pathlib import Path
 from typing import Any
 
@@ -27,7 +28,6 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from bench.store.atomic import DiskFull, _suppress_oserror, atomic_file, file_mode, is_disk_full
 from bench.store.checkpoints import CHECKPOINT_FORMAT, load_checkpoint, short_error
 from bench.store.integrity import CHECKSUMS_FILE, Checksums
 from bench.store.meta_schema import EvalMeta, Manifest, validated
@@ -39,10 +39,10 @@ from bench.store.schema import (
     file_version,
     rows_to_table,
 )
+from envs.atomic import atomic_file, temp_target
 from envs.errors import BenchError
 
-__all__ = ["DiskFull", "RunStore", "atomic_file", "file_mode", "is_disk_full",
-           "read_meta", "read_table", "write_table"]
+__all__ = ["RunStore", "read_meta", "read_table", "write_table"]
 
 PART_PREFIX, PART_SUFFIX = "part-", ".parquet"
 CELL_ID_RE = re.compile(r"[0-9a-f]{12}")  # bench/design/cells.py: 12 hex digits of SHA-256
@@ -308,8 +308,8 @@ class RunStore:
         """Delete leftovers of interrupted atomic writes of bench files ('.<name>.*.tmp')."""
         n = 0
         for p in self.bench_files():
-            if _temp_target(p.name):
-                with _suppress_oserror():
+            if temp_target(p.name):
+                with suppress(OSError):
                     p.unlink()
                     n += 1
         return n
@@ -327,7 +327,7 @@ class RunStore:
             """(file, the name it stands for: its own, or a temp file's target) in ``d``."""
             if not d.is_dir() or d.is_symlink():
                 return []
-            return [(p, _temp_target(p.name) or p.name) for p in d.iterdir() if p.is_file() and not p.is_symlink()]
+            return [(p, temp_target(p.name) or p.name) for p in d.iterdir() if p.is_file() and not p.is_symlink()]
 
         out = [p for p, name in plain(self.root) if name in ("manifest.json", "cells.parquet", CHECKSUMS_FILE)]
         if self.train_dir.is_dir() and not self.train_dir.is_symlink():
@@ -372,13 +372,6 @@ class RunStore:
 def _is_part(name: str) -> bool:
     mid = name[len(PART_PREFIX):-len(PART_SUFFIX)]
     return name.startswith(PART_PREFIX) and name.endswith(PART_SUFFIX) and mid.isdigit()
-
-
-def _temp_target(name: str) -> str:
-    """The target of an atomic_file temp name '.<target>.<random>.tmp', else ''."""
-    if not (name.startswith(".") and name.endswith(".tmp") and name.count(".") >= 3):
-        return ""
-    return name[1:].rsplit(".", 2)[0]
 
 
 def _rmdir_if_empty(d: Path) -> None:

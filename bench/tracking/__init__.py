@@ -6,6 +6,8 @@ and builds one observer that feeds them all. Every logger writes under ``RUN/tra
 one tracker run per cell, named by the cell id, with the cell's config as parameters;
 per training update the mean of the update's train rows (``bench.tracking.observers.update_metrics``)
 at step = episodes trained, and at the end the evaluation means per execution mode.
+
+May import: envs, algorithms, bench.store, bench.about (the layers of .importlinter).
 """
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """Statistics and verdicts: the paper's claims, their tests, their page and the
 calibration of those tests.
 
-May import: reports.data, reports.stats, reports.figures (styles).
+May import: envs, algorithms, bench, reports.data, reports.stats (the layers of .importlinter).
 """

@@ -32,6 +32,7 @@ import pandas as pd
 from scipy import stats as sps
 
 from algorithms.base import REFERENCE
+from bench.design.paper import PAPER_TABLE1
 from reports.claims import claims as C
 from reports.claims import method_claims as MC
 from reports.claims.claim_power import EFFECT_SUCCESS, REWARD_FRAC
@@ -46,7 +47,6 @@ from reports.claims.verdicts import (
 )
 from reports.claims.verdicts_bounds import NEAR_TOL, trend_weights
 from reports.stats import ALPHA, curve_shape, quantile_curve, welch_parts, zero_events_bound
-from reports.tables.table1_safety import PAPER_TABLE1
 
 SIMS = 5000  # MC s.e. of a 5% rate: 0.0031; of any rate up to 14%: <= 0.005
 RUN = Path(__file__).resolve().parents[2] / "reproduction" / "paper"

@@ -28,6 +28,21 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from algorithms.hierarchical.safety_filter import lemma1_count
+from bench.design.paper import (
+    PAPER_C_MAX,
+    PAPER_FIG1_P,
+    PAPER_FIG1A_N,
+    PAPER_FIG1B_N,
+    PAPER_FIG2_N,
+    PAPER_FIG2_P,
+    PAPER_GROUPS,
+    PAPER_N,
+    PAPER_SEARCH_RADIUS,
+    PAPER_TABLE1,
+    PAPER_TABLE1_N,
+    PAPER_TABLE1_P,
+)
 from reports.claims.claim_power import (
     power_below,
     power_convergence,
@@ -54,13 +69,11 @@ from reports.claims.verdicts import (
     check_gap,
     check_greater,
     combine,
-    lemma1_bound,
     per_seed_means,
     seeds_msg,
 )
+from reports.data.payload import payload_points
 from reports.data.store import fmt_p, select
-from reports.figures.fig3_payload import payload_points
-from reports.tables.table1_safety import PAPER_TABLE1
 
 RATIO_TOL = 0.01  # payload ratio "equal" to the bound: within 1%
 TRAINING = "training (sampled)"
@@ -68,11 +81,12 @@ TRAINING = "training (sampled)"
 DEFAULT_EXECUTION = {"hierarchical": "argmax", "pibt": "planner"}
 MODE_ORDER = ("argmax", "sample", "sample@0.5")
 # The paper's configurations (Sec. IV) and safety-filter settings (Sec. IV: Z = 4, L = 2, C_max = 500; |U| = 5).
-PAPER = {"fig1a": ((20, 0.2), (40, 0.2), (60, 0.2)), "gap": ((60, 20, 0.2), (60, 40, 0.2)),
-         "fig1b": ((80, 0.2), (90, 0.2), (100, 0.2)),
-         "fig2": tuple((n, p) for n in (40, 60) for p in (0.2, 0.4, 0.6)),
-         "table1": tuple((n, 0.2) for n in (40, 60, 80, 90, 100)),
-         "lemma1": tuple((n, 4, 2, 500) for n in (20, 40, 60, 80, 90, 100))}
+PAPER = {"fig1a": tuple((n, PAPER_FIG1_P) for n in PAPER_FIG1A_N),
+         "gap": tuple((PAPER_FIG1A_N[-1], n, PAPER_FIG1_P) for n in PAPER_FIG1A_N[:-1]),
+         "fig1b": tuple((n, PAPER_FIG1_P) for n in PAPER_FIG1B_N),
+         "fig2": tuple((n, p) for n in PAPER_FIG2_N for p in PAPER_FIG2_P),
+         "table1": tuple((n, PAPER_TABLE1_P) for n in PAPER_TABLE1_N),
+         "lemma1": tuple((n, PAPER_GROUPS, PAPER_SEARCH_RADIUS, PAPER_C_MAX) for n in PAPER_N)}
 
 
 @dataclass(frozen=True)
@@ -407,7 +421,7 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
     def one(c: tuple, _: float) -> list:  # arithmetic: no error to control
         n, z, radius, c_max = c
         n_z = -(-n // z)
-        b = lemma1_bound(n_z, radius)
+        b = lemma1_count(n_z, radius)
         v = BY_CONSTRUCTION if b <= c_max else CONDITION_NOT_MET
         return [(f"N = {n}, Z = {z}, L = {radius}, C_max = {c_max}", "-", v,
                  f"n_z = {n_z}: bound {b:,} {'<=' if b <= c_max else '>'} C_max = {c_max}",

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from bench.design.paper import PAPER_TABLE1
 from reports.claims import claims as C
 from reports.claims.claim_power import power_below, power_near, power_trend
 from reports.claims.verdicts import NOT_ENOUGH
@@ -22,7 +23,6 @@ from reports.claims.verdicts_bounds import (
     check_trend,
     trend_weights,
 )
-from reports.tables.table1_safety import PAPER_TABLE1
 
 PRINT_BOUND = 0.00005  # Table I prints rates as 0.00%: below 0.005% of robot-steps rounds to it
 FALLBACK_BOUND = 0.05  # "within the normal search": fewer than 5% of group-steps fall back

@@ -21,7 +21,6 @@ execution modes):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from math import comb
 
 import numpy as np
 
@@ -56,7 +55,6 @@ CONV_REL_TOL = 0.2
 MAX_CORRECTION = 0.08
 BAND_PCT = np.arange(10.0, 91.0, 20.0)  # trimmed percentile range of the curve test
 BAND_TOL = 0.05  # success-rate tolerance of "nowhere below"
-N_CONTROLS = 5  # |U| = {Up, Down, Left, Right, Wait}
 
 
 def combine(verdicts: Sequence[str]) -> str:
@@ -234,6 +232,3 @@ def check_collisions(rates: list[np.ndarray]) -> tuple[str, str, str]:
         f"count over {n} episodes of {len(rates)} seeds; exact 0-event bound")
 
 
-def lemma1_bound(n_z: int, radius: int, m: int = N_CONTROLS) -> int:
-    """Lemma 1: candidates within deviation L, sum_{d<=L} C(n_z, d) (m - 1)^d (lemma:safety_bound)."""
-    return sum(comb(n_z, d) * (m - 1) ** d for d in range(radius + 1))

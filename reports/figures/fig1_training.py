@@ -17,6 +17,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
+from bench.design.paper import PAPER_FIG1_P, PAPER_FIG1A_N, PAPER_FIG1B_N
 from reports.data.store import fmt_p, select
 from reports.figures.plotting import (
     FONT_PT,
@@ -37,9 +38,6 @@ from reports.figures.seed_counts import counts_text
 from reports.figures.ylimits import fit_ylims
 from reports.stats import smooth, smoothing_window, t_band
 
-PAPER_A_N = (20, 40, 60)
-PAPER_B_N = (80, 90, 100)
-PAPER_P = 0.2
 B_STYLES = ("-", "--", ":")  # (b): one line style per team size, beside its shade
 
 
@@ -85,9 +83,9 @@ def _pick_p(train: pd.DataFrame) -> tuple[float | None, list[str]]:
     ps = sorted(set(train["loss_p"].dropna().astype(float)))
     if not ps:
         return None, []
-    if any(np.isclose(PAPER_P, q) for q in ps):
-        return PAPER_P, []
-    return ps[0], [f"the run has no p = {fmt_p(PAPER_P)}; showing p = {fmt_p(ps[0])}"]
+    if any(np.isclose(PAPER_FIG1_P, q) for q in ps):
+        return PAPER_FIG1_P, []
+    return ps[0], [f"the run has no p = {fmt_p(PAPER_FIG1_P)}; showing p = {fmt_p(ps[0])}"]
 
 
 def _smoothing_text(windows: list[int]) -> str:
@@ -127,11 +125,11 @@ def fig1_training(train: pd.DataFrame) -> Built:
     notes += pnote
     at_p = select(train, loss_p=p) if p is not None else train.iloc[0:0]
     ab_ns = set(select(at_p, "hierarchical")["n_robots"]) | set(select(at_p, "decentralized")["n_robots"])
-    a_ns, a_missing = choose(PAPER_A_N, ab_ns, 3)
+    a_ns, a_missing = choose(PAPER_FIG1A_N, ab_ns, 3)
     hier_ns = {int(n) for n in select(at_p, "hierarchical")["n_robots"]}
-    b_ns = [n for n in PAPER_B_N if n in hier_ns]  # (b) only at the paper's N = 80-100
-    b_missing = [n for n in PAPER_B_N if n not in hier_ns]
-    ptxt = fmt_p(p) if p is not None else fmt_p(PAPER_P)
+    b_ns = [n for n in PAPER_FIG1B_N if n in hier_ns]  # (b) only at the paper's N = 80-100
+    b_missing = [n for n in PAPER_FIG1B_N if n not in hier_ns]
+    ptxt = fmt_p(p) if p is not None else fmt_p(PAPER_FIG1_P)
     if a_missing:
         notes.append(f"(a) the run has no training data for N = {fmt_list(a_missing)} at p = {ptxt}")
     if b_missing:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from bench.design.paper import PAPER_FIG2_N, PAPER_FIG2_P
 from reports.data.store import execution_order, fmt_p, select
 from reports.figures.plotting import (
     FONT_PT,
@@ -34,8 +35,6 @@ from reports.figures.plotting import (
 from reports.figures.seed_counts import counts_text, seed_counts
 from reports.stats import quantile_curve
 
-PAPER_N = (40, 60)
-PAPER_P = (0.2, 0.4, 0.6)
 METHODS = ("hierarchical", "ic3net")
 SEED_LW, MEAN_LW = 0.45, 1.4  # thin per-seed curves, bold mean
 GRID = np.linspace(0.0, 100.0, 101)  # percentiles at which seed curves are compared
@@ -74,8 +73,8 @@ def fig2_success(evals: pd.DataFrame, mode: str | None = None) -> Built:
     notes: list[str] = []
     both = evals[evals["method"].isin(METHODS)]
     mode = mode or fig2_modes(evals)[0]
-    ns, n_missing = choose(PAPER_N, set(both["n_robots"]), 2, largest=True)
-    ps, p_missing = choose(PAPER_P, set(both["loss_p"].astype(float)), 3)
+    ns, n_missing = choose(PAPER_FIG2_N, set(both["n_robots"]), 2, largest=True)
+    ps, p_missing = choose(PAPER_FIG2_P, set(both["loss_p"].astype(float)), 3)
     if n_missing:
         notes.append(f"the run has no hierarchical or IC3Net evaluation for N = {fmt_list(n_missing)}")
     if p_missing:

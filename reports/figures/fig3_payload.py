@@ -20,6 +20,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FixedLocator
 
+from bench.design.paper import PAPER_FIG3_P
+from reports.data.payload import payload_points
 from reports.data.store import fmt_p, select
 from reports.figures.plotting import (
     Built,
@@ -32,46 +34,6 @@ from reports.figures.plotting import (
 )
 from reports.figures.seed_counts import counts_text, seed_counts
 from reports.figures.ticks import log_ticks, spaced_formatter
-
-PAPER_P = 0.2
-
-
-def payload_points(evals: pd.DataFrame) -> pd.DataFrame:
-    """One row per hierarchical (N, Z): measured C_hier, C_dec, ratio and bound.
-
-    Columns: n_robots, groups, d_m, c_hier, c_dec, c_dec_source ("decentralized" or
-    "reference"), ratio, ratio_max (largest per-episode C_hier / reference C_dec), bound
-    ((Z-1)/(N-1)), c_hier_bound (N (Z-1) d_m), episodes, p_used.
-    """
-    cols = ["n_robots", "groups", "d_m", "c_hier", "c_dec", "c_dec_source", "ratio", "ratio_max",
-            "bound", "c_hier_bound", "episodes", "p_used"]
-    ev = evals
-    if any(np.isclose(PAPER_P, q) for q in ev["loss_p"].dropna().astype(float)):
-        ev = select(ev, loss_p=PAPER_P)
-        p_used = fmt_p(PAPER_P)
-    else:
-        p_used = "all"
-    hier = select(ev, "hierarchical")
-    dec = select(ev, "decentralized")
-    out = []
-    for (n, z), g in hier.groupby(["n_robots", "groups"], sort=True):
-        n, z = int(n), int(z)
-        ref = g["payload_dec_per_step"].to_numpy(dtype=np.float64)
-        c_hier = float(g["payload_scalars_per_step"].mean())
-        d = dec[dec["n_robots"] == n]["payload_scalars_per_step"]
-        c_dec, source = (float(d.mean()), "decentralized") if len(d) else (float(np.mean(ref)), "reference")
-        d_m = float(np.mean(ref)) / (n * (n - 1)) if n > 1 else float("nan")
-        with np.errstate(divide="ignore", invalid="ignore"):
-            per_ep = g["payload_scalars_per_step"].to_numpy(dtype=np.float64) / ref
-        out.append({
-            "n_robots": n, "groups": z, "d_m": d_m, "c_hier": c_hier, "c_dec": c_dec,
-            "c_dec_source": source, "ratio": c_hier / c_dec if c_dec > 0 else float("nan"),
-            "ratio_max": float(np.nanmax(per_ep)) if np.isfinite(per_ep).any() else float("nan"),
-            "bound": (z - 1) / (n - 1) if n > 1 else float("nan"),
-            "c_hier_bound": n * (z - 1) * d_m, "episodes": len(g), "p_used": p_used,
-        })
-    return pd.DataFrame(out, columns=cols)
-
 
 BASELINES = ("decentralized", "ic3net")  # measured payload per step, drawn beside hierarchical
 MARKERS = {"hierarchical": "o", "decentralized": "s", "ic3net": "^"}
@@ -105,13 +67,13 @@ def fig3_payload(evals: pd.DataFrame) -> Built:
     """Build Fig. 3 from evaluation rows joined with their cell config."""
     notes: list[str] = []
     pts = payload_points(evals)
-    ev = select(evals, loss_p=PAPER_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
+    ev = select(evals, loss_p=PAPER_FIG3_P) if len(pts) and pts["p_used"].iloc[0] != "all" else evals
     base = {m: select(ev, m).groupby("n_robots")["payload_scalars_per_step"].mean() for m in BASELINES}
     dec = base["decentralized"]
     if pts.empty:
         notes.append("the run has no hierarchical evaluation rows: nothing to plot")
     elif pts["p_used"].iloc[0] == "all":
-        notes.append(f"no p = {fmt_p(PAPER_P)} in the run; payloads pooled over every p")
+        notes.append(f"no p = {fmt_p(PAPER_FIG3_P)} in the run; payloads pooled over every p")
     if dec.empty:
         notes.append("no decentralized evaluation rows: C_dec is the all-to-all reference N(N-1)d_m")
     if base["ic3net"].empty:

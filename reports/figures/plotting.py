@@ -5,7 +5,7 @@ state, no GUI backend; rendering uses Agg), styled with seaborn, sized for a pap
 (3.5 in wide) with 7 pt text. Builders return a ``Built`` (the figure plus notes that the
 index prints under it, e.g. which of the paper's configurations the run lacks) and a
 caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
-under the figure and ``reports.build.save_figure`` stores as PDF metadata and a sidecar
+under the figure and ``reports.writers.save_figure`` stores as PDF metadata and a sidecar
 ``.txt``. One colour and one label per method, as the method declares them
 (``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
 shades of that method's colour (``shades``), never another palette.

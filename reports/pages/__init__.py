@@ -1,4 +1,5 @@
 """Pages: `index.html`/`index.md` of a report, the claims block on it, the shared layout.
 
-May import: reports.data, reports.claims.claims, reports.figures, reports.tables.
+May import: envs, algorithms, bench, reports.claims, reports.tables, reports.writers,
+reports.figures, reports.data, reports.stats (the layers of .importlinter).
 """

@@ -1,5 +1,5 @@
 """Tables: Table I, the summary and success tables, progress, the ablation and the
 leaderboard (with its figures).
 
-May import: reports.data, reports.stats, reports.figures.
+May import: envs, algorithms, bench, reports.figures, reports.data, reports.stats (the layers of .importlinter).
 """

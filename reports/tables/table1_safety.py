@@ -15,15 +15,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from bench.design.paper import PAPER_TABLE1, PAPER_TABLE1_P
 from reports.data.store import execution_order, fmt_p, fmt_pct, select
 from reports.tables.summary import metric_estimate
 
-PAPER_P = 0.2
-# tab:safety: N -> (collision rate, correction rate, mean candidates); rates as fractions.
-PAPER_TABLE1 = {
-    40: (0.0, 0.0345, 3.79), 60: (0.0, 0.0548, 16.44), 80: (0.0, 0.0790, 24.15),
-    90: (0.0, 0.0654, 35.63), 100: (0.0, 0.0734, 24.68),
-}
 METRICS = ("collision_rate", "correction_rate", "mean_candidates", "predictor_error", "fallback_rate")
 RATES = {"collision_rate", "correction_rate", "fallback_rate"}
 LABELS = {"collision_rate": "Collision rate", "correction_rate": "Correction rate",
@@ -37,9 +32,9 @@ def table1_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
     notes: list[str] = []
     hier = select(evals, "hierarchical")
     ps = sorted(set(hier["loss_p"].dropna().astype(float)))
-    p = PAPER_P if (not ps or any(np.isclose(PAPER_P, q) for q in ps)) else ps[0]
-    if ps and not np.isclose(p, PAPER_P):
-        notes.append(f"the run has no hierarchical cells at p = {fmt_p(PAPER_P)}; showing p = {fmt_p(p)}")
+    p = PAPER_TABLE1_P if (not ps or any(np.isclose(PAPER_TABLE1_P, q) for q in ps)) else ps[0]
+    if ps and not np.isclose(p, PAPER_TABLE1_P):
+        notes.append(f"the run has no hierarchical cells at p = {fmt_p(PAPER_TABLE1_P)}; showing p = {fmt_p(p)}")
     at_p = select(hier, loss_p=p)
     ns = sorted(set(int(n) for n in at_p["n_robots"]) | set(PAPER_TABLE1))
     missing = [n for n in PAPER_TABLE1 if n not in set(at_p["n_robots"])]
@@ -115,7 +110,7 @@ def _paper(rec: pd.Series, key: str, unit: str = "%") -> str:
 HEAD = ["N", "Collision rate", "(paper)", "Correction rate", "(paper)", "Mean candidates",
         "(paper)", "Predictor error", "Fallback rate", "Seeds", "Episodes"]
 DISPLAY_HEAD = ["N", "row", "Coll. (%)", "Corr. (%)", "Cand.", "Pred. err.", "Fallb. (%)", "Seeds/eps."]
-PAPER_KEYS = ("collision_rate", "correction_rate", "mean_candidates")
+TABLE1_KEYS = ("collision_rate", "correction_rate", "mean_candidates")
 
 
 def _row_cells(rec: pd.Series) -> list[str]:
@@ -151,13 +146,13 @@ def table1_display(frame: pd.DataFrame, mode: str) -> pd.DataFrame:
             if any(cis):
                 out.append(["", "95% CI", *[c or MISSING for c in cis], ""])
         if np.isfinite(rec["paper_collision_rate"]):
-            out.append(["", "paper", *[_paper(rec, k, "") for k in PAPER_KEYS], MISSING, MISSING, ""])
+            out.append(["", "paper", *[_paper(rec, k, "") for k in TABLE1_KEYS], MISSING, MISSING, ""])
     return pd.DataFrame(out, columns=DISPLAY_HEAD)
 
 
 def table1_caption(frame: pd.DataFrame, mode: str) -> str:
     """The caption of Table I in one execution mode (plain text)."""
-    p = fmt_p(frame["loss_p"].iloc[0]) if len(frame) else fmt_p(PAPER_P)
+    p = fmt_p(frame["loss_p"].iloc[0]) if len(frame) else fmt_p(PAPER_TABLE1_P)
     return (f"Safety filter performance of the hierarchical method under p = {p}, {mode} execution: "
             "mean over seeds of per-seed means over evaluation episodes (ours), a 95% CI (Student t over "
             "seeds, or bootstrap over episodes with one seed) and the paper's Table I (argmax "
@@ -168,7 +163,7 @@ def table1_caption(frame: pd.DataFrame, mode: str) -> str:
 
 
 def table1_markdown(frame: pd.DataFrame, notes: list[str]) -> str:
-    p = fmt_p(frame["loss_p"].iloc[0]) if len(frame) else fmt_p(PAPER_P)
+    p = fmt_p(frame["loss_p"].iloc[0]) if len(frame) else fmt_p(PAPER_TABLE1_P)
     lines = [f"# Table I: safety filter performance (hierarchical, p = {p})", "",
              "Mean over seeds [95% CI: Student t over seeds, or bootstrap over evaluation episodes "
              "when a configuration has one seed]; \"(paper)\" is the paper's Table I (argmax execution). "

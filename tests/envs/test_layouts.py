@@ -235,9 +235,9 @@ def test_missing_map_file_is_a_bench_error(tmp_path: Path) -> None:
 
 
 def test_load_layout__bundled_map_by_name_equals_the_shared_file():
-    from envs.layouts import PAPER_MAP, bundled_maps, load_layout
+    from envs.layouts import bundled_maps, load_layout
 
-    assert PAPER_MAP in bundled_maps()
-    bundled = load_layout(PAPER_MAP)
+    assert "warehouse-10-20-10-2-1" in bundled_maps()
+    bundled = load_layout("warehouse-10-20-10-2-1")
     assert bundled.n_free == 5699
     assert (bundled.obstacles == load_layout(str(REAL_MAP)).obstacles).all()

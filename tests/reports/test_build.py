@@ -173,6 +173,7 @@ def test_build_report__links_studies_exported_beside_the_run(tmp_path):
     import optuna
 
     from studies.export import write_trials
+    from studies.report import build_study_report
 
     run = tmp_path / "smoke"
     write_store(run, *frames(episodes=8, eval_eps=4, specs=smoke_specs()))
@@ -189,9 +190,12 @@ def test_build_report__links_studies_exported_beside_the_run(tmp_path):
     assert "Study other" not in index and "No study records this run" in index
     assert "\"run\": \"smoke\"" in index  # says how to link one
     write_trials(study, tmp_path / "studies" / "demo", {"run": "smoke"})
+    index = (build_report(run) / "index.md").read_text()  # linked, but `bench tune` built no report yet
+    assert "Study demo" not in index and "study studies/demo was left out: it has no built report" in index
+    built = build_study_report(tmp_path / "studies" / "demo")  # what `bench tune` does at its end
     out = build_report(run)
     index, page = (out / "index.md").read_text(), (out / "index.html").read_text()
     assert "Study demo" in index and "Study other" not in index
-    assert (tmp_path / "studies" / "demo" / "report" / "study_landscape.png").stat().st_size > 0
-    assert (out / "studies" / "demo" / "study_landscape.png").stat().st_size > 0  # copied in
+    for f in built:  # copied in, byte for byte (not rebuilt)
+        assert (out / "studies" / "demo" / f.name).read_bytes() == f.read_bytes()
     assert "href='studies/demo/study.html'" in page and "../" not in page

@@ -12,7 +12,7 @@ import pytest
 
 import studies.journal as journal_mod
 from bench.cli import main
-from bench.store.run_store import DiskFull
+from envs.atomic import DiskFull
 from studies.journal import SafeJournalFileBackend, repair_journal
 from studies.storage import JOURNAL_FILE, open_storage
 

@@ -22,7 +22,8 @@ from bench.execute.plan import params_changes, plan_run
 from bench.store import run_store as store_mod
 from bench.store.checkpoints import load_checkpoint
 from bench.store.completeness import expected_for_cell, incomplete_cells, stored_rows
-from bench.store.run_store import DiskFull, RunStore, atomic_file, write_table
+from bench.store.run_store import RunStore, write_table
+from envs.atomic import DiskFull, atomic_file
 from envs.errors import BenchError
 from reports.data.store import load_store
 from tests.bench.conftest import (
@@ -159,13 +160,13 @@ class _FullFile:
 
 @pytest.fixture
 def full_disk(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every file opened by atomic_file (os.fdopen) fails its first write with ENOSPC."""
-    real = os.fdopen
+    """Every file opened by atomic_file (envs/atomic.py) fails its first write with ENOSPC."""
+    import envs.atomic
 
-    def fdopen(fd: int, *args: object, **kw: object) -> object:
-        return _FullFile(real(fd, *args, **kw), room=0)
+    def full_open(path: str, *args: object, **kw: object) -> object:
+        return _FullFile(open(path, *args, **kw), room=0)  # type: ignore[call-overload]
 
-    monkeypatch.setattr(store_mod.os, "fdopen", fdopen)
+    monkeypatch.setattr(envs.atomic, "open", full_open, raising=False)
 
 
 def test_disk_full__a_write_is_one_bench_error_and_the_old_file_stays(tmp_path: Path, full_disk: None) -> None:
@@ -191,9 +192,9 @@ def test_disk_full__at_start_and_in_report_is_one_line_exit_2(
         capsys: pytest.CaptureFixture[str], finished: tuple[Path, Path], tmp_path: Path,
         monkeypatch: pytest.MonkeyPatch, full_disk: None) -> None:
     grid_file, out = finished
-    import reports.build as build
+    import envs.atomic
 
-    monkeypatch.setattr(build.tempfile, "mkstemp", _enospc)  # the report's own writer
+    monkeypatch.setattr(envs.atomic.tempfile, "mkstemp", _enospc)  # the one atomic writer
     before = snapshot(out)
     code, _, err = _cli(capsys, "report", "--run", str(out))
     assert code == 2
@@ -250,7 +251,7 @@ def test_disk_full__on_a_real_tiny_tmpfs_the_store_is_undamaged(
 def test_result_files__follow_the_umask(tmp_path: Path, umask: int, mode: int) -> None:
     import pyarrow as pa
 
-    from reports.build import write_text
+    from reports.writers import write_text
 
     old = os.umask(umask)
     try:

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from bench.store.checkpoints import load_checkpoint
-from bench.store.run_store import RunStore, atomic_file, read_table
+from bench.store.run_store import RunStore, read_table
 from bench.store.schema import (
     CELLS_SCHEMA,
     EVAL_SCHEMA,
@@ -19,6 +19,7 @@ from bench.store.schema import (
     TRAIN_SCHEMA,
     rows_to_table,
 )
+from envs.atomic import atomic_file
 from envs.errors import BenchError
 
 CID = "0123456789ab"  # a cell id: 12 hex digits

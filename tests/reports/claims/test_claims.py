@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from algorithms.hierarchical.safety_filter import lemma1_count
 from reports.claims.claims import (
     Check,
     all_claims,
@@ -50,7 +51,6 @@ from reports.claims.verdicts import (
     check_greater,
     combine,
     decide,
-    lemma1_bound,
 )
 from reports.stats import TTest, curve_shape, quantile_curve, simultaneous_band, t_test
 from tests.reports.synthetic import frames, joined, smoke_specs
@@ -259,8 +259,8 @@ def test_safety__per_execution_mode_with_the_measured_collision_rate():
 
 
 def test_lemma1__bound_per_n_at_the_papers_settings():
-    assert lemma1_bound(10, 2) == 761 and lemma1_bound(25, 2) == 4901 and lemma1_bound(5, 2) == 181
-    assert lemma1_bound(3, 0) == 1 and lemma1_bound(3, 1, m=3) == 7
+    assert lemma1_count(10, 2) == 761 and lemma1_count(25, 2) == 4901 and lemma1_count(5, 2) == 181
+    assert lemma1_count(3, 0) == 1 and lemma1_count(3, 1, m=3) == 7
     c = claim_lemma1()
     got = [(k.config, k.verdict) for k in c.checks]
     assert got[0] == ("N = 20, Z = 4, L = 2, C_max = 500", BY_CONSTRUCTION)
