@@ -23,7 +23,7 @@ Policy (the same in both forms):
   queued again at the front, to any worker, up to ``unit.retries`` times per key (``Retried``
   each time), then ``Failed`` with ``lost=True``; a call refused because Ray is restarting
   its worker counts apart (``MAX_UNAVAILABLE``). Units that hold state in their worker
-  (trials) set ``retries=0``: their driver re-queues them its own way.
+  (trials) set ``retries=0``: never run again, their driver re-queues them its own way.
 * **Restarts and health**: Ray restarts a dead actor (``max_restarts``); a worker whose
   call failed gets work again only after a health ping answered; a ping that finds the
   actor dead for good (``ActorDiedError``) replaces it. No live worker for
@@ -165,11 +165,10 @@ class _Policy:
         self.reserved.pop(unit.key, None)
         counts = self.refused if restarting else self.deaths
         counts[unit.key] = n = counts.get(unit.key, 0) + 1
-        if restarting and n <= MAX_UNAVAILABLE or not restarting and n <= unit.retries:
+        if unit.retries and (n <= MAX_UNAVAILABLE if restarting else n <= unit.retries):
             self.queue.insert(0, unit)
             return Retried(unit, message)
-        why = f"worker unavailable {n} times (restarting)" if restarting else f"worker died {n} time{'s' * (n != 1)}: {exc_name}"
-        return Failed(unit, why, lost=True)
+        return Failed(unit, f"worker died {n} time{'s' * (n != 1)}: {exc_name}", lost=True)
 
     def release(self, key: Hashable) -> int:
         """End ``key``'s reservation; drop its queued units (returns how many)."""
