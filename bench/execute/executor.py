@@ -21,8 +21,9 @@ Policy (the same in both forms):
 * **Failures**: a unit that raises is ``Failed`` (``lost=False``), never retried: the error is
   the method's. A unit whose worker died (process killed, node removed, a lost object) is
   queued again at the front, to any worker, up to ``unit.retries`` times per key (``Retried``
-  each time), then ``Failed`` with ``lost=True``; a call refused because Ray is restarting
-  its worker counts apart (``MAX_UNAVAILABLE``). Units that hold state in their worker
+  each time), then ``Failed`` with ``lost=True``; a call refused by a restarting worker
+  counts as a death (calls go only to workers whose health ping answered, so a refusal
+  means the worker died under the call). Units that hold state in their worker
   (trials) set ``retries=0``: never run again, their driver re-queues them its own way.
 * **Restarts and health**: Ray restarts a dead actor (``max_restarts``); a worker whose
   call failed gets work again only after a health ping answered; a ping that finds the
@@ -53,7 +54,6 @@ from envs.errors import BenchError
 
 MAX_RETRIES = 3  # worker deaths tolerated per unit key
 MAX_RESTARTS = 4  # Ray restarts of one worker actor
-MAX_UNAVAILABLE = 60  # calls refused by a restarting worker per unit key
 STALL_TIMEOUT_S = 600.0  # no live worker for this long: NoLiveWorkers
 WAIT_S = 1.0  # longest single ray.wait
 PING_RETRY_S = 0.5  # probe interval of a restarting worker
@@ -126,7 +126,6 @@ class _Policy:
     queue: list[Unit] = field(default_factory=list)
     reserved: dict[Hashable, int] = field(default_factory=dict)  # key -> worker index
     deaths: dict[Hashable, int] = field(default_factory=dict)
-    refused: dict[Hashable, int] = field(default_factory=dict)
 
     def runnable(self) -> list[tuple[Unit, int]]:
         """Queued units that can start now, each with its worker, in queue order."""
@@ -160,12 +159,11 @@ class _Policy:
         self.reserved.pop(unit.key, None)
         return Failed(unit, message, lost=False)
 
-    def lost(self, unit: Unit, exc_name: str, message: str, restarting: bool = False) -> Outcome:
+    def lost(self, unit: Unit, exc_name: str, message: str) -> Outcome:
         """Queue the unit again (front, any worker) or give up (module docstring)."""
         self.reserved.pop(unit.key, None)
-        counts = self.refused if restarting else self.deaths
-        counts[unit.key] = n = counts.get(unit.key, 0) + 1
-        if unit.retries and (n <= MAX_UNAVAILABLE if restarting else n <= unit.retries):
+        self.deaths[unit.key] = n = self.deaths.get(unit.key, 0) + 1
+        if n <= unit.retries:
             self.queue.insert(0, unit)
             return Retried(unit, message)
         return Failed(unit, f"worker died {n} time{'s' * (n != 1)}: {exc_name}", lost=True)
@@ -349,9 +347,8 @@ class RayExecutor:
                 worker.next_ping = time.monotonic() + PING_RETRY_S
             return []
         worker.busy, worker.healthy, worker.suspect, worker.next_ping = False, False, True, time.monotonic()
-        restarting = isinstance(exc, ray.exceptions.ActorUnavailableError)
         return [self.policy.lost(unit, type(exc).__name__, f"{type(exc).__name__}: "
-                                 f"{' '.join(str(exc).split())[:300]}", restarting)]
+                                 f"{' '.join(str(exc).split())[:300]}")]
 
     def close(self, keep: bool = False) -> None:
         """Kill the workers, or with ``keep`` leave the healthy ones for the next executor."""
