@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import traceback
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from bench.execute.executor import Done, Executor, Failed, InProcessExecutor, Retried, Unit
 from bench.execute.executor import RayExecutor as RayPool
@@ -93,7 +93,7 @@ class TrialExecutor:
     def wait(self, timeout: float | None = None) -> list[tuple[int, Outcome]]:
         out: list[tuple[int, Outcome]] = []
         for outcome in self.executor.wait(timeout):
-            key = outcome.unit.key
+            key = cast(int, outcome.unit.key)  # the trial number given to start()
             if isinstance(outcome, Done):
                 out.append((key, outcome.result))
             elif isinstance(outcome, Failed):

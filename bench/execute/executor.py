@@ -249,7 +249,7 @@ class RayExecutor:
 
         self.ray, self.ctx = ray, ctx
         self.capacity = max(1, int(capacity))
-        self.remote = ray.remote(num_cpus=1, max_restarts=max_restarts, max_task_retries=0)(worker_cls)
+        self.remote: Any = ray.remote(num_cpus=1, max_restarts=max_restarts, max_task_retries=0)(worker_cls)
         self.worker_args = worker_args
         self.pool_key = (_session(), f"{worker_cls.__module__}.{worker_cls.__qualname__}/{max_restarts}")
         idle = _IDLE.pop(self.pool_key, [])
