@@ -1,23 +1,31 @@
-"""Where trial segments run: Ray actors (default) or inline, one segment at a time (tests).
+"""Trial segments on the one executor (bench/execute/executor.py): in this process (tests,
+``bench tune --inline``) or on Ray actors (default).
 
-The driver owns the study; an executor only runs ``TrialWorker.step()`` calls and hands
-back their outcomes. Both executors have the same small surface:
+The driver (studies/runner.py) owns the study; the executor only runs ``TrialWorker.step()``
+calls and hands back their outcomes, through a small surface:
 
-* ``start(key, spec)``: create the trial's worker and run its first segment;
-* ``advance(key)``: run the next segment; ``stop(key)``: drop the worker (pruned/done);
+* ``start(key, spec)``: run the trial's first segment (on a free worker);
+* ``advance(key)``: run its next segment (on the same worker, which holds the trial);
+  ``stop(key)``: the trial is done or pruned, its worker is free again;
 * ``wait(timeout)`` -> ``[(key, Segment | Failure)]``: finished segments (maybe none).
 
-A worker is built inside its first ``step()`` (``LazyWorker``), so a bad configuration is
-an ordinary failed segment, never a dead actor. A dead actor (worker process killed,
-node lost) is a ``Failure`` with ``crashed=True``: the driver re-queues that trial.
+A worker (``TrialHost``, one per core) holds the trial it runs and builds its ``TrialWorker``
+inside the first ``step()``, so a bad configuration is an ordinary failed segment, never a
+dead actor. A trial keeps its state in its worker, so its units are never retried
+(``retries=0``): a dead worker (process killed, node lost) is a ``Failure`` with
+``crashed=True`` and the driver re-queues the trial.
+
+May import: bench.execute (executor, ray_cluster), studies.objective.
 """
 from __future__ import annotations
 
+import os
 import traceback
-from collections import deque
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
+from bench.execute.executor import Done, Executor, Failed, InProcessExecutor, Retried, Unit
+from bench.execute.executor import RayExecutor as RayPool
 from envs.errors import BenchError
 from studies.objective import Segment, TrialSpec, TrialWorker
 
@@ -34,17 +42,24 @@ class Failure:
 Outcome = Segment | Failure
 
 
-class LazyWorker:
-    """Builds its ``TrialWorker`` on the first ``step()``; errors come back as ``Failure``."""
+class TrialHost:
+    """A worker that runs one trial at a time, segment by segment; errors come back as ``Failure``."""
 
-    def __init__(self, spec: TrialSpec) -> None:
-        self.spec = spec
+    def __init__(self) -> None:
+        self.key: int | None = None
         self.worker: TrialWorker | None = None
 
-    def step(self) -> Outcome:
+    def ping(self) -> int:
+        return os.getpid()
+
+    def step(self, key: int, spec: TrialSpec, first: bool) -> Outcome:
+        if first:
+            self.key, self.worker = key, None
+        elif self.key != key:  # restarted since the last segment: the trial's state is gone
+            return Failure("worker died: restarted between segments", crashed=True)
         try:
             if self.worker is None:
-                self.worker = TrialWorker(self.spec)
+                self.worker = TrialWorker(spec)
             return self.worker.step()
         except BenchError as exc:
             return Failure(str(exc), user_error=True)
@@ -53,39 +68,60 @@ class LazyWorker:
             return Failure(f"{type(exc).__name__}: {exc}".strip() if str(exc) else last)
 
 
-class SequentialExecutor:
-    """Runs segments inline, round-robin over ``capacity`` concurrent trials."""
+class TrialExecutor:
+    """The trial surface (module docstring) over an executor of ``TrialHost`` workers."""
 
-    def __init__(self, capacity: int = 1) -> None:
-        self.capacity = max(1, int(capacity))
-        self.workers: dict[int, LazyWorker] = {}
-        self.queue: deque[int] = deque()
+    def __init__(self, executor: Executor, context: Any = None) -> None:
+        self.executor, self.context = executor, context
+        self.capacity = executor.capacity
+        self.specs: dict[int, TrialSpec] = {}
 
     def start(self, key: int, spec: TrialSpec) -> None:
-        self.workers[key] = LazyWorker(spec)
-        self.queue.append(key)
+        self.specs[key] = spec
+        self._submit(key, True)
 
     def advance(self, key: int) -> None:
-        self.queue.append(key)
+        self._submit(key, False)
+
+    def _submit(self, key: int, first: bool) -> None:
+        self.executor.submit(Unit("step", (key, self.specs[key], first), key, sticky=True, retries=0))
 
     def stop(self, key: int) -> None:
-        self.workers.pop(key, None)
-        if key in self.queue:
-            self.queue.remove(key)
+        self.specs.pop(key, None)
+        self.executor.release(key)
 
     def wait(self, timeout: float | None = None) -> list[tuple[int, Outcome]]:
-        if not self.queue:
-            return []
-        key = self.queue.popleft()
-        return [(key, self.workers[key].step())]
+        out: list[tuple[int, Outcome]] = []
+        for outcome in self.executor.wait(timeout):
+            key = cast(int, outcome.unit.key)  # the trial number given to start()
+            if isinstance(outcome, Done):
+                out.append((key, outcome.result))
+            elif isinstance(outcome, Failed):
+                out.append((key, Failure(outcome.message, crashed=outcome.lost)))
+            else:  # pragma: no cover - retries=0: never retried
+                assert not isinstance(outcome, Retried)
+        return out
 
     def close(self) -> None:
-        self.workers.clear()
-        self.queue.clear()
+        for key in list(self.specs):
+            self.stop(key)
+        if isinstance(self.executor, RayPool):
+            self.executor.close(keep=self.context is not None and not self.context.started_here)
+        else:
+            self.executor.close()
+        if self.context is not None:
+            self.context.shutdown()
 
 
-class RayExecutor:
-    """One Ray actor (1 CPU) per running trial; segments are actor method calls.
+class SequentialExecutor(TrialExecutor):
+    """Segments in this process, round-robin over ``capacity`` concurrent trials."""
+
+    def __init__(self, capacity: int = 1) -> None:
+        super().__init__(InProcessExecutor(TrialHost, capacity))
+
+
+class RayExecutor(TrialExecutor):
+    """One Ray actor (1 CPU) per concurrent trial.
 
     Ray is started or joined as for ``bench run`` (bench/execute/ray_cluster.py: embedded on
     loopback by default, ``address`` or ``RAY_ADDRESS`` joins a cluster, an already
@@ -94,47 +130,7 @@ class RayExecutor:
     """
 
     def __init__(self, capacity: int | None = None, address: str | None = None) -> None:
-        import ray
-
         from bench.execute.ray_cluster import connect
 
-        self.ray = ray
-        self.context = connect(address, capacity)
-        self.capacity = max(1, int(capacity or self.context.cpus))
-        self.actor_cls = ray.remote(num_cpus=1, max_restarts=0)(LazyWorker)
-        self.actors: dict[int, Any] = {}
-        self.pending: dict[Any, int] = {}  # object ref -> key
-
-    def start(self, key: int, spec: TrialSpec) -> None:
-        self.actors[key] = self.actor_cls.remote(spec)
-        self.advance(key)
-
-    def advance(self, key: int) -> None:
-        self.pending[self.actors[key].step.remote()] = key
-
-    def stop(self, key: int) -> None:
-        actor = self.actors.pop(key, None)
-        for ref in [r for r, k in self.pending.items() if k == key]:
-            del self.pending[ref]
-        if actor is not None:
-            self.ray.kill(actor, no_restart=True)
-
-    def wait(self, timeout: float | None = None) -> list[tuple[int, Outcome]]:
-        if not self.pending:
-            return []
-        ready, _ = self.ray.wait(list(self.pending), num_returns=1, timeout=timeout)
-        out = []
-        for ref in ready:
-            key = self.pending.pop(ref)
-            try:
-                out.append((key, self.ray.get(ref)))
-            except self.ray.exceptions.RayActorError as exc:
-                out.append((key, Failure(f"worker died: {str(exc).splitlines()[0]}", crashed=True)))
-            except self.ray.exceptions.RayError as exc:
-                out.append((key, Failure(f"ray error: {str(exc).splitlines()[0]}")))
-        return out
-
-    def close(self) -> None:
-        for key in list(self.actors):
-            self.stop(key)
-        self.context.shutdown()
+        context = connect(address, capacity)
+        super().__init__(RayPool(TrialHost, max(1, int(capacity or context.cpus)), context), context)

@@ -23,8 +23,9 @@ reason, as are checkpoints whose parameters do not load into the method built at
 Storage: ``DIR/matrix/<cell_id>/<condition>.parquet`` per (cell, condition) unit, written
 atomically once all its chunks are in (``MATRIX_SCHEMA``: the eval metrics plus the
 training and evaluation conditions). A rerun skips every unit whose file is complete
-(K episodes x modes rows, or one 'unsupported' row); evaluation fans out on Ray over the
-runner's worker actors (bench/execute/worker.py ``CellWorker.eval_chunk``).
+(K episodes x modes rows, or one 'unsupported' row); evaluation chunks
+(bench/execute/worker.py ``CellWorker.eval_chunk``) run through the one executor
+(bench/execute/executor.py: fan-out, retries and restarts as for ``bench run``).
 """
 from __future__ import annotations
 
@@ -41,6 +42,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from bench.design.cells import Cell
+from bench.execute.executor import WAIT_S, Done, Executor, InProcessExecutor, RayExecutor, Retried
+from bench.execute.executor import Unit as ExUnit
 from bench.execute.plan import cell_spec, params_changes
 from bench.execute.worker import CellWorker, build_method
 from bench.store.completeness import expected_rows
@@ -57,9 +60,6 @@ DEFAULT_BURSTS = (4.0, 16.0)
 MATRIX_CHUNK = 10  # episodes per evaluation chunk of every unit (pairing across methods)
 MATRIX_DIR = "matrix"
 OK, UNSUPPORTED = "ok", "unsupported"
-MAX_RETRIES = 3  # worker deaths tolerated per unit
-MAX_UNAVAILABLE = 60  # calls refused by a restarting worker per unit (about 2 min of restarts)
-RETRY_AFTER_S = 2.0  # a worker whose call failed gets no work for this long
 
 MATRIX_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("method", pa.string()),
@@ -398,7 +398,7 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
                 on_unit(unit)
 
         if todo:
-            (_evaluate_ray if use_ray else _evaluate_local)(todo, states, finish, workers, address)
+            _evaluate(todo, states, finish, workers, address, use_ray)
     finally:
         if lock is not None:
             import os
@@ -408,93 +408,50 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
                          time.monotonic() - t0)
 
 
-def _evaluate_local(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit], None],
-                    workers: int | None, address: str | None) -> None:
-    worker = CellWorker()
-    for unit in units:
-        state = states[unit.cell.cell_id]
-        try:
-            for mode, chunk in unit.todo:
-                unit.rows[(mode, chunk)] = worker.eval_chunk(unit.spec, [state] if state is not None else [],
-                                                             chunk, mode)["rows"]
-        except Exception as exc:  # the method raised: the unit fails, the others go on
-            unit.error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
-        finish(unit)
-
-
-def _evaluate_ray(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit], None],
-                  workers: int | None, address: str | None) -> None:
-    """Fan every (mode, chunk) of every unit out over the runner's worker actors."""
-    import ray
-
-    from bench.execute.ray_cluster import connect
-    from bench.execute.runner import MAX_RESTARTS, WAIT_S
-    from bench.execute.worker_pool import Slot, release_workers, take_workers
-
-    ctx = connect(address, workers)
+def _evaluate(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit], None],
+              workers: int | None, address: str | None, use_ray: bool) -> None:
+    """Every (mode, chunk) of every unit through the executor (bench/execute/executor.py): in
+    this process on one worker, or fanned out over Ray worker actors; a unit is finished
+    once all its chunks are back, or failed at its first chunk that failed."""
+    ctx = None
     try:
-        refs = {cid: ray.put(s) for cid, s in states.items() if s is not None}
-        remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
-        n = max(1, min(workers or ctx.cpus, ctx.cpus))
-        slots = [Slot(a, healthy=True) for a in take_workers(remote, n)]
-        queue = [(u, w) for u in units for w in u.todo]
+        if use_ray:
+            import ray
+
+            from bench.execute.ray_cluster import connect
+
+            ctx = connect(address, workers)
+            refs: dict[str, Any] = {cid: ray.put(s) for cid, s in states.items() if s is not None}
+            ex: Executor = RayExecutor(CellWorker, max(1, min(workers or ctx.cpus, ctx.cpus)), ctx)
+        else:
+            refs = {cid: s for cid, s in states.items() if s is not None}
+            ex = InProcessExecutor(CellWorker)
         left = {id(u): len(u.todo) for u in units}  # chunks of the unit not yet back
-        inflight: dict[Any, tuple[Slot, Unit, tuple[str, int]]] = {}
-
-        def settle(unit: Unit, k: int = 1) -> None:
-            left[id(unit)] -= k
-            if left[id(unit)] == 0:
-                finish(unit)
-
+        for unit in units:
+            box = [refs[unit.cell.cell_id]] if unit.cell.cell_id in refs else []
+            for mode, chunk in unit.todo:
+                ex.submit(ExUnit("eval_chunk", (unit.spec, box, chunk, mode), id(unit), tag=(unit, (mode, chunk))))
         try:
-            while queue or inflight:
-                now = time.monotonic()
-                for slot in slots:
-                    if not slot.busy and queue and now >= slot.next_ping:  # a failed worker rests
-                        unit, (mode, chunk) = queue.pop(0)
-                        box = [refs[unit.cell.cell_id]] if unit.cell.cell_id in refs else []
-                        slot.busy = True
-                        ref = slot.actor.eval_chunk.remote(unit.spec, box, chunk, mode)
-                        inflight[ref] = (slot, unit, (mode, chunk))
-                if not inflight:  # every free worker is resting after a failure
-                    time.sleep(0.05)
-                    continue
-                ready, _ = ray.wait(list(inflight), num_returns=1, timeout=WAIT_S)
-                for ref in ready:
-                    slot, unit, work = inflight.pop(ref)
-                    slot.busy = False
-                    try:
-                        unit.rows[work] = ray.get(ref)["rows"]
-                    except ray.exceptions.RayTaskError as exc:  # the method raised: the unit fails
-                        cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                        unit.error = unit.error or f"{type(cause).__name__}: {' '.join(str(cause).split())[:300]}"
-                    except ray.exceptions.RayError as exc:  # the worker died: retry the chunk
-                        slot.suspect = True
-                        slot.next_ping = time.monotonic() + RETRY_AFTER_S  # Ray restarts it meanwhile
-                        if isinstance(exc, ray.exceptions.ActorDiedError):  # restarts exhausted: replace
-                            ray.kill(slot.actor, no_restart=True)
-                            slot.actor = remote.remote()
-                        # A worker Ray is still restarting refuses the call (the chunk did not
-                        # fail; on a loaded machine a restart outlasts RETRY_AFTER_S): not a death.
-                        restarting = isinstance(exc, ray.exceptions.ActorUnavailableError)
-                        unit.unavailable += restarting
-                        unit.retries += not restarting
-                        if unit.retries <= MAX_RETRIES and unit.unavailable <= MAX_UNAVAILABLE:
-                            queue.insert(0, (unit, work))
-                            continue
-                        unit.error = unit.error or (
-                            f"worker died {unit.retries} times: {type(exc).__name__}" if unit.retries > MAX_RETRIES
-                            else f"worker unavailable {unit.unavailable} times (restarting)")
-                    if unit.error:  # drop its queued chunks: nothing of a failed unit is written
-                        dropped = [q for q in queue if q[0] is unit]
-                        queue = [q for q in queue if q[0] is not unit]
-                        settle(unit, 1 + len(dropped))
-                    else:
-                        settle(unit)
+            while any(left.values()):
+                for outcome in ex.wait(WAIT_S):
+                    unit, work = outcome.unit.tag
+                    if isinstance(outcome, Retried):
+                        continue
+                    settled = 1
+                    if isinstance(outcome, Done):
+                        unit.rows[work] = outcome.result["rows"]
+                    else:  # drop its queued chunks: nothing of a failed unit is written
+                        unit.error = unit.error or outcome.message
+                        settled += ex.release(id(unit))
+                    left[id(unit)] -= settled
+                    if left[id(unit)] == 0:
+                        finish(unit)
         finally:
-            release_workers(slots, keep=not ctx.started_here)
+            if isinstance(ex, RayExecutor):
+                ex.close(keep=ctx is not None and not ctx.started_here)
     finally:
-        ctx.shutdown()
+        if ctx is not None:
+            ctx.shutdown()
 
 
 def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table | None:

@@ -9,14 +9,19 @@ core, one torch thread each) only compute. The loop:
    cell first, else starts
    (or resumes from its checkpoint) the next cell; training is sticky: the worker that
    trains a cell gets its next chunk of ``checkpoint_every`` iterations;
-3. collect with ``ray.wait`` (timeouts, never a blocking get loop): a training chunk's rows
+3. collect (the executor waits with ``ray.wait`` and timeouts, never a blocking get): a training chunk's rows
    are written as a part, then its checkpoint; after the last chunk the final state is
    ``ray.put`` once and evaluation units (every chunk in every execution mode: argmax,
    sample, sample@T; planner for PIBT) fan out to every free worker; when all are in, the
    eval file (one row per episode and mode) is written once and the cell is done;
-4. failures: a method that raises fails its cell (error recorded, the rest go on); a
-   worker that dies (process killed, node removed) is restarted by Ray and its unit is
-   re-dispatched from the last checkpoint, up to ``MAX_RETRIES`` times per cell.
+4. failures (bench/execute/executor.py, the policy every driver shares): a method that
+   raises fails its cell (error recorded, the rest go on); a worker that dies (process
+   killed, node removed) is restarted by Ray and its unit is re-dispatched from the last
+   checkpoint to any worker, up to ``MAX_RETRIES`` times per unit; each retry of a
+   training chunk counts as an attempt of its cells.
+
+Dispatch, collection, health pings and restarts are the executor's (``RayExecutor``): this
+module decides which unit comes next and writes what comes back.
 
 Seeds come from the cell only and chunk boundaries from ``checkpoint_every``, so the
 numbers do not depend on the number of workers or on the order of execution.
@@ -35,24 +40,26 @@ from typing import Any
 
 from algorithms.registry import method_class
 from bench.design.grids import Grid
+from bench.execute.executor import (
+    WAIT_S,
+    Failed,
+    NoLiveWorkers,
+    Outcome,
+    RayExecutor,
+    Retried,
+    Unit,
+)
 from bench.execute.plan import CellState, machine, plan_run, versions, versions_json
 from bench.execute.progress import NullProgress, Progress, Snapshot
 from bench.execute.ray_cluster import RayContext, connect
 from bench.execute.signals import Terminated, sigterm_as_interrupt, sigterm_received  # noqa: F401 (re-exported)
 from bench.execute.worker import CellWorker
-from bench.execute.worker_pool import Slot, release_workers, take_workers
 from bench.store.integrity import RUN_FLAG
 from bench.store.run_store import RunStore
 from bench.store.schema import SCHEMA_VERSION
 from bench.tracking.observers import RunObserver, dispatch
 from envs.atomic import DiskFull, is_disk_full
 from envs.errors import BenchError
-
-MAX_RETRIES = 3  # worker deaths tolerated per cell and run
-MAX_RESTARTS = 4  # Ray restarts of one worker actor
-STALL_TIMEOUT_S = 600.0  # no live worker for this long: remaining cells fail
-WAIT_S = 1.0
-PING_RETRY_S = 0.5  # probe interval of a restarting worker
 
 
 @dataclass
@@ -151,7 +158,6 @@ class _Run:
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command, self.observer = on_event, command, observer
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
-        self.inflight: dict[Any, tuple[str, Slot, Any, Any]] = {}  # kind, worker, cell(s), unit
         self.versions = versions_json()
         self.t0 = time.monotonic()
         self.start_progress = sum(s.progress() * s.weight for s in states)
@@ -208,47 +214,29 @@ class _Run:
 
     # ------------------------------------------------------------------- loop
     def execute(self) -> RunSummary:
-        import ray
-
         self._prepare_store()
-        slots: list[Slot] = []
+        ex: RayExecutor | None = None
         if not all(s.finished for s in self.states):
-            self.remote = ray.remote(num_cpus=1, max_restarts=MAX_RESTARTS, max_task_retries=0)(CellWorker)
-            slots = [Slot(actor) for actor in take_workers(self.remote, self.n_workers)]
+            ex = RayExecutor(CellWorker, self.n_workers, self.ctx)
         self._emit("start", None)
         for st in self.states:  # said at once: an interrupted run never reaches the summary
             if st.rerun:
                 self._emit("rerun", st)
-        stalled_since: float | None = None
         try:
-            while not all(s.finished for s in self.states):
-                now = time.monotonic()
-                for slot in slots:
-                    if slot.healthy and not slot.busy:
-                        self._dispatch(slot)
-                    elif not slot.healthy and not slot.pinging and now >= slot.next_ping:
-                        slot.pinging = True
-                        self._submit(slot.actor.ping.remote(), "ping", slot, None, 0)
-                if any(s.healthy for s in slots):
-                    stalled_since = None
-                else:
-                    stalled_since = stalled_since or time.monotonic()
-                    if time.monotonic() - stalled_since > STALL_TIMEOUT_S:
-                        self._fail_remaining(f"no live Ray worker for {STALL_TIMEOUT_S:.0f} s")
-                        break
-                if self.inflight:
-                    ready, _ = ray.wait(list(self.inflight), num_returns=1, timeout=WAIT_S)
-                    if ready:
-                        more, _ = ray.wait(list(self.inflight), num_returns=len(self.inflight), timeout=0)
-                        for ref in dict.fromkeys(ready + more):
-                            self._collect(ref, slots)
-                else:
-                    time.sleep(0.05)
-                self.ctx.check_head()
+            while ex is not None and not all(s.finished for s in self.states):
+                while ex.free() and self._dispatch(ex):
+                    pass
+                try:
+                    outcomes = ex.wait(WAIT_S)
+                except NoLiveWorkers as exc:
+                    self._fail_remaining(str(exc))
+                    break
+                for outcome in outcomes:
+                    self._outcome(ex, outcome)
                 self._emit("tick", None)
         finally:
-            if slots and not self.ctx.lost:  # a lost cluster has no workers left to release
-                release_workers(slots, keep=not self.ctx.started_here)
+            if ex is not None:
+                ex.close(keep=not self.ctx.started_here)
             self._write_cells()
             self._close_run_record()
             self.progress.close()
@@ -257,26 +245,26 @@ class _Run:
                           len(failed), time.monotonic() - self.t0, failed,
                           {s.cell_id: s.rerun for s in self.states if s.rerun})
 
-    def _dispatch(self, slot: Slot) -> None:
-        """Give a free worker an evaluation chunk, else the next cell to train."""
+    def _dispatch(self, ex: RayExecutor) -> bool:
+        """Submit an evaluation chunk, else the next cell to train (False: nothing to do)."""
         for st in self.states:
             if st.phase == "evaluating" and st.eval_todo:
                 mode, chunk = unit = st.eval_todo.pop(0)
-                ref = slot.actor.eval_chunk.remote(st.spec, [st.state_ref], chunk, mode)
-                self._submit(ref, "eval", slot, st, unit)
-                return
+                ex.submit(Unit("eval_chunk", (st.spec, [st.state_ref], chunk, mode), ("eval", st.cell_id),
+                               tag=(st, unit)))
+                return True
         pending = [s for s in self.states if s.phase == "pending"]
-        if pending:
-            st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
-            if st.trained:  # trained before the interruption: evaluate now
-                self._start(st)
-                self._dispatch(slot)
-                return
-            group = [st] + self._stack_mates(st, pending)
-            for mate in group:
-                self._start(mate)
-            slot.sticky = group
-            self._submit_train(slot, group)
+        if not pending:
+            return False
+        st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
+        if st.trained:  # trained before the interruption: evaluate now
+            self._start(st)
+            return True
+        group = [st] + self._stack_mates(st, pending)
+        for mate in group:
+            self._start(mate)
+        self._submit_train(ex, ("train", tuple(c.cell_id for c in group)), group)
+        return True
 
     def _stack_mates(self, st: CellState, pending: list[CellState]) -> list[CellState]:
         """Up to ``stack_seeds - 1`` other pending, untrained cells that differ from ``st``
@@ -302,57 +290,47 @@ class _Run:
         self._write_cells()
         self._emit("started", st)
 
-    def _submit_train(self, slot: Slot, group: list[CellState]) -> None:
-        """The next training chunk of the cells of ``group`` (one cell, or a seed stack)."""
+    def _submit_train(self, ex: RayExecutor, key: tuple[str, tuple[str, ...]], group: list[CellState]) -> None:
+        """The next training chunk of the cells of ``group`` (one cell, or a seed stack); sticky:
+        the worker that holds their methods gets their next chunk."""
         boxes = [[st.state_ref] if st.state_ref is not None else [] for st in group]
-        ref = slot.actor.train_stack.remote([st.spec for st in group], boxes,
-                                            [st.iterations for st in group], self.k)
-        self._submit(ref, "train", slot, group, 0)
-
-    def _submit(self, ref: Any, kind: str, slot: Slot, st: CellState | None, chunk: Any) -> None:
-        slot.busy = kind != "ping"
-        self.inflight[ref] = (kind, slot, st, chunk)
+        ex.submit(Unit("train_stack", ([st.spec for st in group], boxes, [st.iterations for st in group], self.k),
+                       key, tag=group, sticky=True))
 
     def _begin_eval(self, st: CellState) -> None:
         st.phase, st.trained = "evaluating", True
         st.eval_todo = [u for u in st.eval_units() if u not in st.eval_rows]
 
     # --------------------------------------------------------------- results
-    def _collect(self, ref: Any, slots: list[Slot]) -> None:
-        import ray
+    def _outcome(self, ex: RayExecutor, outcome: Outcome) -> None:
+        unit = outcome.unit
+        cells: list[CellState] = unit.tag if unit.call == "train_stack" else [unit.tag[0]]
+        if isinstance(outcome, Retried):  # the worker died: the executor runs the unit again
+            self.last_error = outcome.message
+            for st in cells:
+                if not st.finished:
+                    if unit.call == "train_stack":  # resumes from st.state_ref, the last checkpoint
+                        st.attempts += 1
+                        self._write_cells()
+                    self._emit("retry", st)
+            return
+        if isinstance(outcome, Failed):
+            for st in cells:
+                if not st.finished:
+                    self._fail(st, outcome.message)
+            return
+        if unit.call == "train_stack":
+            self._train_done(ex, unit.key, cells, outcome.result)
+            return
+        st, eval_unit = unit.tag
+        if st.finished:
+            return
+        st.wall_s += float(outcome.result["wall_s"])
+        st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(outcome.result["peak_mem_mb"]))
+        self._eval_done(st, eval_unit, outcome.result["rows"])
 
-        kind, slot, st, chunk = self.inflight.pop(ref)
-        try:
-            result = ray.get(ref, timeout=0)
-        except ray.exceptions.RayTaskError as exc:  # the method raised: the cell fails
-            cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-            if isinstance(cause, ray.exceptions.RayError) and not isinstance(cause, ray.exceptions.RayTaskError):
-                self._worker_lost(kind, slot, st, chunk, cause, slots)  # e.g. a lost state object
-                return
-            slot.busy = False
-            if kind == "train":
-                slot.sticky = None
-            for cell in _cells(st):
-                if not cell.finished:
-                    self._fail(cell, f"{type(cause).__name__}: {' '.join(str(cause).split())[:500]}")
-            return
-        except ray.exceptions.RayError as exc:  # the worker died: retry elsewhere
-            self._worker_lost(kind, slot, st, chunk, exc, slots)
-            return
-        if kind == "ping":
-            slot.healthy, slot.pinging, slot.suspect = True, False, False
-            return
-        slot.busy = False
-        if kind == "train":
-            self._train_done(slot, st, result)
-            return
-        if st is None or st.finished:
-            return
-        st.wall_s += float(result["wall_s"])
-        st.peak_mem_mb = _nanmax(st.peak_mem_mb, float(result["peak_mem_mb"]))
-        self._eval_done(st, chunk, result["rows"])
-
-    def _train_done(self, slot: Slot, group: list[CellState], results: list[dict[str, Any]]) -> None:
+    def _train_done(self, ex: RayExecutor, key: Any, group: list[CellState],
+                    results: list[dict[str, Any]]) -> None:
         """Store a training chunk of every cell of ``group``; the cells that are not finished
         get their next chunk on the same worker (which holds their methods)."""
         going = []
@@ -364,10 +342,9 @@ class _Run:
             if self._train_chunk_done(st, result):
                 going.append(st)
         if going:
-            slot.sticky = going
-            self._submit_train(slot, going)
+            self._submit_train(ex, key, going)
         else:
-            slot.sticky = None
+            ex.release(key)
 
     def _train_chunk_done(self, st: CellState, result: dict[str, Any]) -> bool:
         """Write one cell's chunk (rows, then checkpoint); True while it has training left."""
@@ -419,36 +396,6 @@ class _Run:
             if not st.finished:
                 st.phase, st.error = "failed", error
 
-    def _worker_lost(self, kind: str, slot: Slot, st_or_group: CellState | list[CellState] | None, chunk: Any,
-                     exc: BaseException, slots: list[Slot]) -> None:
-        """Re-queue the unit; probe the worker (Ray restarts it) or replace it if it is gone."""
-        import ray
-
-        if kind == "ping":
-            slot.pinging = False
-            slot.suspect = True
-            if isinstance(exc, ray.exceptions.ActorDiedError):
-                ray.kill(slot.actor, no_restart=True)  # restarts exhausted or node gone: a new worker
-                slot.actor = self.remote.remote()
-            else:  # restarting (ActorUnavailableError): probe again shortly
-                slot.next_ping = time.monotonic() + PING_RETRY_S
-            return
-        slot.busy, slot.healthy, slot.suspect, slot.next_ping = False, False, True, time.monotonic()
-        for st in _cells(st_or_group):
-            if st.finished:
-                continue
-            st.retries += 1
-            self.last_error = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
-            if st.retries > MAX_RETRIES:
-                self._fail(st, f"worker died {st.retries} times: {type(exc).__name__}")
-            elif kind == "train":
-                slot.sticky = None
-                st.phase = "pending"  # resumes from st.state_ref (the last checkpoint) on any worker
-                self._emit("retry", st)
-            else:
-                st.eval_todo.insert(0, chunk)
-                self._emit("retry", st)
-
     # --------------------------------------------------------------- progress
     def _emit(self, kind: str, st: CellState | None, rows: list[dict[str, Any]] | None = None) -> None:
         message = event_message(kind, st, self.last_error) if st is not None else ""
@@ -489,11 +436,6 @@ def event_message(kind: str, st: CellState, last_error: str = "") -> str:
     if kind == "rerun":
         return f"{label} {st.rerun}"
     return f"{kind} {label}"
-
-
-def _cells(st: CellState | list[CellState] | None) -> list[CellState]:
-    """The cells of an in-flight unit: a training chunk's group, or an evaluation's cell."""
-    return [] if st is None else list(st) if isinstance(st, list) else [st]
 
 
 def _stack_key(spec: dict[str, Any]) -> str:

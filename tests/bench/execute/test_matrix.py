@@ -212,11 +212,11 @@ def test_matrix__a_worker_that_dies_is_retried_on_ray(toy: str, tiny_run: Path, 
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     import shutil
 
-    from bench.execute import worker_pool
+    from bench.execute import executor
 
-    for actors in worker_pool._IDLE.values():  # plain workers of an earlier test: not reused here
-        worker_pool._kill(actors)
-    worker_pool._IDLE.clear()
+    for actors in executor._IDLE.values():  # plain workers of an earlier test: not reused here
+        executor._kill(actors)
+    executor._IDLE.clear()
     local, remote = tmp_path / "local", tmp_path / "remote"
     shutil.copytree(tiny_run, local)
     shutil.copytree(tiny_run, remote)
@@ -240,9 +240,9 @@ def test_matrix__a_worker_that_dies_is_retried_on_ray(toy: str, tiny_run: Path, 
     args = dict(ns=[4], ps=[0.4], models=["bernoulli"], episodes=K)
     s = run_matrix(remote, workers=2, **args)
     assert Path(marker).exists() and (s.written, s.failed) == (8, {})
-    for actors in worker_pool._IDLE.values():
-        worker_pool._kill(actors)
-    worker_pool._IDLE.clear()
+    for actors in executor._IDLE.values():
+        executor._kill(actors)
+    executor._IDLE.clear()
     monkeypatch.setattr(matrix, "CellWorker", CellWorker)
     run_matrix(local, use_ray=False, **args)
     key = ["cell_id", "condition", "execution", "episode"]
