@@ -184,7 +184,8 @@ class RunStore:
     def read_cells(self) -> pd.DataFrame | None:
         if not self.cells_path.exists():
             return None
-        return read_table(self.cells_path, CELLS_SCHEMA, ADDED_CELL_COLUMNS).to_pandas()
+        df = read_table(self.cells_path, CELLS_SCHEMA, ADDED_CELL_COLUMNS).to_pandas()
+        return df.fillna(ADDED_CELL_COLUMNS)  # a row written without an added column: its value
 
     def write_cells(self, rows: Sequence[Mapping[str, Any]]) -> None:
         write_table(self.cells_path, rows_to_table(rows, CELLS_SCHEMA), self.checksums)
