@@ -65,7 +65,8 @@ class CellState:
     state_ref: Any = None  # ObjectRef of the last checkpoint state (set by the runner)
     eval_todo: list[EvalUnit] = field(default_factory=list)
     eval_rows: dict[EvalUnit, list[dict[str, Any]]] = field(default_factory=dict)
-    wall_s: float = 0.0
+    wall_s: float = 0.0  # worker seconds of the attempt that produces the cell's results
+    superseded_wall_s: float = 0.0  # worker seconds of earlier attempts whose results were discarded
     peak_mem_mb: float = float("nan")
     attempts: int = 0
     retries: int = 0  # worker deaths in this run
@@ -111,7 +112,7 @@ class CellState:
         return {
             **self.config, "grid": grid, "status": self.status(), "error": self.error,
             "train_episodes_done": self.episodes_done, "wall_s": self.wall_s,
-            "peak_mem_mb": self.peak_mem_mb, "attempts": self.attempts,
+            "superseded_wall_s": self.superseded_wall_s, "peak_mem_mb": self.peak_mem_mb, "attempts": self.attempts,
             "versions_json": self.versions_json, "schema_version": SCHEMA_VERSION,
         }
 
@@ -163,10 +164,12 @@ def plan_run(store: RunStore, grid: Grid, fresh: bool, rerun_changed: bool = Fal
             st.attempts = int(prev.get("attempts") or 0)
             st.versions_json = str(prev.get("versions_json") or "{}")
             st.wall_s = float(prev.get("wall_s") or 0.0)
+            st.superseded_wall_s = float(prev.get("superseded_wall_s") or 0.0)
         diff = params_changes(str(prev.get("params_json") or ""), cell) if prev is not None else []
         if diff and not fresh and store.has_results(cell.cell_id):
             changed.append(f"{st.label()}: {', '.join(diff)}")
             st.superseded = prev
+            _discard_attempt(st)
             st.rerun = (f"was stored with other method parameters ({'; '.join(diff)}); its files moved "
                         "to superseded/, training it again from the start")
         elif not fresh:
@@ -182,6 +185,14 @@ def plan_run(store: RunStore, grid: Grid, fresh: bool, rerun_changed: bool = Fal
     ids = {s.cell_id for s in states}
     others = [r for cid, r in old.items() if cid not in ids]
     return states, others
+
+
+def _discard_attempt(st: CellState) -> None:
+    """The stored attempt's results are not kept (the cell trains again from the start): its
+    worker seconds move to ``superseded_wall_s``, so ``wall_s`` counts only the attempt that
+    produces the cell."""
+    st.superseded_wall_s += st.wall_s
+    st.wall_s = 0.0
 
 
 def _resume_state(store: RunStore, st: CellState) -> None:
@@ -207,6 +218,7 @@ def _resume_state(store: RunStore, st: CellState) -> None:
             st.rerun = f"was done but {gap} stored; evaluating it again from its final checkpoint"
         else:
             st.rerun = f"was done but {gap} stored; training it again from the start"
+            _discard_attempt(st)
             return  # no checkpoint use: the missing rows come from episodes before it
     if ckpt is not None:
         st.has_checkpoint = True

@@ -41,6 +41,21 @@ class RunRecord(BaseModel):
     cells_done_in_run: StrictInt | None = None
     cells_done_after: StrictInt | None = None
     machine: dict[str, Any] | None = None
+    # Parts filled in after the run (part -> where its value comes from), and parts that have
+    # no value (part -> why): a record written by an older bench, or one whose run was killed.
+    reconstructed: dict[StrictStr, StrictStr] | None = None
+    unrecorded: dict[StrictStr, StrictStr] | None = None
+
+
+# What a finished invocation's record holds (docs/results-schema.md, manifest.json).
+RECORD_PARTS = ("grid", "started", "ended", "command", "git", "machine", "workers", "wall_s",
+                "cells_done_before", "cells_done_in_run", "cells_done_after")
+
+
+def unexplained_parts(record: dict[str, Any]) -> list[str]:
+    """Parts of RECORD_PARTS that a run record neither holds nor names in ``unrecorded``."""
+    why = record.get("unrecorded") or {}
+    return [p for p in RECORD_PARTS if record.get(p) is None and not why.get(p)]
 
 
 class Manifest(BaseModel):

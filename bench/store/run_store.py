@@ -32,6 +32,7 @@ from bench.store.checkpoints import CHECKPOINT_FORMAT, load_checkpoint, short_er
 from bench.store.integrity import CHECKSUMS_FILE, Checksums
 from bench.store.meta_schema import EvalMeta, Manifest, validated
 from bench.store.schema import (
+    ADDED_CELL_COLUMNS,
     CELLS_SCHEMA,
     EVAL_SCHEMA,
     SCHEMA_VERSION,
@@ -65,13 +66,17 @@ def write_table(path: Path, table: pa.Table, checksums: Checksums | None = None)
         fh.write(data)
 
 
-def read_table(path: Path, expected: pa.Schema) -> pa.Table:
-    """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError."""
+def read_table(path: Path, expected: pa.Schema, added: Mapping[str, float] | None = None) -> pa.Table:
+    """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError.
+    A column of ``added`` (name -> value) that the file lacks is filled with its value."""
     try:
         table = pq.read_table(path, page_checksum_verification=True)
     except (OSError, pa.ArrowException) as exc:
         raise BenchError(f"corrupt Parquet file {str(path)!r}: {short_error(exc)}") from None
     _check_version(path, table.schema.metadata)
+    for name, value in (added or {}).items():
+        if name not in table.schema.names:
+            table = table.append_column(expected.field(name), pa.array([value] * table.num_rows, pa.float64()))
     missing = [n for n in expected.names if n not in table.schema.names]
     if missing:
         raise BenchError(f"Parquet file {str(path)!r} lacks column {missing[0]!r}")
@@ -179,7 +184,8 @@ class RunStore:
     def read_cells(self) -> pd.DataFrame | None:
         if not self.cells_path.exists():
             return None
-        return read_table(self.cells_path, CELLS_SCHEMA).to_pandas()
+        df = read_table(self.cells_path, CELLS_SCHEMA, ADDED_CELL_COLUMNS).to_pandas()
+        return df.fillna(ADDED_CELL_COLUMNS)  # a row written without an added column: its value
 
     def write_cells(self, rows: Sequence[Mapping[str, Any]]) -> None:
         write_table(self.cells_path, rows_to_table(rows, CELLS_SCHEMA), self.checksums)

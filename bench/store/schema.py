@@ -18,6 +18,10 @@ VERSION_KEY = b"schema_version"
 
 STATUSES = ("pending", "running", "done", "failed")
 
+# Columns added to a version-2 table after its first files were written: a file without one
+# reads as this value (for superseded_wall_s: no discarded attempt recorded).
+ADDED_CELL_COLUMNS = {"superseded_wall_s": 0.0}
+
 CELLS_SCHEMA = pa.schema([
     pa.field("cell_id", pa.string(), nullable=False),
     pa.field("grid", pa.string()),
@@ -43,6 +47,7 @@ CELLS_SCHEMA = pa.schema([
     pa.field("error", pa.string()),
     pa.field("train_episodes_done", pa.int64()),
     pa.field("wall_s", pa.float64()),
+    pa.field("superseded_wall_s", pa.float64()),
     pa.field("peak_mem_mb", pa.float64()),
     pa.field("attempts", pa.int64()),
     pa.field("versions_json", pa.string()),

@@ -204,6 +204,11 @@ def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_
     assert archive.name.startswith(cid) and (archive / "eval.parquet").read_bytes() == old_eval
     cells, train1, eval1 = _frames(out)
     assert json.loads(cells.loc[cid, "params_json"])["lr"] == 0.05  # the row now says what ran
+    # wall_s counts only the attempt that produced the cell; the discarded one has its own column
+    old_wall = json.loads((archive / "cells_row.json").read_text())["wall_s"]
+    assert old_wall > 0 and cells.loc[cid, "superseded_wall_s"] == old_wall
+    assert cells.loc[cid, "wall_s"] == store.eval_meta(cid)["wall_s"]
+    assert cells.loc[grid.cells[1].cell_id, "superseded_wall_s"] == 0.0
     pd.testing.assert_frame_equal(train0, train1)  # the same seeds and parameters: the same rows
     pd.testing.assert_frame_equal(eval0, eval1)
     assert run_grid(grid, out, workers=1, checkpoint_every=2).rerun == {}

@@ -77,11 +77,25 @@ def test_cells_table__round_trip_keeps_types(tmp_path: Path) -> None:
                search_radius=2, c_max=500, safety_filter=False, layout="tiny", episodes=0, horizon=10,
                eval_episodes=5, on_goal="remove", loss_model="bernoulli", executions="planner",
                params_json="{}", config_json="{}",
-               status="done", error="", train_episodes_done=0, wall_s=1.0, peak_mem_mb=400.0, attempts=1,
-               versions_json="{}", schema_version=SCHEMA_VERSION)
+               status="done", error="", train_episodes_done=0, wall_s=1.0, superseded_wall_s=0.5, peak_mem_mb=400.0,
+               attempts=1, versions_json="{}", schema_version=SCHEMA_VERSION)
     store.write_cells([row])
     df = store.read_cells()
     assert df.to_dict("records") == [row]
+
+
+def test_cells_table__superseded_wall_s_absent_or_missing_reads_as_zero(tmp_path: Path) -> None:
+    """superseded_wall_s came within schema version 2: a cells.parquet without the column, or a
+    row written without it, has no discarded attempt recorded (0, not NaN: plan adds to it)."""
+    store = RunStore(tmp_path)
+    row = {f.name: None for f in CELLS_SCHEMA} | dict(
+        cell_id="c1", n_robots=8, seed=0, groups=4, ref_size=8, search_radius=2, c_max=500, safety_filter=False,
+        episodes=0, horizon=10, eval_episodes=5, train_episodes_done=0, attempts=1, schema_version=SCHEMA_VERSION)
+    store.write_cells([row])
+    assert store.read_cells()["superseded_wall_s"].tolist() == [0.0]
+    table = pq.read_table(store.cells_path)
+    pq.write_table(table.drop_columns(["superseded_wall_s"]), store.cells_path)
+    assert store.read_cells()["superseded_wall_s"].tolist() == [0.0]
     assert pq.read_schema(store.cells_path).metadata[b"schema_version"] == str(SCHEMA_VERSION).encode()
 
 

@@ -678,6 +678,31 @@ def test_check_curves__its_two_ways_to_contradict_share_the_level():
     assert check_curves(h, [x + 0.5 for x in h])[0] == CONTRADICTED
 
 
+def test_check_curves__its_mean_test_contradicts_at_half_the_contradiction_level():
+    """Per-seed constant curves, hierarchical below: the mean test alone decides (the band's
+    upper bound stays above -0.05). p_less just above contra_alpha / 2 is inconclusive (not
+    at contra_alpha or twice it), just above contra_alpha / 3 contradicted (not at a third)."""
+    a = np.array([0.30, 0.40, 0.50])
+
+    def curves(shift: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        return [np.full(20, v) for v in a], [np.full(20, v + shift) for v in a]
+
+    def p_less(shift: float) -> float:
+        return t_test([a, a + shift], [1.0, -1.0]).p_less
+
+    def band_top(shift: float) -> float:
+        h, i = curves(shift)
+        return float(simultaneous_band(np.stack([quantile_curve(x, BAND_PCT) for x in h]),
+                                       np.stack([quantile_curve(x, BAND_PCT) for x in i]),
+                                       alpha=TEST_ALPHA / 2)[2].min())
+
+    above_half = _shift_for(p_less, TEST_ALPHA / 2, TEST_ALPHA / 1.5, hi=0.5)
+    above_third = _shift_for(p_less, TEST_ALPHA / 3, TEST_ALPHA / 2.5, hi=0.5)
+    assert band_top(above_half) > -0.05 and band_top(above_third) > -0.05
+    assert check_curves(*curves(above_half))[0] == INCONCLUSIVE
+    assert check_curves(*curves(above_third))[0] == CONTRADICTED
+
+
 def test_check_convergence__its_three_ways_to_contradict_share_the_level():
     # Per-seed gains -3.2, -2.2, -1.2 (one-sided p ~ 0.03) and a flat last window: the gain
     # part and the "still rising" part are each below 0.05 but not below 0.05 / 3.
