@@ -181,7 +181,7 @@ class IC3NetPolicy(nn.Module):
     def replay(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
         hc: tuple[torch.Tensor, torch.Tensor],
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, tuple[torch.Tensor, torch.Tensor]]:
         """``forward`` over a chunk of T steps (inputs with a leading (T,) axis), outputs
         stacked (T, B, N, ...). The encoder and the heads run once over the chunk; only the
         communication and the LSTM cell go step by step. Equal to T ``forward`` calls up to
@@ -237,7 +237,7 @@ class IC3NetMethod(Method):
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
-        if self.critic is not None:
+        if self.critic is not None and self.critic_opt is not None:  # set together (central)
             mods.update(critic=self.critic, critic_opt=self.critic_opt)
         return mods
 
@@ -365,7 +365,7 @@ class IC3NetMethod(Method):
         n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
         out: dict[str, float] = {}
-        if self.critic is not None:  # the shared trainer: team advantage of V(X_t)
+        if self.critic is not None and self.critic_opt is not None:  # the shared trainer: team advantage of V(X_t)
             crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
             adv = crit.adv[..., None].expand_as(active)  # (T, B, N): every robot, the team's A_t
             targets = None
@@ -390,7 +390,7 @@ class IC3NetMethod(Method):
             m = active[sl]
             action_loss = -(adv[sl] * logp * m).sum()
             value_loss = torch.zeros(())
-            if targets is not None:
+            if targets is not None and values is not None:  # both with a per-robot value head
                 value_loss = (((values - targets[sl]) ** 2) * m).sum()
             entropy = -((logp_all.exp() * logp_all).sum(-1) * m).sum()
             loss = ((action_loss + p.value_coef * value_loss) / n_steps
