@@ -19,7 +19,7 @@ import typer
 try:  # typer >= 0.26 vendors click
     from typer._click import exceptions as click_exc
 except ImportError:  # pragma: no cover - older typer on click
-    from click import exceptions as click_exc
+    from click import exceptions as click_exc  # type: ignore[no-redef]  # the same module, unvendored
 
 from envs.errors import BenchError
 
@@ -98,7 +98,11 @@ def run(
     for option, field, value in (("--workers", "workers", workers), ("--checkpoint-every", "checkpoint_every", checkpoint_every),
                                  ("--stack-seeds", "stack_seeds", stack_seeds)):
         check_count(option, field, value)
-    g = get_grid(grid.value, seeds) if grid is not None else load_grid_file(grid_file, seeds)
+    if grid is not None:
+        g = get_grid(grid.value, seeds)
+    else:
+        assert grid_file is not None  # exactly one of the two, checked above
+        g = load_grid_file(grid_file, seeds)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
     store.check_writable()
@@ -562,7 +566,7 @@ def main(argv: list[str] | None = None) -> None:
         with sigterm_as_interrupt():
             code = app(args=argv, prog_name="bench", standalone_mode=False)
     except BaseException as exc:
-        if sigterm_received() and isinstance(exc, (KeyboardInterrupt, typer.Abort, click_exc.Abort)):
+        if sigterm_received() and isinstance(exc, (KeyboardInterrupt, typer.Abort)):
             _error(_TERMINATED)
             sys.exit(143)
         _exit_on(exc)

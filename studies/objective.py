@@ -33,6 +33,7 @@ from bench.design.cells import Cell
 from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
+from studies.storage import Direction
 
 Objectives = Literal["success", "success,return"]
 TIE_BREAK = 1e-3  # weight of the squashed return in the single objective
@@ -81,7 +82,7 @@ class TrialSettings(BaseModel):
         return self.objectives == "success,return"
 
     @property
-    def directions(self) -> list[str]:
+    def directions(self) -> list[Direction]:
         return ["maximize", "maximize"] if self.multi_objective else ["maximize"]
 
     def cell(self, sampled: Mapping[str, Any], seed: int) -> Cell:

@@ -176,7 +176,7 @@ def importance_figure(imp: dict[str, Any]) -> Built:
             reason = imp.get("reason") or "no importances"
             placeholder(ax, reason)
             return Built(fig, [reason])
-        names = sorted(values, key=values.get)
+        names = sorted(values, key=lambda n: values[n])
         ax.barh([PARAM_LABELS.get(n, n) for n in names], [values[n] for n in names], color="C0")
         ax.set_xlabel("importance (fANOVA, share of objective variance)")
         ax.set_xlim(0, 1)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -35,7 +36,7 @@ from reports.claims.claim_power import (
     power_gap,
     power_greater,
 )
-from reports.claims.power import COULD_NOT, LOW, NO_POWER
+from reports.claims.power import COULD_NOT, LOW, NO_POWER, Power
 from reports.claims.verdicts import (
     BAND_TOL,
     BY_CONSTRUCTION,
@@ -68,7 +69,7 @@ TRAINING = "training (sampled)"
 DEFAULT_EXECUTION = {"hierarchical": "argmax", "pibt": "planner"}
 MODE_ORDER = ("argmax", "sample", "sample@0.5")
 # The paper's configurations (Sec. IV) and safety-filter settings (Sec. IV: Z = 4, L = 2, C_max = 500; |U| = 5).
-PAPER = {"fig1a": ((20, 0.2), (40, 0.2), (60, 0.2)), "gap": ((60, 20, 0.2), (60, 40, 0.2)),
+PAPER: dict[str, tuple[tuple[Any, ...], ...]] = {"fig1a": ((20, 0.2), (40, 0.2), (60, 0.2)), "gap": ((60, 20, 0.2), (60, 40, 0.2)),
          "fig1b": ((80, 0.2), (90, 0.2), (100, 0.2)),
          "fig2": tuple((n, p) for n in (40, 60) for p in (0.2, 0.4, 0.6)),
          "table1": tuple((n, 0.2) for n in (40, 60, 80, 90, 100)),
@@ -191,10 +192,12 @@ def _modes(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 
 # ------------------------------------------------------------------- claims
 Configs = Sequence[tuple]
+# (config label, execution, verdict, numbers, test[, power]): one check of ``_each``'s fn
+CheckRow = tuple[str, str, str, str, str] | tuple[str, str, str, str, str, Power]
 
 
 def _each(claim: Claim, paper: Configs, run: Configs,
-          fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
+          fn: Callable[[tuple, float], list[CheckRow]]) -> Claim:
     """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
     test[, power])] per scope (``power`` a ``reports.claims.power.Power``, only with a verdict
     that has seeds); run configurations that are paper ones are not repeated.

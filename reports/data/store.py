@@ -13,6 +13,7 @@ A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,7 +93,7 @@ def _with_config(rows: pd.DataFrame, done: pd.DataFrame) -> pd.DataFrame:
     return out.drop_duplicates(key, keep="last").sort_values(key, kind="stable").reset_index(drop=True)
 
 
-def execution_order(modes: object) -> list[str]:
+def execution_order(modes: Iterable[object]) -> list[str]:
     """Execution modes in report order: argmax, sample, sample@T by decreasing T, planner."""
     def key(m: str) -> tuple[int, float]:
         if m == "argmax":

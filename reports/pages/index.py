@@ -122,7 +122,8 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
     ``title`` plus the heading above the table. For pages other modules write as Markdown
     only (ablation, calibration), so the index shows them as HTML tables too."""
     out: list[tuple[str, pd.DataFrame]] = []
-    heading, rows = "", []
+    heading = ""
+    rows: list[list[str]] = []
 
     def cells(line: str) -> list[str]:
         parts = re.split(r"(?<!\\)\|", line.strip()[1:-1])
