@@ -92,7 +92,8 @@ class IC3NetParams(LearnedParams):
     the architecture's own are the reference code's unless stated."""
 
     baseline: Literal["central", "per_robot"] = Field(
-        "central", description="centralized critic V(X_t) of the shared trainer, or the reference's per-robot value head")
+        "central", description="centralized critic V(X_t) of the shared trainer, or the reference's per-robot value "
+                               "head")
     optimizer: Literal["adam", "rmsprop"] = Field(
         "adam", description="Adam (shared trainer) or RMSprop (reference) for the policy")
     comm_passes: int = Field(1, ge=1, description="communication passes per step")

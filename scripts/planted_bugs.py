@@ -48,10 +48,12 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
     "swap_or": (FILTER, "(nw[..., e] == p[sel[:, None], rob[None, :, f]]) & (nw[..., f]",
                 "(nw[..., e] == p[sel[:, None], rob[None, :, f]]) | (nw[..., f]",
                 "tests/algorithms/hierarchical/test_safety_filter.py"),
-    "no_rest_pairs": (FILTER, "                rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, :, f]]",
+    "no_rest_pairs": (FILTER, "                rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, "
+                              ":, f]]",
                       "                pass", "tests/algorithms/hierarchical/test_safety_filter.py"),
     "no_vs_changed": (FILTER, "        ok &= (c1[gg, r, a] - vs_changed == 0).all(-1)",
-                      "        ok &= (c1[gg, r, a] == 0).all(-1)", "tests/algorithms/hierarchical/test_safety_filter.py"),
+                      "        ok &= (c1[gg, r, a] == 0).all(-1)",
+                          "tests/algorithms/hierarchical/test_safety_filter.py"),
     # issue 12: the speed changes (deviation 2 over pairs i < j, the shared critic step)
     "level2_clean_j": (FILTER, "clean_j = clean[:, ju, iu]", "clean_j = clean[:, iu, ju]",
                        "tests/algorithms/hierarchical/test_safety_filter.py"),

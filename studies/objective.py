@@ -57,7 +57,8 @@ class TrialSettings(BaseModel):
     episodes: int = Field(48, ge=1, le=limit("episodes"), description="training episodes per trial")
     batch_episodes: int = Field(8, ge=1, description="episodes per update")
     eval_every: int = Field(2, ge=1, description="updates between intermediate evaluations")
-    eval_episodes: int = Field(20, ge=1, le=limit("eval_episodes"), description="greedy episodes of the final evaluation")
+    eval_episodes: int = Field(20, ge=1, le=limit("eval_episodes"),
+        description="greedy episodes of the final evaluation")
     eval_chunk: int = Field(10, ge=1, description="episodes per evaluation chunk")
     report_chunks: int = Field(2, ge=1, description="chunks per intermediate evaluation (2 x 10 episodes:"
                                " fewer made pruning decisions noisy, issue #16)")

@@ -148,7 +148,8 @@ class RunStore:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise BenchError(f"another bench run is using {str(self.root)!r}; wait for it or use another --out") from None
+            raise BenchError(f"another bench run is using {str(self.root)!r}; wait for it or use another "
+                             "--out") from None
         return fd
 
     def exists(self) -> bool:

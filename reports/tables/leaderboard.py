@@ -156,7 +156,8 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
             cols = [mat[:, j] for j in range(mat.shape[1])]
             lo, hi = _stratified_ci(cols, _iqm)
             iqm_rows.append({"execution": mode, "method": m, "label": method_label(m), "configurations": len(cfgs),
-                             "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)), "iqm_lo": lo, "iqm_hi": hi})
+                             "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)),
+                                 "iqm_lo": lo, "iqm_hi": hi})
         for x, y in permutations(mats, 2):
             a, b = mats[x], mats[y]
             k = a.shape[1]
@@ -206,7 +207,8 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     else:
         lines += ["| execution | method | configurations | seeds | IQM success [95% CI] |", "|---|---|---|---|---|"]
         for r in iqm.itertuples(index=False):
-            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
+            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | "
+                         f"{ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
         lines += ["", "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
                   "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
                   "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
@@ -267,7 +269,8 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                     ax.plot(x, g["success"], "o-", color=method_color(m), label=method_label(m), ms=2.5)
                     ax.fill_between(x, g["success_lo"], g["success_hi"], color=method_color(m), alpha=0.15, lw=0)
                 ax.set_ylim(-0.02, 1.02)
-                ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, {mode}")
+                ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
+                             f"{mode}")
                 ax.set_xticks(sorted(part[against].unique()) if len(part) else [])
                 if i == len(modes) - 1:
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")

@@ -120,7 +120,8 @@ def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
     for _, r in frame.iterrows():
         filt = bool(r.get("safety_filter", True))
         rows.append([
-            str(r["method"]) + variant_suffix(str(r.get("variant", "") or "")), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
+            str(r["method"]) + variant_suffix(str(r.get("variant", "") or "")), str(r["n_robots"]),
+                f"{r['loss_p']:g}", str(r["execution"]),
             f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
             + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
             str(r["eval_episodes"]),
