@@ -21,7 +21,8 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
 * the action logits get the linear action-aligned path every learned method has
   (``ActionPath``: each action's shortest-path progress and the robots in view on its
   target cell, v = 0 at init; ``action_path=True``, the default). Not in IC3Net's
-  reference architecture: an equal-footing departure, measured in docs/decisions/0137; ``action_path=False`` is the reference's head.
+  reference architecture: an equal-footing departure, measured in docs/decisions/0137; ``action_path=False`` is the
+  reference's head.
 
 Training, REINFORCE with a baseline on the Monte-Carlo team return G_t (eq:training_return,
 gamma = 1), loss = -sum A (log pi(u) + log pi(g)) over alive robot-steps / environment

@@ -116,7 +116,8 @@ def run(
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
     from bench.design.limits import check_count
 
-    for option, field, value in (("--workers", "workers", workers), ("--checkpoint-every", "checkpoint_every", checkpoint_every),
+    for option, field, value in (("--workers", "workers", workers),
+                                 ("--checkpoint-every", "checkpoint_every", checkpoint_every),
                                  ("--stack-seeds", "stack_seeds", stack_seeds)):
         check_count(option, field, value)
     if grid is not None:

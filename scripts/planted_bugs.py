@@ -13,7 +13,8 @@ FILTER = "algorithms/hierarchical/safety_filter.py"
 IC3 = "algorithms/ic3net.py"
 DEC = "algorithms/decentralized.py"
 HIER_TRAIN = "algorithms/hierarchical/training.py"
-BASELINE_TESTS = "tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py tests/algorithms/test_trainer.py"
+BASELINE_TESTS = ("tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py "
+                  "tests/algorithms/test_trainer.py")
 PLANTS: dict[str, tuple[str, str, str, str]] = {
     # name: (file, old, new, tests)
     # issue 11: the trainer bugs that once passed the whole suite

@@ -3,7 +3,8 @@
 A trial is a bench ``Cell`` (bench/design/cells.py) built from the study's ``TrialSettings`` (N,
 p, layout and a smoke-scale budget by default), the sampled parameters (``ref_size``,
 ``search_radius``, optionally ``c_max``) and the trial's seed. The driver validates the
-cell and ships plain data (a ``TrialSpec``) to a ``TrialWorker``. Each ``step()`` trains ``eval_every`` updates through the
+cell and ships plain data (a ``TrialSpec``) to a ``TrialWorker``. Each ``step()`` trains ``eval_every`` updates
+through the
 Method contract (``train_iteration``) and then evaluates greedily (``evaluate``) on a few
 fixed chunks: the driver reports that value to Optuna and asks the pruner whether to go
 on. The last step evaluates the full evaluation set; its value is the trial's objective.

@@ -52,7 +52,8 @@ def history_figure(trials: pd.DataFrame) -> Built:
         return Built(fig, notes)
 
 
-def landscape_table(trials: pd.DataFrame, value: str = "success_rate") -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+def landscape_table(trials: pd.DataFrame, value: str = "success_rate",
+                    ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """(mean over complete trials, complete count, pruned count): rows L (search_radius),
     columns |R_z|. Every value of the default space appears, so configurations never run
     show as NaN with both counts 0, and a configuration whose trials were all pruned as NaN

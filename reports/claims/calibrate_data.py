@@ -166,7 +166,8 @@ class Spec:
                 z = rng.standard_normal(shape)
             else:  # smoothed bootstrap: a pooled residual plus kernel noise, unit variance kept
                 h = 1.06 * len(self.z) ** -0.2  # Silverman's bandwidth for a unit-variance sample
-                z = (self.z[rng.integers(len(self.z), size=(sims, s))] + h * rng.standard_normal(shape)) / np.sqrt(1 + h * h)
+                z = ((self.z[rng.integers(len(self.z), size=(sims, s))] + h * rng.standard_normal(shape))
+                     / np.sqrt(1 + h * h))
             out.append(mu[k] + self.sd[k] * z)
         return out
 

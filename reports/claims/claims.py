@@ -69,7 +69,8 @@ TRAINING = "training (sampled)"
 DEFAULT_EXECUTION = {"hierarchical": "argmax", "pibt": "planner"}
 MODE_ORDER = ("argmax", "sample", "sample@0.5")
 # The paper's configurations (Sec. IV) and safety-filter settings (Sec. IV: Z = 4, L = 2, C_max = 500; |U| = 5).
-PAPER: dict[str, tuple[tuple[Any, ...], ...]] = {"fig1a": ((20, 0.2), (40, 0.2), (60, 0.2)), "gap": ((60, 20, 0.2), (60, 40, 0.2)),
+PAPER: dict[str, tuple[tuple[Any, ...], ...]] = {
+         "fig1a": ((20, 0.2), (40, 0.2), (60, 0.2)), "gap": ((60, 20, 0.2), (60, 40, 0.2)),
          "fig1b": ((80, 0.2), (90, 0.2), (100, 0.2)),
          "fig2": tuple((n, p) for n in (40, 60) for p in (0.2, 0.4, 0.6)),
          "table1": tuple((n, 0.2) for n in (40, 60, 80, 90, 100)),

@@ -74,7 +74,8 @@ def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
             cid = owner_cell(rel)
             found = {str(v) for v in table.column("cell_id").unique().to_pylist()}
             if cid and found and found != {cid}:
-                why = f"it holds rows of cell {', '.join(sorted(found - {cid}))}, not of {cid} (a copied or renamed file)"
+                others = ", ".join(sorted(found - {cid}))
+                why = f"it holds rows of cell {others}, not of {cid} (a copied or renamed file)"
         if why:
             problems.append(f"skipped {rel}: {Damage(rel, owner_cell(rel), why).line()}")
             if damaged is not None:

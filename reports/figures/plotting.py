@@ -7,7 +7,8 @@ index prints under it, e.g. which of the paper's configurations the run lacks) a
 caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
 under the figure and ``reports.build.save_figure`` stores as PDF metadata and a sidecar
 ``.txt``. One colour and one label per method, as the method declares them
-(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
+(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes
+of one method are
 shades of that method's colour (``shades``), never another palette.
 """
 from __future__ import annotations

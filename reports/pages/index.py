@@ -8,7 +8,8 @@ under it and every table (Table I per execution mode, the summary, the claims' c
 their readable names and numbers, the ablation) is an HTML table with a caption, written by
 pandas' ``Styler.to_html`` with every cell escaped, in a box that scrolls when the table is
 wider or longer than the window. The claims' checks are grouped per claim, the ones
-without enough seeds in one line (``reports.pages.index_claims``). Every link is relative to the report folder and stays inside it (no ``..``),
+without enough seeds in one line (``reports.pages.index_claims``). Every link is relative to the report folder and
+stays inside it (no ``..``),
 so a copied report folder keeps working."""
 from __future__ import annotations
 

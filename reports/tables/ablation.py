@@ -3,7 +3,8 @@
 Every done cell of the ``ablation`` grid (the ``grid`` column of cells.parquet; other
 grids' cells are never pooled in) is matched to a variant of
 ``bench.design.grids.ABLATION_VARIANTS`` by its method, |R_z| and the hyperparameters that define
-variants (other hyperparameters, such as batch sizes, are ignored). Per variant: success rate, collision rate, correction rate,
+variants (other hyperparameters, such as batch sizes, are ignored). Per variant: success rate, collision rate,
+correction rate,
 fallback rate and payload (scalars per step), each the mean over seeds of the per-seed
 evaluation mean with a 95% Student t CI over seeds (over evaluation episodes when a
 variant has one seed, as in the summary), separately per execution mode (modes are never

@@ -88,10 +88,12 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
                 out.at[idx, "rank"] = int(ranks[idx])
     order = {m: i for i, m in enumerate(execution_order(out["execution"]))}
     out = out.assign(_m=out["execution"].map(order), _l=out["method"].map(lambda m: label_order(method_label(m))))
-    return out.sort_values(["n_robots", "loss_p", "_m", "_l", "method"]).drop(columns=["_m", "_l"]).reset_index(drop=True)
+    ordered = out.sort_values(["n_robots", "loss_p", "_m", "_l", "method"])
+    return ordered.drop(columns=["_m", "_l"]).reset_index(drop=True)
 
 
-def score_matrices(evals: pd.DataFrame, mode: str) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
+def score_matrices(evals: pd.DataFrame, mode: str,
+                   ) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
     """Per method, its (seeds x configurations) success matrix in mode ``mode`` (a planner in
     ``planner``) over the configurations every method covers, using the seeds every one of
     those configurations has; the configurations; the seeds used per method."""
@@ -222,8 +224,9 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     for r in safety.itertuples(index=False):
         cand = "—" if not np.isfinite(r.mean_candidates) else f"{r.mean_candidates:.1f}"
         pay = "—" if not np.isfinite(r.payload_scalars_per_step) else f"{r.payload_scalars_per_step:,.1f}"
-        lines.append(f"| {r.label} | {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.seeds} | "
-                     f"{pct(r.collision_rate) if r.collision_rate >= 1e-3 or r.collision_rate == 0 else f'{100 * r.collision_rate:.3g}%'} | "
+        coll = (pct(r.collision_rate) if r.collision_rate >= 1e-3 or r.collision_rate == 0
+                else f"{100 * r.collision_rate:.3g}%")
+        lines.append(f"| {r.label} | {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.seeds} | {coll} | "
                      f"{pct(r.correction_rate)} | {pct(r.fallback_rate)} | {cand} | {pay} |")
     return "\n".join(lines) + "\n"
 
