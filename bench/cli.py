@@ -23,6 +23,9 @@ except ImportError:  # pragma: no cover - older typer on click
 
 from envs.errors import BenchError
 
+__all__ = ["app", "main"]
+
+# The `bench` command and its subcommands (`main` runs it with the bench's error handling).
 app = typer.Typer(
     name="bench", add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
     rich_markup_mode=None,  # plain click help: flags show no "<bool>" value (typer 0.29's rich help does)

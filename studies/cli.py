@@ -21,6 +21,8 @@ import typer
 from envs.errors import BenchError
 from studies import DEFAULT_ROOT
 
+__all__ = ["TuneResult", "print_best", "tune", "tune_study"]
+
 if TYPE_CHECKING:
     from studies.runner import RunSummary
 

@@ -13,11 +13,15 @@ from typing import Any
 
 import pyarrow as pa
 
+__all__ = ["CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
+           "VERSION_KEY", "file_version", "rows_to_table", "with_version"]
+
 SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
-VERSION_KEY = b"schema_version"
+VERSION_KEY = b"schema_version"  # the Parquet metadata key holding SCHEMA_VERSION
 
-STATUSES = ("pending", "running", "done", "failed")
+STATUSES = ("pending", "running", "done", "failed")  # a cell's status in cells.parquet
 
+# One row per cell: its config, status and progress.
 CELLS_SCHEMA = pa.schema([
     pa.field("cell_id", pa.string(), nullable=False),
     pa.field("grid", pa.string()),
@@ -63,8 +67,9 @@ METRIC_FIELDS = [
     pa.field("payload_dec_per_step", pa.float64()),
     pa.field("steps", pa.int64()),
 ]
-LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")
+LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")  # the losses of a training row
 
+# One row per cell x training episode.
 TRAIN_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False)]
     + METRIC_FIELDS

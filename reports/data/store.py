@@ -28,6 +28,10 @@ from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from envs.errors import BenchError
 
+__all__ = ["CONFIG_COLUMNS", "Store", "execution_order", "fmt_p", "fmt_pct", "incomplete_evals", "load_store", "select",
+           "superseded_notes"]
+
+# The cell config columns joined onto every train and eval row.
 CONFIG_COLUMNS = ("method", "n_robots", "loss_p", "seed", "groups", "safety_filter")
 
 
