@@ -14,7 +14,7 @@ IC3 = "algorithms/ic3net.py"
 DEC = "algorithms/decentralized.py"
 HIER_TRAIN = "algorithms/hierarchical/training.py"
 BASELINE_TESTS = ("tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py "
-                  "tests/algorithms/test_trainer.py")
+                  "tests/algorithms/common/test_trainer.py")
 PLANTS: dict[str, tuple[str, str, str, str]] = {
     # name: (file, old, new, tests)
     # issue 11: the trainer bugs that once passed the whole suite
@@ -63,7 +63,7 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
                     "tests/algorithms/hierarchical/test_safety_filter.py"),
     "hier_critic_frozen": (HIER_TRAIN, "crit = critic_step(method.critic, method.opt_critic,",
                            "crit = critic_step(method.critic, torch.optim.SGD(method.critic.parameters(), lr=0.0),",
-                           "tests/algorithms/hierarchical tests/algorithms/test_trainer.py"),
+                           "tests/algorithms/hierarchical tests/algorithms/common/test_trainer.py"),
     "guard_ge": (FILTER, "if k * sel.size > MAX_LEVEL_CANDIDATES:", "if k * sel.size >= MAX_LEVEL_CANDIDATES:",
                  "tests/algorithms/hierarchical/test_safety_filter.py"),
 }

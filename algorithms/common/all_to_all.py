@@ -37,7 +37,7 @@ class AllToAllBoard:
     Stored narrow (``pos`` int16 when the layout has < 2^15 free cells, else int32;
     ``ctl`` int8; ``age`` int32) and updated in place by integer
     blends, so a step touches (B, N, N) arrays a few bytes per entry; the values are those
-    of the plain formulas (tests/algorithms/test_all_to_all_fast.py).
+    of the plain formulas (tests/algorithms/common/test_all_to_all_fast.py).
     """
 
     def __init__(self, core: WarehouseCore, loss: LossProcess, radius: int) -> None:
