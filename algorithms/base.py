@@ -155,7 +155,7 @@ class Method(ABC):
         return None
 
     # ------------------------------------------------------------------ loops
-    def run(self, batch: EpisodeBatch, choice: ActionChoice) -> tuple[Any, list[dict[str, float]]]:
+    def run(self, batch: EpisodeBatch, choice: ActionChoice) -> tuple[Any, list[dict[str, Any]]]:
         """Run every episode of ``batch`` to its end; returns (state, metric rows)."""
         core = batch.core
         stats = EpisodeStats(core.batch, core.n, self.env.d_m)

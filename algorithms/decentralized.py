@@ -25,7 +25,7 @@ received from all other robots over lossy all-to-all links, without the group hi
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -110,7 +110,7 @@ class DecentralizedActor(nn.Module):
         """``forward`` without autograd: the same ops, ReLU and the mask applied in place on
         fresh intermediates, no module-call overhead (bit-identical;
         tests/algorithms/test_baseline_fast_paths.py)."""
-        lin0, _, lin1, _, lin2 = self.net
+        lin0, _, lin1, _, lin2 = cast("tuple[nn.Linear, nn.ReLU, nn.Linear, nn.ReLU, nn.Linear]", self.net)
         x = F.linear(obs, lin0.weight, lin0.bias).relu_()
         x = F.linear(x, lin1.weight, lin1.bias).relu_()
         logits = F.linear(x, lin2.weight, lin2.bias)
@@ -201,10 +201,11 @@ class DecentralizedMethod(Method):
             buf.add(actions=actions, active=~core.done & state.running[:, None])
         dec = Decision(actions=actions, payload=float(state.board.payload))
         if self.filter is not None:
-            self.apply_filter(state.board, logits, dec)
+            self.apply_filter(self.filter, state.board, logits, dec)
         return dec
 
-    def apply_filter(self, board: AllToAllBoard, logits: torch.Tensor, dec: Decision) -> None:
+    def apply_filter(self, filt: SafetyFilter, board: AllToAllBoard, logits: torch.Tensor,
+                     dec: Decision) -> None:
         """Algorithm 1 with every robot its own group (G = B N groups of one robot): the
         neighbours are the other robots at their last received positions (stale under
         loss; a robot known to have left the floor is no neighbour); the candidates are
@@ -213,10 +214,10 @@ class DecentralizedMethod(Method):
         b, n = core.pos.shape
         g = b * n
         present = (board.ctl != OFF_FLOOR) & board.others  # (B, N_recv, N_send)
-        blocked = self.filter.blocked_cells(board.pos.reshape(g, n), present.reshape(g, n))
+        blocked = filt.blocked_cells(board.pos.reshape(g, n), present.reshape(g, n))
         controlled = ~core.done & ~core.ended[:, None]
         logp = torch.log_softmax(logits, dim=-1).double().numpy().reshape(g, 1, N_ACTIONS)
-        res = self.filter(core.pos.reshape(g, 1), core.occupying.reshape(g, 1),
+        res = filt(core.pos.reshape(g, 1), core.occupying.reshape(g, 1),
                           controlled.reshape(g, 1), dec.actions.reshape(g, 1), logp, blocked)
         dec.proposed = dec.actions
         dec.actions = np.where(controlled, res.actions.reshape(b, n), dec.actions)

@@ -21,7 +21,8 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
 * the action logits get the linear action-aligned path every learned method has
   (``ActionPath``: each action's shortest-path progress and the robots in view on its
   target cell, v = 0 at init; ``action_path=True``, the default). Not in IC3Net's
-  reference architecture: an equal-footing departure, measured in docs/decisions/0137; ``action_path=False`` is the reference's head.
+  reference architecture: an equal-footing departure, measured in docs/decisions/0137; ``action_path=False`` is the
+  reference's head.
 
 Training, REINFORCE with a baseline on the Monte-Carlo team return G_t (eq:training_return,
 gamma = 1), loss = -sum A (log pi(u) + log pi(g)) over alive robot-steps / environment
@@ -92,7 +93,8 @@ class IC3NetParams(LearnedParams):
     the architecture's own are the reference code's unless stated."""
 
     baseline: Literal["central", "per_robot"] = Field(
-        "central", description="centralized critic V(X_t) of the shared trainer, or the reference's per-robot value head")
+        "central", description="centralized critic V(X_t) of the shared trainer, or the reference's per-robot value "
+                               "head")
     optimizer: Literal["adam", "rmsprop"] = Field(
         "adam", description="Adam (shared trainer) or RMSprop (reference) for the policy")
     comm_passes: int = Field(1, ge=1, description="communication passes per step")
@@ -181,7 +183,7 @@ class IC3NetPolicy(nn.Module):
     def replay(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
         hc: tuple[torch.Tensor, torch.Tensor],
-    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, tuple[torch.Tensor, torch.Tensor]]:
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, tuple[torch.Tensor, torch.Tensor]]:
         """``forward`` over a chunk of T steps (inputs with a leading (T,) axis), outputs
         stacked (T, B, N, ...). The encoder and the heads run once over the chunk; only the
         communication and the LSTM cell go step by step. Equal to T ``forward`` calls up to
@@ -238,7 +240,7 @@ class IC3NetMethod(Method):
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
-        if self.critic is not None:
+        if self.critic is not None and self.critic_opt is not None:  # set together (central)
             mods.update(critic=self.critic, critic_opt=self.critic_opt)
         return mods
 
@@ -366,7 +368,7 @@ class IC3NetMethod(Method):
         n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
         out: dict[str, float] = {}
-        if self.critic is not None:  # the shared trainer: team advantage of V(X_t)
+        if self.critic is not None and self.critic_opt is not None:  # the shared trainer: team advantage of V(X_t)
             crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
             adv = crit.adv[..., None].expand_as(active)  # (T, B, N): every robot, the team's A_t
             targets = None
@@ -391,7 +393,7 @@ class IC3NetMethod(Method):
             m = active[sl]
             action_loss = -(adv[sl] * logp * m).sum()
             value_loss = torch.zeros(())
-            if targets is not None:
+            if targets is not None and values is not None:  # both with a per-robot value head
                 value_loss = (((values - targets[sl]) ** 2) * m).sum()
             entropy = -((logp_all.exp() * logp_all).sum(-1) * m).sum()
             loss = ((action_loss + p.value_coef * value_loss) / n_steps

@@ -28,7 +28,7 @@ from envs.errors import BenchError
 __all__ = ["ENTRY_POINT_GROUP", "MethodInfo", "available", "describe", "find_method", "is_path", "method_class",
            "method_target", "register", "unregister"]
 
-ENTRY_POINT_GROUP = "warehouse_marl_bench.methods"
+ENTRY_POINT_GROUP = "warehouse_marl_bench.methods"  # where an installed package registers a method
 _PATH_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_\-]*$")
 

@@ -19,10 +19,13 @@ import typer
 try:  # typer >= 0.26 vendors click
     from typer._click import exceptions as click_exc
 except ImportError:  # pragma: no cover - older typer on click
-    from click import exceptions as click_exc
+    from click import exceptions as click_exc  # type: ignore[no-redef]  # the same module, unvendored
 
 from envs.errors import BenchError
 
+__all__ = ["app", "main"]
+
+# The `bench` command and its subcommands (`main` runs it with the bench's error handling).
 app = typer.Typer(
     name="bench", add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
     rich_markup_mode=None,  # plain click help: flags show no "<bool>" value (typer 0.29's rich help does)
@@ -66,20 +69,41 @@ def _root(
 # --------------------------------------------------------------------- run
 @app.command()
 def run(
-    grid: GridName | None = typer.Option(None, "--grid", help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full, ablation (hierarchical variants)."),
-    grid_file: Path | None = typer.Option(None, "--grid-file", help="User grid (TOML or YAML): a base cell and list-valued axes."),
-    seeds: int | None = typer.Option(None, "--seeds", min=1, help="Replicate every configuration over seeds 0..K-1 (default: paper 3, full 3, smoke 1; a verdict needs 3)."),
+    grid: GridName | None = typer.Option(None, "--grid",
+        help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full, ablation (hierarchical variants)."),
+    grid_file: Path | None = typer.Option(None, "--grid-file",
+        help="User grid (TOML or YAML): a base cell and list-valued axes."),
+    seeds: int | None = typer.Option(None, "--seeds", min=1,
+        help="Replicate every configuration over seeds 0..K-1 (default: paper 3, full 3, smoke 1; a verdict needs 3)."),
     out: Path | None = typer.Option(None, "--out", help="Run directory (default: results/<grid>)."),
-    address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
-    workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
-    fresh: bool = typer.Option(False, "--fresh", help="Delete the files the bench wrote in this run directory and start over (asks first; other files stay; a folder without manifest.json is refused)."),
+    address: str | None = typer.Option(None, "--address",
+        help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
+    workers: int | None = typer.Option(None, "--workers", min=1,
+        help="Worker actors (one core each) (default: all CPUs)."),
+    fresh: bool = typer.Option(False, "--fresh",
+        help="Delete the files the bench wrote in this run directory and start over (asks first; other files stay; a "
+             "folder without manifest.json is refused)."),
     yes: bool = typer.Option(False, "--yes", "-y", help="Do not ask before --fresh deletes results."),
-    checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1, help="Training iterations between checkpoints."),
-    rerun_changed: bool = typer.Option(False, "--rerun-changed", help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's (a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
-    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines with fewer cores than cells)."),
-    repair: bool = typer.Option(False, "--repair", help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is refused, naming the file."),
-    log: str | None = typer.Option(None, "--log", help="Experiment tracking, comma-separated: tensorboard, mlflow, wandb (offline). Per-update training metrics and each cell's evaluation summary, one tracker run per cell named by its id, under RUN/tracking/ (needs the track extra). Default: none."),
-    verbose: bool = typer.Option(False, "--verbose", "-v", help="Without a terminal, log every event (cell started, each training chunk and evaluation unit) instead of one line per finished or failed cell and a summary every 5 minutes."),
+    checkpoint_every: int = typer.Option(10, "--checkpoint-every", min=1,
+        help="Training iterations between checkpoints."),
+    rerun_changed: bool = typer.Option(False, "--rerun-changed",
+        help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's "
+             "(a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
+    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1,
+        help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the "
+             "hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines "
+             "with fewer cores than cells)."),
+    repair: bool = typer.Option(False, "--repair",
+        help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of "
+             "another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is "
+             "refused, naming the file."),
+    log: str | None = typer.Option(None, "--log",
+        help="Experiment tracking, comma-separated: tensorboard, mlflow, wandb (offline). Per-update training metrics "
+             "and each cell's evaluation summary, one tracker run per cell named by its id, under RUN/tracking/ "
+             "(needs the track extra). Default: none."),
+    verbose: bool = typer.Option(False, "--verbose", "-v",
+        help="Without a terminal, log every event (cell started, each training chunk and evaluation unit) instead of "
+             "one line per finished or failed cell and a summary every 5 minutes."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -95,10 +119,15 @@ def run(
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
     from bench.design.limits import check_count
 
-    for option, field, value in (("--workers", "workers", workers), ("--checkpoint-every", "checkpoint_every", checkpoint_every),
+    for option, field, value in (("--workers", "workers", workers),
+                                 ("--checkpoint-every", "checkpoint_every", checkpoint_every),
                                  ("--stack-seeds", "stack_seeds", stack_seeds)):
         check_count(option, field, value)
-    g = get_grid(grid.value, seeds) if grid is not None else load_grid_file(grid_file, seeds)
+    if grid is not None:
+        g = get_grid(grid.value, seeds)
+    else:
+        assert grid_file is not None  # exactly one of the two, checked above
+        g = load_grid_file(grid_file, seeds)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
     store.check_writable()
@@ -235,16 +264,24 @@ def methods(
 # -------------------------------------------------------------------- eval
 @app.command("eval")
 def eval_(
-    method: str | None = typer.Option(None, "--method", help="A registered method name or module:Class (`bench methods` lists them)."),
-    checkpoint: Path | None = typer.Option(None, "--checkpoint", help="checkpoints/<cell_id>.pt of a run (default: untrained)."),
-    n_robots: int | None = typer.Option(None, "--n-robots", min=1, help="Team size N (default: the checkpoint's, else 20)."),
-    loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0, help="Loss probability p (default: the checkpoint's, else 0.2)."),
+    method: str | None = typer.Option(None, "--method",
+        help="A registered method name or module:Class (`bench methods` lists them)."),
+    checkpoint: Path | None = typer.Option(None, "--checkpoint",
+        help="checkpoints/<cell_id>.pt of a run (default: untrained)."),
+    n_robots: int | None = typer.Option(None, "--n-robots", min=1,
+        help="Team size N (default: the checkpoint's, else 20)."),
+    loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0,
+        help="Loss probability p (default: the checkpoint's, else 0.2)."),
     layout: str | None = typer.Option(None, "--layout", help="Preset name or .map path (default: preset sized for N)."),
     episodes: int = typer.Option(10, "--episodes", min=1, help="Evaluation episodes."),
     seed: int | None = typer.Option(None, "--seed", min=0, help="Seed (default: the checkpoint's, else 0)."),
-    horizon: int | None = typer.Option(None, "--horizon", min=1, help="Horizon T (default: the checkpoint's, else 500)."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON (mean metrics per mode and every episode) instead of a table."),
-    execution: str | None = typer.Option(None, "--execution", help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode of the cell)."),
+    horizon: int | None = typer.Option(None, "--horizon", min=1,
+        help="Horizon T (default: the checkpoint's, else 500)."),
+    as_json: bool = typer.Option(False, "--json",
+        help="Print JSON (mean metrics per mode and every episode) instead of a table."),
+    execution: str | None = typer.Option(None, "--execution",
+        help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode "
+             "of the cell)."),
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
@@ -299,12 +336,15 @@ class ClaimsAt(str, Enum):
 @app.command()
 def report(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
-    out: Path | None = typer.Option(None, "--out", help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
-    claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at", help="Check claims at the paper's configurations only, or also at the run's own."),
+    out: Path | None = typer.Option(None, "--out",
+        help="Write the report here instead of RUN/report/ (e.g. for a read-only run directory)."),
+    claims_at: ClaimsAt = typer.Option(ClaimsAt.paper, "--claims-at",
+        help="Check claims at the paper's configurations only, or also at the run's own."),
     against: Path | None = typer.Option(None, "--against", help="Also report the done cells of this run directory "
                                         "(e.g. reproduction/paper) at the configurations RUN covers, as if they had "
                                         "run together; refused unless settings and scenarios match."),
-    force: bool = typer.Option(False, "--force", help="Write into an --out folder that holds files the bench did not write (default: refused)."),
+    force: bool = typer.Option(False, "--force",
+        help="Write into an --out folder that holds files the bench did not write (default: refused)."),
 ) -> None:
     """Rebuild every figure and table of a run from its Parquet store into RUN/report/ (or --out).
     Warns naming every done cell whose stored rows are incomplete. With --against REF, a
@@ -361,13 +401,21 @@ def report(
 def matrix(
     run: Path = typer.Option(..., "--run", help="Run directory with trained checkpoints."),
     n: list[int] = typer.Option([], "--n", help="Evaluation team size N' (repeat; default: the run's N values)."),
-    p: list[float] = typer.Option([], "--p", help="Evaluation loss probability p' (repeat; default 0 0.2 0.4 0.6 0.8)."),
-    loss_model: list[str] = typer.Option([], "--loss-model", help="bernoulli and/or gilbert_elliott (repeat; default both)."),
-    burst: list[float] = typer.Option([], "--burst", help="Mean burst length of gilbert_elliott loss, steps (repeat; default 4 16)."),
-    episodes: int | None = typer.Option(None, "--episodes", help="Evaluation episodes per condition and mode (default: the run's eval_episodes)."),
-    workers: int | None = typer.Option(None, "--workers", min=1, help="Worker actors (one core each) (default: all CPUs)."),
-    address: str | None = typer.Option(None, "--address", help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
-    repair: bool = typer.Option(False, "--repair", help="Move damaged or misplaced files of RUN/matrix/ to RUN/superseded/repair-<time>/ and evaluate those units again (without it such a matrix is refused, naming the file)."),
+    p: list[float] = typer.Option([], "--p",
+        help="Evaluation loss probability p' (repeat; default 0 0.2 0.4 0.6 0.8)."),
+    loss_model: list[str] = typer.Option([], "--loss-model",
+        help="bernoulli and/or gilbert_elliott (repeat; default both)."),
+    burst: list[float] = typer.Option([], "--burst",
+        help="Mean burst length of gilbert_elliott loss, steps (repeat; default 4 16)."),
+    episodes: int | None = typer.Option(None, "--episodes",
+        help="Evaluation episodes per condition and mode (default: the run's eval_episodes)."),
+    workers: int | None = typer.Option(None, "--workers", min=1,
+        help="Worker actors (one core each) (default: all CPUs)."),
+    address: str | None = typer.Option(None, "--address",
+        help="Join a Ray cluster at host:port (or RAY_ADDRESS); default: embedded Ray."),
+    repair: bool = typer.Option(False, "--repair",
+        help="Move damaged or misplaced files of RUN/matrix/ to RUN/superseded/repair-<time>/ and evaluate those "
+             "units again (without it such a matrix is refused, naming the file)."),
 ) -> None:
     """Robustness matrix: evaluate every trained checkpoint at other team sizes N', loss
     rates p' and bursty (Gilbert-Elliott) loss, on scenarios shared by every method, into
@@ -396,10 +444,17 @@ class ExportFormat(str, Enum):
 @app.command()
 def export(
     run: Path | None = typer.Option(None, "--run", help="Run directory (default: the most recent under results/)."),
-    fmt: ExportFormat = typer.Option(..., "--format", help="marl-eval: marl-eval's raw-data JSON (environment / task / algorithm / run / step); csv: tidy cells.csv, train.csv, eval.csv."),
-    out: Path | None = typer.Option(None, "--out", help="File (marl-eval) or folder (csv) to write (default: RUN/export/marl-eval.json or RUN/export/csv/). An existing file there is replaced only with --yes."),
-    execution: str = typer.Option("argmax", "--execution", help="marl-eval: the execution mode exported (PIBT: planner, its only mode)."),
-    balanced: bool = typer.Option(False, "--balanced", help="marl-eval: only the tasks every method ran, with the same seeds everywhere (what marl-eval's rliable matrices need)."),
+    fmt: ExportFormat = typer.Option(..., "--format",
+        help="marl-eval: marl-eval's raw-data JSON (environment / task / algorithm / run / step); csv: tidy "
+             "cells.csv, train.csv, eval.csv."),
+    out: Path | None = typer.Option(None, "--out",
+        help="File (marl-eval) or folder (csv) to write (default: RUN/export/marl-eval.json or RUN/export/csv/). An "
+             "existing file there is replaced only with --yes."),
+    execution: str = typer.Option("argmax", "--execution",
+        help="marl-eval: the execution mode exported (PIBT: planner, its only mode)."),
+    balanced: bool = typer.Option(False, "--balanced",
+        help="marl-eval: only the tasks every method ran, with the same seeds everywhere (what marl-eval's rliable "
+             "matrices need)."),
     yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing files at --out."),
 ) -> None:
     """Write a run's results for other evaluators: marl-eval JSON or tidy CSV tables."""
@@ -424,12 +479,16 @@ def _writable(path: Path) -> bool:
 def replay(
     run: Path = typer.Option(..., "--run", help="Run directory."),
     cell: str = typer.Option(..., "--cell", help="cell_id (see cells.parquet)."),
-    episode: int = typer.Option(0, "--episode", min=0, max=100_000, help="Evaluation episode to replay (below the cell's eval_episodes)."),
-    out: Path | None = typer.Option(None, "--out", help="Output path (default: RUN/replays/<cell>-ep<K>[-<mode>].<format>)."),
-    execution: str | None = typer.Option(None, "--execution", help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
+    episode: int = typer.Option(0, "--episode", min=0, max=100_000,
+        help="Evaluation episode to replay (below the cell's eval_episodes)."),
+    out: Path | None = typer.Option(None, "--out",
+        help="Output path (default: RUN/replays/<cell>-ep<K>[-<mode>].<format>)."),
+    execution: str | None = typer.Option(None, "--execution",
+        help="Execution mode of the episode: argmax (default), sample, sample@T; planner for pibt."),
     fmt: str = typer.Option("gif", "--format", help="gif, or mp4 (needs the imageio-ffmpeg package)."),
     fps: float = typer.Option(8.0, "--fps", min=0.5, max=60.0, help="Frames (steps) per second (0.5..60)."),
-    force: bool = typer.Option(False, "--force", help="Replace an existing --out file (default: refused; the default path is rebuilt in place)."),
+    force: bool = typer.Option(False, "--force",
+        help="Replace an existing --out file (default: refused; the default path is rebuilt in place)."),
 ) -> None:
     """Render one evaluation episode of a cell, in one execution mode, as a captioned GIF or MP4."""
     from bench.store.run_store import RunStore
@@ -457,7 +516,8 @@ def replay(
 def calibrate(
     sims: int = typer.Option(5000, "--sims", min=10, max=1_000_000,
                              help="Simulations per check and truth (5000: MC s.e. <= 0.005 for rates up to 14%)."),
-    run: Path | None = typer.Option(None, "--run", help="Store whose per-seed spread is resampled (default: reproduction/paper)."),
+    run: Path | None = typer.Option(None, "--run",
+        help="Store whose per-seed spread is resampled (default: reproduction/paper)."),
     seed: int = typer.Option(0, "--seed", min=0, help="Seed of the simulations."),
     coverage_sims: int = typer.Option(2000, "--coverage-sims", min=10, help="Simulations for the CI coverage table."),
     as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
@@ -482,7 +542,8 @@ def calibrate(
     if as_json:
         typer.echo(text)
     else:
-        _print_frame(pd.DataFrame(rep["calibration"]), f"bench calibrate ({sims} sims, null limit {rep['meta']['null_limit']})")
+        _print_frame(pd.DataFrame(rep["calibration"]),
+            f"bench calibrate ({sims} sims, null limit {rep['meta']['null_limit']})")
         _print_frame(pd.DataFrame(rep["coverage"]), "coverage of 95% intervals over seeds")
     if not rep["all_null_ok"]:
         raise typer.Exit(1)
@@ -562,7 +623,7 @@ def main(argv: list[str] | None = None) -> None:
         with sigterm_as_interrupt():
             code = app(args=argv, prog_name="bench", standalone_mode=False)
     except BaseException as exc:
-        if sigterm_received() and isinstance(exc, (KeyboardInterrupt, typer.Abort, click_exc.Abort)):
+        if sigterm_received() and isinstance(exc, (KeyboardInterrupt, typer.Abort)):
             _error(_TERMINATED)
             sys.exit(143)
         _exit_on(exc)
@@ -571,7 +632,8 @@ def main(argv: list[str] | None = None) -> None:
     elif code == 130:  # Ctrl-C (typer turns KeyboardInterrupt into exit status 130)
         _error("interrupted; rerun the same command to resume")
     if code == 143:  # SIGTERM (bench run turns it into exit status 143)
-        _error(_TERMINATED if not _is_run(argv) else "terminated; checkpoints are kept, rerun the same command to resume")
+        _error(_TERMINATED if not _is_run(argv) else "terminated; checkpoints are kept, rerun the same command to "
+                                                     "resume")
     sys.exit(code if isinstance(code, int) else 0)
 
 

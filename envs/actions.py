@@ -7,6 +7,8 @@ import numpy as np
 
 
 class Action(IntEnum):
+    """A robot's five actions U (|U| = 5): a move one cell up, down, left, right, or wait."""
+
     UP = 0
     DOWN = 1
     LEFT = 2

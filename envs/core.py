@@ -140,7 +140,7 @@ class WarehouseCore:
         all_running = not np.count_nonzero(self.ended)
         running = None if all_running else ~self.ended  # (B,)
         # Completed robots and finished episodes Wait.
-        frozen = self.done if all_running else self.done | ~running[:, None]
+        frozen = self.done if running is None else self.done | ~running[:, None]
         a = np.where(frozen, WAIT, actions).astype(np.int64, copy=False)  # a new array
         flat = self.pos * N_ACTIONS + a
         tgt = self._next[flat]  # a new array: _resolve edits it into the next keys

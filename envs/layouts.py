@@ -42,7 +42,7 @@ class Layout:
 
     @property
     def shape(self) -> tuple[int, int]:
-        return self.obstacles.shape  # type: ignore[return-value]
+        return self.obstacles.shape
 
     @cached_property
     def cells(self) -> np.ndarray:

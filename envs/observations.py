@@ -49,7 +49,8 @@ class PatchExtractor:
         # observer's own cell, and both clipped ends).
         span = int(self.offsets.max())
         self._shift = span + 1
-        slot = np.zeros(2 * span + 3, dtype=np.uint8 if self.offsets.size < 255 else np.int64)  # slot + 1, 0 where unseen
+        # slot + 1, 0 where unseen
+        slot = np.zeros(2 * span + 3, dtype=np.uint8 if self.offsets.size < 255 else np.int64)
         slot[self.offsets + self._shift] = np.arange(1, self.offsets.size + 1)
         slot[self._shift] = 0  # a robot on the observer's cell (possible off the floor)
         self._slot = slot
@@ -179,7 +180,8 @@ class PatchExtractor:
         centers = self.center[core.pos]  # (B, N)
         marks = np.broadcast_to(row, (b, n))[occ] * size + centers[occ]
         grid[marks] = 1.0
-        np.take(grid, (row * size + centers)[..., None] + self.offsets, out=out, mode="clip")  # valid indices; clip: unbuffered
+        # valid indices; clip: unbuffered
+        np.take(grid, (row * size + centers)[..., None] + self.offsets, out=out, mode="clip")
         grid[marks] = 0.0
         out[..., self.offsets.size // 2] = 0.0  # the robot itself
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import difflib
 import warnings
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -75,11 +75,12 @@ def action_vector(
                 a = np.full(1, N_ACTIONS)
             idx = list(map(agent_ids.get, keys))
             if (a.view(np.uint64) < N_ACTIONS).all() and None not in idx:
+                rows = cast("list[int]", idx)  # every agent known (no None)
                 given = np.zeros(len(out), dtype=bool)
-                given[idx] = True
+                given[rows] = True
                 if (given | ~live).all():
                     out.fill(WAIT)
-                    out[idx] = a
+                    out[rows] = a
                     return out
     # Slow path: the same rules, one agent at a time, to name the first offender.
     out.fill(WAIT)
@@ -91,13 +92,13 @@ def action_vector(
                 f"step: unknown agent {agent!r} (agents are robot_0..robot_{len(out) - 1})")
         if value is None and not live[i]:
             continue
-        a = _as_action(value)
-        if a is None or not 0 <= a < N_ACTIONS:
+        action = _as_action(value)
+        if action is None or not 0 <= action < N_ACTIONS:
             state = "live" if live[i] else "finished"
             raise BenchError(
                 f"step: action {value!r} for {state} agent {agent!r} is not an integer in "
                 f"0..{N_ACTIONS - 1} ({ACTION_NAMES})")
-        out[i] = a
+        out[i] = action
         given[i] = True
     missing = np.flatnonzero(live & ~given)
     if len(missing):

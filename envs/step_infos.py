@@ -12,9 +12,12 @@ mutable ``dict``s: SuperSuit and Stable-Baselines3 write keys such as
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from _collections_abc import dict_items, dict_values  # the views dict's methods return
 
 INFO_KEYS = (
     "position", "goal", "group", "collision", "at_goal", "invalid", "progress",
@@ -39,7 +42,7 @@ class _Pending:
 _PENDING = _Pending()
 
 
-class StepInfos(dict):
+class StepInfos(dict[str, Any]):
     """{agent: info} for one step; see the module docstring.
 
     ``names`` are the agents (a list, or a ``template(names)`` dict reused across
@@ -57,9 +60,9 @@ class StepInfos(dict):
     def __init__(self, names: list[str] | dict[str, Any], agent_ids: Mapping[str, int],
                  columns: dict[str, np.ndarray] | Callable[[], dict[str, np.ndarray]],
                  constants: dict[str, int]) -> None:
-        dict.update(self, names if type(names) is dict else self.template(names))
+        dict.update(self, self.template(names) if isinstance(names, list) else names)
         self._ids, self._cols, self._const = agent_ids, columns, constants
-        self._lists: dict[str, list] | None = None
+        self._lists: dict[str, list[Any]] | None = None
 
     @staticmethod
     def template(names: list[str]) -> dict[str, Any]:
@@ -69,11 +72,11 @@ class StepInfos(dict):
 
     def _build(self, agent: str) -> dict[str, Any]:
         lists = self._lists
+        cols = self._cols
+        if callable(cols):
+            cols = self._cols = cols()
         if lists is None:  # one tolist per column, the first time any info is read
-            if callable(self._cols):
-                self._cols = self._cols()
-            lists = self._lists = {k: v.tolist() for k, v in self._cols.items()
-                                   if k != "link_available"}
+            lists = self._lists = {k: v.tolist() for k, v in cols.items() if k != "link_available"}
         i = self._ids[agent]
         info = {
             "position": tuple(lists["position"][i]), "goal": tuple(lists["goal"][i]),
@@ -82,7 +85,7 @@ class StepInfos(dict):
             "progress": lists["progress"][i], "goal_bonus": lists["goal_bonus"][i],
             "collision_penalty": lists["collision_penalty"][i],
             "time_penalty": lists["time_penalty"][i],
-            "link_available": self._cols["link_available"][i],
+            "link_available": cols["link_available"][i],
         }
         info.update(self._const)
         return info
@@ -105,10 +108,10 @@ class StepInfos(dict):
     def get(self, agent: str, default: Any = None) -> Any:
         return self[agent] if dict.__contains__(self, agent) else default
 
-    def items(self):  # type: ignore[override]
+    def items(self) -> dict_items[str, Any]:
         return self._all().items()
 
-    def values(self):  # type: ignore[override]
+    def values(self) -> dict_values[str, Any]:
         return self._all().values()
 
     def pop(self, agent: str, *default: Any) -> Any:
@@ -131,7 +134,7 @@ class StepInfos(dict):
 
     __copy__ = copy
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(self) -> tuple[type[dict[str, Any]], tuple[dict[str, Any]]]:
         return (dict, (self._all(),))
 
     def __eq__(self, other: object) -> bool:
@@ -140,12 +143,14 @@ class StepInfos(dict):
     def __ne__(self, other: object) -> bool:
         return not self == other
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None
 
-    def __or__(self, other: Any) -> dict[str, Any]:
+    # ignore: dict's overloads return its own key/value types; a built dict here, for any operand
+    def __or__(self, other: Any) -> dict[str, Any]:  # type: ignore[override]
         return self._all() | other
 
-    def __ror__(self, other: Any) -> dict[str, Any]:
+    # ignore: as __or__
+    def __ror__(self, other: Any) -> dict[str, Any]:  # type: ignore[override]
         return other | self._all()
 
     def __repr__(self) -> str:

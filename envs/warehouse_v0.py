@@ -59,7 +59,7 @@ def parallel_env(**kwargs: Any) -> WarehouseParallelEnv:
 class WarehouseParallelEnv(ParallelEnv):
     """The warehouse as a PettingZoo parallel env (one episode, N robots)."""
 
-    metadata = {"name": "warehouse_v0", "render_modes": list(RENDER_MODES),
+    metadata: dict[str, Any] = {"name": "warehouse_v0", "render_modes": list(RENDER_MODES),
                 "is_parallelizable": True, "render_fps": 8}
 
     def __init__(
@@ -278,12 +278,13 @@ class WarehouseParallelEnv(ParallelEnv):
         (``envs.step_infos``)."""
         # Copies (a few hundred bytes): the infos must not change if the core or the
         # channel ever reuse their arrays in place.
-        columns = partial(_info_columns, self.layout.cells, *(x.copy() for x in (
-            self.core.pos[0], self.core.goal[0])), self.groups, self.links.copy(),
-            *(x.copy() for x in (progress, goal_bonus, collision_penalty, time_penalty,
-                                 collision, invalid)))
-        constants = {"payload_hier": self.channel.payload_hier,
-                     "payload_dec": self.channel.payload_dec, "t": self.core.t}
+        columns = partial(_info_columns, self.layout.cells, self.core.pos[0].copy(),
+                          self.core.goal[0].copy(), self.groups, self.links.copy(), progress.copy(),
+                          goal_bonus.copy(), collision_penalty.copy(), time_penalty.copy(),
+                          collision.copy(), invalid.copy())
+        channel = self._live_channel()
+        constants = {"payload_hier": channel.payload_hier, "payload_dec": channel.payload_dec,
+                     "t": self.core.t}
         return StepInfos(names, self.agent_ids, columns, constants)
 
     def state(self) -> np.ndarray:
@@ -311,10 +312,16 @@ class WarehouseParallelEnv(ParallelEnv):
                   collision=None if self._last is None else self._last.collision[0])
         return args, kw
 
+    def _live_channel(self) -> GroupChannel:
+        """The channel of the current episode (set by ``reset``)."""
+        if self.channel is None:
+            raise BenchError("call reset() first")
+        return self.channel
+
     def _frame(self) -> np.ndarray:
         args, kw = self._render_args()
         links = self.links if self.config.groups > 1 else None
-        return render_rgb(*args, **kw, links=links, adjacency=self.channel.adjacency,
+        return render_rgb(*args, **kw, links=links, adjacency=self._live_channel().adjacency,
                           cell_px=self.cell_px)
 
     def render(self) -> np.ndarray | str | None:
@@ -363,4 +370,5 @@ def _clone(space: spaces.Space) -> spaces.Space:
     """An equal but distinct space (each agent seeds its own sampler)."""
     if isinstance(space, spaces.Box):
         return spaces.Box(space.low, space.high, space.shape, space.dtype)
+    assert isinstance(space, spaces.Dict), space  # the observation spaces: Box leaves in Dicts
     return spaces.Dict({k: _clone(v) for k, v in space.items()})

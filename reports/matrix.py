@@ -205,9 +205,11 @@ def matrix_markdown(table: pd.DataFrame, sentences: list[str], unsupported: pd.D
     for r in table.itertuples():
         ci = "" if math.isnan(r.lo) else f"{r.lo:.3f}-{r.hi:.3f}"
         lines.append(f"| {r.method} | {r.train_n} | {r.train_p:g} | {r.eval_n} | {r.eval_p:g} | "
-                     f"{_loss_label(r.loss_model, r.burst_length)} | {r.execution} | {r.success:.3f} | {ci} | {r.seeds} |")
+                     f"{_loss_label(r.loss_model, r.burst_length)} | {r.execution} | {r.success:.3f} | {ci} | "
+                     f"{r.seeds} |")
     if len(unsupported):
-        lines += ["", "## Units that cannot run", "", "| method | cell | N' | p' | loss | reason |", "|---|---|---|---|---|---|"]
+        lines += ["", "## Units that cannot run", "",
+            "| method | cell | N' | p' | loss | reason |", "|---|---|---|---|---|---|"]
         for r in unsupported.itertuples():
             lines.append(f"| {r.method} | {r.cell_id} | {r.eval_n} | {r.eval_p:g} | "
                          f"{_loss_label(r.loss_model, r.burst_length)} | {r.reason} |")

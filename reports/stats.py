@@ -60,8 +60,9 @@ class TTest:
 _NAN_TEST = TTest(*(np.nan,) * 7)
 
 
-def welch_parts(means: np.ndarray, variances: np.ndarray, counts: np.ndarray,
-                weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def welch_parts(means: Sequence[np.ndarray] | np.ndarray, variances: Sequence[np.ndarray] | np.ndarray,
+                counts: Sequence[int] | np.ndarray, weights: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Estimate, standard error and Welch-Satterthwaite df of sum_k w_k mean_k.
 
     ``means``/``variances`` (K, ...) per-sample means and unbiased variances (ddof 1),

@@ -30,6 +30,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
 
 REPO = Path(__file__).resolve().parents[1]
 DOC = REPO / "docs" / "deployment.md"
@@ -154,18 +155,29 @@ def listeners(host: Host) -> list[tuple[str, int, str]]:
     return sorted(rows, key=lambda r: r[1])
 
 
-def _load_compare():
-    spec = importlib.util.spec_from_file_location("compare_runs", REPO / "scripts" / "compare_runs.py")
+def _load_compare() -> ModuleType:
+    path = REPO / "scripts" / "compare_runs.py"
+    spec = importlib.util.spec_from_file_location("compare_runs", path)
+    if spec is None or spec.loader is None:
+        raise RuntimeError(f"cluster-check: cannot load {path}")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
 
 
+def _option(command: str, flag: str) -> str:
+    """The value of ``flag`` in the recipe's ``command`` line."""
+    found = re.search(rf"{flag} (\S+)", command)
+    if found is None:
+        raise RuntimeError(f"cluster-check: the recipe's driver command has no {flag}: {command}")
+    return found.group(1)
+
+
 def check(reference: Path | None, keep_going_s: float = 600) -> int:
     roles = recipe()
     driver = roles["driver"][0]
-    out_dir = REPO / re.search(r"--out (\S+)", driver).group(1)
-    grid = re.search(r"--grid (\S+)", driver).group(1)
+    out_dir = REPO / _option(driver, "--out")
+    grid = _option(driver, "--grid")
     env = {k: v for k, v in os.environ.items() if not k.startswith("RAY_")}
     env["CI"] = "true"
     started = time.monotonic()
@@ -209,6 +221,7 @@ def check(reference: Path | None, keep_going_s: float = 600) -> int:
         _kill_namespace(hosts[VICTIM].ns)
         print(f"cluster-check: killed every process of host {VICTIM} ({hosts[VICTIM].ip}) mid-run "
               f"({time.monotonic() - started:.0f} s)")
+        rc: int | str
         try:
             rc = drv.wait(timeout=max(1.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from typing import Any
 
 import numpy as np
 import torch
@@ -19,7 +20,7 @@ from algorithms.hierarchical.method import HierarchicalMethod
 from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
 
-VARIANTS = {
+VARIANTS: dict[str, dict[str, Any]] = {
     "paper": {}, "oracle messages": {"messages": "oracle"}, "last-received": {"messages": "last"},
     "per-robot fallback": {"fallback": "per_robot"}, "resample on fallback": {"resample_on_fallback": True},
     "per-robot + resample": {"fallback": "per_robot", "resample_on_fallback": True},

@@ -13,7 +13,8 @@ FILTER = "algorithms/hierarchical/safety_filter.py"
 IC3 = "algorithms/ic3net.py"
 DEC = "algorithms/decentralized.py"
 HIER_TRAIN = "algorithms/hierarchical/training.py"
-BASELINE_TESTS = "tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py tests/algorithms/test_trainer.py"
+BASELINE_TESTS = ("tests/algorithms/test_ic3net.py tests/algorithms/test_decentralized.py "
+                  "tests/algorithms/common/test_trainer.py")
 PLANTS: dict[str, tuple[str, str, str, str]] = {
     # name: (file, old, new, tests)
     # issue 11: the trainer bugs that once passed the whole suite
@@ -48,10 +49,12 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
     "swap_or": (FILTER, "(nw[..., e] == p[sel[:, None], rob[None, :, f]]) & (nw[..., f]",
                 "(nw[..., e] == p[sel[:, None], rob[None, :, f]]) | (nw[..., f]",
                 "tests/algorithms/hierarchical/test_safety_filter.py"),
-    "no_rest_pairs": (FILTER, "                rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, :, f]]",
+    "no_rest_pairs": (FILTER, "                rest_pairs = rest_pairs + p0[sel[:, None], rob[None, :, e], rob[None, "
+                              ":, f]]",
                       "                pass", "tests/algorithms/hierarchical/test_safety_filter.py"),
     "no_vs_changed": (FILTER, "        ok &= (c1[gg, r, a] - vs_changed == 0).all(-1)",
-                      "        ok &= (c1[gg, r, a] == 0).all(-1)", "tests/algorithms/hierarchical/test_safety_filter.py"),
+                      "        ok &= (c1[gg, r, a] == 0).all(-1)",
+                          "tests/algorithms/hierarchical/test_safety_filter.py"),
     # issue 12: the speed changes (deviation 2 over pairs i < j, the shared critic step)
     "level2_clean_j": (FILTER, "clean_j = clean[:, ju, iu]", "clean_j = clean[:, iu, ju]",
                        "tests/algorithms/hierarchical/test_safety_filter.py"),
@@ -60,7 +63,7 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
                     "tests/algorithms/hierarchical/test_safety_filter.py"),
     "hier_critic_frozen": (HIER_TRAIN, "crit = critic_step(method.critic, method.opt_critic,",
                            "crit = critic_step(method.critic, torch.optim.SGD(method.critic.parameters(), lr=0.0),",
-                           "tests/algorithms/hierarchical tests/algorithms/test_trainer.py"),
+                           "tests/algorithms/hierarchical tests/algorithms/common/test_trainer.py"),
     "guard_ge": (FILTER, "if k * sel.size > MAX_LEVEL_CANDIDATES:", "if k * sel.size >= MAX_LEVEL_CANDIDATES:",
                  "tests/algorithms/hierarchical/test_safety_filter.py"),
 }

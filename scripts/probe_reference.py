@@ -18,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 import torch
 
+from algorithms.hierarchical.method import HierarchicalMethod
 from algorithms.hierarchical.reference_probe import probe_reference
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
@@ -44,6 +45,10 @@ def main() -> int:
         ckpt = load_checkpoint(str(path))
         cell = Cell.make(**json.loads(ckpt["cell"]))
         method = build_method(cell_spec(cell))
+        if not isinstance(method, HierarchicalMethod):
+            print(f"probe_reference: {row.cell_id} is a {cell.method} cell; only hierarchical ones have a reference",
+                  file=sys.stderr)
+            return 2
         method.load_state_dict(ckpt["state"])
         out = {"cell_id": row.cell_id, "n_robots": cell.n_robots, "loss_p": cell.loss_p, "seed": cell.seed,
                "ref_size": cell.ref_size, "params": dict(cell.params), "episodes": int(ckpt["episodes_done"])}

@@ -64,7 +64,8 @@ def main() -> int:
     tracked = set(subprocess.run(["git", "ls-files", "--", str(run / "checkpoints")], capture_output=True,
                                  text=True, check=True).stdout.split())
     add, drop = plan(run, tracked)
-    cmds = ([["git", "rm", "--cached", "--force", "--quiet", "--", *drop]] if drop else []) + [["git", "add", "-f", "--", *add]]
+    cmds = (([["git", "rm", "--cached", "--force", "--quiet", "--", *drop]] if drop else [])
+            + [["git", "add", "-f", "--", *add]])
     for cmd in cmds:
         print(" ".join(cmd))
         if not args.dry_run:

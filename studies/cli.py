@@ -21,6 +21,8 @@ import typer
 from envs.errors import BenchError
 from studies import DEFAULT_ROOT
 
+__all__ = ["TuneResult", "print_best", "tune", "tune_study"]
+
 if TYPE_CHECKING:
     from studies.runner import RunSummary
 
@@ -200,13 +202,15 @@ def tune(
                                       help="finished (complete + pruned) trials the study should hold "
                                            "(default: every configuration x --replicates for a grid search, else 20)"),
     search: str | None = typer.Option(None, "--search",
-                                      help="auto (grid for <= 64 configurations, else TPE), grid or tpe (default: auto)"),
+                                      help="auto (grid for <= 64 configurations, else TPE), grid or tpe (default: "
+                                           "auto)"),
     replicates: int | None = typer.Option(None, "--replicates",
                                           help="seed replicates per configuration; best = highest mean (default: 2)"),
     prune_warmup: float | None = typer.Option(None, "--prune-warmup",
                                               help="fraction of training before pruning may act (default: 0.5)"),
     prune_min_rho: float | None = typer.Option(None, "--prune-min-rho",
-                                               help="rank correlation (value at the step vs final) needed to prune (default: 0.7)"),
+                                               help="rank correlation (value at the step vs final) needed to prune "
+                                                    "(default: 0.7)"),
     n_robots: int | None = typer.Option(None, "--n-robots", help="team size N (default: 8)"),
     loss_p: float | None = typer.Option(None, "--loss-p", help="message loss probability p (default: 0.2)"),
     layout: str | None = typer.Option(None, "--layout", help="layout preset or .map path (default: tiny)"),
@@ -215,18 +219,23 @@ def tune(
     horizon: int | None = typer.Option(None, "--horizon", help="episode length T (default: 48)"),
     eval_episodes: int | None = typer.Option(None, "--eval-episodes", help="final evaluation episodes (default: 20)"),
     objectives: str | None = typer.Option(None, "--objectives",
-                                             help="'success' (return breaks ties) or 'success,return' (multi-objective, no pruning)"),
+                                             help="'success' (return breaks ties) or 'success,return' "
+                                                  "(multi-objective, no pruning)"),
     c_max: bool | None = typer.Option(None, "--c-max/--no-c-max", help="also search C_max (default: no)"),
     param: list[str] | None = typer.Option(None, "--param", metavar="NAME=VALUES",
-                                              help="the choices of a parameter, e.g. ref_size=4,8 or search_radius=1..3, "
+                                              help="the choices of a parameter, e.g. ref_size=4,8 or "
+                                                   "search_radius=1..3, "
                                                    "or any hyperparameter of --method, e.g. lr=1e-3,3e-3 (repeatable)"),
     pruner: str | None = typer.Option(None, "--pruner",
-                                      help="median (after the warm-up, gated by the rank correlation) or none (default: median)"),
+                                      help="median (after the warm-up, gated by the rank correlation) or none "
+                                           "(default: median)"),
     seed: int | None = typer.Option(None, "--seed", help="study seed (trial seeds derive from it) (default: 0)"),
     storage: str | None = typer.Option(None, "--storage", metavar="URL",
-                                          help="RDB URL of a shared study database (default: journal file under results/studies/)"),
+                                          help="RDB URL of a shared study database (default: journal file under "
+                                               "results/studies/)"),
     workers: int | None = typer.Option(None, "--workers", help="trials run in parallel (default: CPU count)"),
-    address: str | None = typer.Option(None, "--address", help="join this Ray cluster (else RAY_ADDRESS, else embedded)"),
+    address: str | None = typer.Option(None, "--address",
+        help="join this Ray cluster (else RAY_ADDRESS, else embedded)"),
     out: Path = typer.Option(DEFAULT_ROOT, "--out", help="root folder of the studies"),
     inline: bool = typer.Option(False, "--inline", help="run trials in this process, without Ray (debugging)"),
     method: str | None = typer.Option(None, "--method", help="the learned method to tune: a registered name or "

@@ -144,7 +144,7 @@ def best_configuration(study: optuna.Study) -> pd.Series:
     if not study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
         raise BenchError(f"study {study.study_name!r} has no complete trial yet")
     config = study.user_attrs.get(CONFIG_ATTR) or {}
-    space = config.get("space")
+    space = config.get("space") or {}
     exhaustive = bool(space) and resolve_mode(config.get("search", "auto"), space) == "grid"
     return best_point(trials_frame(study), replicates_of(study), space_size(space) if exhaustive else None)
 

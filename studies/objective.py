@@ -3,7 +3,8 @@
 A trial is a bench ``Cell`` (bench/design/cells.py) built from the study's ``TrialSettings`` (N,
 p, layout and a smoke-scale budget by default), the sampled parameters (``ref_size``,
 ``search_radius``, optionally ``c_max``) and the trial's seed. The driver validates the
-cell and ships plain data (a ``TrialSpec``) to a ``TrialWorker``. Each ``step()`` trains ``eval_every`` updates through the
+cell and ships plain data (a ``TrialSpec``) to a ``TrialWorker``. Each ``step()`` trains ``eval_every`` updates
+through the
 Method contract (``train_iteration``) and then evaluates greedily (``evaluate``) on a few
 fixed chunks: the driver reports that value to Optuna and asks the pruner whether to go
 on. The last step evaluates the full evaluation set; its value is the trial's objective.
@@ -33,6 +34,7 @@ from bench.design.cells import Cell
 from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
+from studies.storage import Direction
 
 Objectives = Literal["success", "success,return"]
 TIE_BREAK = 1e-3  # weight of the squashed return in the single objective
@@ -56,7 +58,8 @@ class TrialSettings(BaseModel):
     episodes: int = Field(48, ge=1, le=limit("episodes"), description="training episodes per trial")
     batch_episodes: int = Field(8, ge=1, description="episodes per update")
     eval_every: int = Field(2, ge=1, description="updates between intermediate evaluations")
-    eval_episodes: int = Field(20, ge=1, le=limit("eval_episodes"), description="greedy episodes of the final evaluation")
+    eval_episodes: int = Field(20, ge=1, le=limit("eval_episodes"),
+        description="greedy episodes of the final evaluation")
     eval_chunk: int = Field(10, ge=1, description="episodes per evaluation chunk")
     report_chunks: int = Field(2, ge=1, description="chunks per intermediate evaluation (2 x 10 episodes:"
                                " fewer made pruning decisions noisy, issue #16)")
@@ -81,7 +84,7 @@ class TrialSettings(BaseModel):
         return self.objectives == "success,return"
 
     @property
-    def directions(self) -> list[str]:
+    def directions(self) -> list[Direction]:
         return ["maximize", "maximize"] if self.multi_objective else ["maximize"]
 
     def cell(self, sampled: Mapping[str, Any], seed: int) -> Cell:

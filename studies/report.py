@@ -60,7 +60,8 @@ def history_figure(trials: pd.DataFrame) -> Built:
         return Built(fig, notes)
 
 
-def landscape_table(trials: pd.DataFrame, value: str = "success_rate") -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+def landscape_table(trials: pd.DataFrame, value: str = "success_rate",
+                    ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """(mean over complete trials, complete count, pruned count): rows L (search_radius),
     columns |R_z|. Every value of the default space appears, so configurations never run
     show as NaN with both counts 0, and a configuration whose trials were all pruned as NaN
@@ -184,7 +185,7 @@ def importance_figure(imp: dict[str, Any]) -> Built:
             reason = imp.get("reason") or "no importances"
             placeholder(ax, reason)
             return Built(fig, [reason])
-        names = sorted(values, key=values.get)
+        names = sorted(values, key=lambda n: values[n])
         ax.barh([PARAM_LABELS.get(n, n) for n in names], [values[n] for n in names], color="C0")
         ax.set_xlabel("importance (fANOVA, share of objective variance)")
         ax.set_xlim(0, 1)

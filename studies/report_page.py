@@ -98,7 +98,8 @@ def correlation_table(trials: pd.DataFrame, warmup: int | None, min_rho: float |
     for r in rows:
         may = warmup is not None and r["step"] >= warmup
         gate = "" if warmup is None else (
-            "no (warm-up)" if not may else ("yes" if min_rho is not None and r["rho"] >= min_rho else "no (rho too low)"))
+            "no (warm-up)" if not may
+            else ("yes" if min_rho is not None and r["rho"] >= min_rho else "no (rho too low)"))
         out.append({"update": r["step"],
                     "training episodes": r["step"] * batch_episodes if batch_episodes else "",
                     "complete trials": r["n"], "Spearman rho": _f(r["rho"], 2), "pruning may act": gate})
@@ -114,7 +115,8 @@ def study_page(trials: pd.DataFrame, imp: Mapping[str, Any], config: Mapping[str
     name = str(trials["study"].iloc[0]) if len(trials) else str(config.get("study", "?"))
     replicates = int(config.get("replicates", 2))
     names = param_columns(trials)
-    n_points = int(config["space_size"]) if config.get("search_resolved") == "grid" and config.get("space_size") else None
+    exhaustive = config.get("search_resolved") == "grid" and config.get("space_size")
+    n_points = int(config["space_size"]) if exhaustive else None
     sections = [_setup(trials, config, replicates, names), _best(trials, replicates, names, n_points),
                 _pruning(trials, config), _points(trials, replicates, names), _trials(trials, names),
                 _importances(imp),

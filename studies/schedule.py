@@ -32,7 +32,7 @@ import optuna
 from optuna.trial import FrozenTrial, TrialState
 
 from envs.errors import BenchError
-from studies.space import plain, space_size
+from studies.space import Value, plain, space_size
 from studies.storage import REPLICATE, RETRY_OF
 
 GRID_MAX = 64  # spaces up to this many points are searched exhaustively under "auto"
@@ -60,12 +60,12 @@ def grid_points(space: Mapping[str, Sequence[int]], seed: int) -> list[dict[str,
     return [points[i] for i in order]
 
 
-def resolve_mode(mode: str, space: Mapping[str, Sequence[int]]) -> Literal["grid", "tpe"]:
+def resolve_mode(mode: str, space: Mapping[str, Sequence[Value]]) -> Literal["grid", "tpe"]:
     """``auto`` -> ``grid`` for at most ``GRID_MAX`` points, else ``tpe``."""
     if mode == "auto":
         return "grid" if space_size(space) <= GRID_MAX else "tpe"
     if mode in ("grid", "tpe"):
-        return mode  # type: ignore[return-value]
+        return "grid" if mode == "grid" else "tpe"
     raise BenchError(f"unknown search {mode!r}; choose auto, grid or tpe")
 
 

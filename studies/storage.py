@@ -21,7 +21,7 @@ import socket
 import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import optuna
 from optuna.storages import BaseStorage, JournalStorage, RDBStorage
@@ -35,6 +35,7 @@ JOURNAL_FILE = "journal.log"
 CONFIG_ATTR = "config"  # study user attribute holding settings, space and seed
 LEASE_HOST, LEASE_PID, LEASE_BEAT = "driver_host", "driver_pid", "heartbeat"
 RETRY_OF = "retry_of"
+Direction = Literal["minimize", "maximize"]  # an objective's direction, as optuna spells it
 REPLICATE = "replicate"  # replicate index of the trial's point (studies/schedule.py)
 GRACE_S = 600.0  # a remote driver silent this long is considered dead
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,99}$")
@@ -91,7 +92,7 @@ def _redact(url: str) -> str:
         return re.sub(r"//([^:/@]+):[^@]*@", r"//\1:***@", url)
 
 
-def open_study(name: str, storage: BaseStorage, directions: list[str], seed: int,
+def open_study(name: str, storage: BaseStorage, directions: list[Direction], seed: int,
                pruner: optuna.pruners.BasePruner) -> optuna.Study:
     """Create or load study ``name``; its sampler is a seeded TPE (constant liar, parallel),
     consulted only by TPE searches (an exhaustive search enqueues every trial's parameters).

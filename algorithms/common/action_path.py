@@ -21,6 +21,8 @@ ACTION_GAIN = 10.0
 class ActionPath(nn.Module):
     """Adds ACTION_GAIN * sum_k v_k obs[..., index[k, a]] to logit a."""
 
+    index: torch.Tensor  # buffer (K, 5): the obs column of each term of each action
+
     def __init__(self, index: np.ndarray) -> None:
         super().__init__()
         self.register_buffer("index", torch.as_tensor(np.asarray(index), dtype=torch.int64))  # (K, 5)

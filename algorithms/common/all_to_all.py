@@ -37,7 +37,7 @@ class AllToAllBoard:
     Stored narrow (``pos`` int16 when the layout has < 2^15 free cells, else int32;
     ``ctl`` int8; ``age`` int32) and updated in place by integer
     blends, so a step touches (B, N, N) arrays a few bytes per entry; the values are those
-    of the plain formulas (tests/algorithms/test_all_to_all_fast.py).
+    of the plain formulas (tests/algorithms/common/test_all_to_all_fast.py).
     """
 
     def __init__(self, core: WarehouseCore, loss: LossProcess, radius: int) -> None:
@@ -49,7 +49,8 @@ class AllToAllBoard:
         self.pos = np.broadcast_to(pos[:, None, :], (b, n, n)).astype(np.int16 if small else np.int32)  # cells
         self.ctl = np.full((b, n, n), WAIT, dtype=np.int8)  # (B, N, N) controls
         self.age = np.zeros((b, n, n), dtype=np.int32)  # (B, N, N) steps since received
-        self._tmp = {dt: np.empty((b, n, n), dtype=dt) for dt in (np.int8, np.int16, np.int32)}  # scratch
+        self._tmp: dict[type[np.generic], np.ndarray] = {  # scratch
+            dt: np.empty((b, n, n), dtype=dt) for dt in (np.int8, np.int16, np.int32)}
         self.eye = np.eye(n, dtype=bool)
         self.others = ~self.eye[None]  # (1, N, N) no self-messages in the maps
         self.side = 2 * radius + 1

@@ -19,6 +19,9 @@ from envs.core import StepResult, WarehouseCore
 from envs.layouts import Layout, load_layout
 from envs.scenarios import sample_scenarios
 
+__all__ = ["EVAL_METRICS", "EVAL_STREAM", "TRAIN_STREAM", "Decision", "EpisodeBatch", "EpisodeStats", "batch_rng"]
+
+# The random streams of ``batch_rng``: training episodes, evaluation episodes.
 TRAIN_STREAM, EVAL_STREAM = 0, 1
 
 
@@ -70,6 +73,7 @@ class Decision:
     payload: np.ndarray | float = 0.0  # (B,) or scalar: scalars transmitted this step
 
 
+# The per-episode metric columns of every row ``EpisodeStats`` writes.
 EVAL_METRICS = (
     "team_return", "success_rate", "collision_rate", "invalid_rate", "correction_rate",
     "mean_candidates", "fallback_rate", "predictor_error", "payload_scalars_per_step",

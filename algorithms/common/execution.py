@@ -29,9 +29,14 @@ import torch
 
 from envs.errors import BenchError
 
+__all__ = ["ACTION_STREAM", "ARGMAX", "ARGMAX_CHOICE", "DEFAULT_TEMPERATURES", "HEADLINE", "PLANNER", "SAMPLE", "TRAIN",
+           "ActionChoice", "ExecutionMode", "action_generator", "check_temperatures", "execution_modes",
+           "learned_modes", "mode_name", "multinomial_one", "parse_execution", "sample_categorical"]
+
+# Execution mode names (the training rollouts' is ``train``).
 ARGMAX, SAMPLE, PLANNER, TRAIN = "argmax", "sample", "planner", "train"
 HEADLINE = ARGMAX  # the mode headline numbers quote (docs/decisions/0069: the paper's execution)
-DEFAULT_TEMPERATURES = (0.5,)
+DEFAULT_TEMPERATURES = (0.5,)  # the sample@T modes every learned method is evaluated in
 ACTION_STREAM = 2  # after TRAIN_STREAM = 0 and EVAL_STREAM = 1 (algorithms/common/episodes.py)
 
 
@@ -158,4 +163,5 @@ class ActionChoice:
         return cls(mode, None if mode.greedy else action_generator(seed, chunk))
 
 
+# Argmax evaluation: no generator needed.
 ARGMAX_CHOICE = ActionChoice(ExecutionMode(ARGMAX, None))

@@ -39,7 +39,7 @@ def local_view(core: WarehouseCore, patch: PatchExtractor) -> np.ndarray:
 def local_view_into(core: WarehouseCore, patch: PatchExtractor, out: np.ndarray) -> None:
     """``local_view`` written into ``out`` (a (B, N, local_view_size(k)) float32 view, e.g.
     a row of a rollout buffer): the three writes of ``robot_features``, without its
-    (B, N, F) allocation and the caller's copy (same numbers; tests/algorithms/test_robot_obs.py)."""
+    (B, N, F) allocation and the caller's copy (same numbers; tests/algorithms/common/test_robot_obs.py)."""
     p = patch.offsets.size
     state_features_into(core, out[..., :STATE_SIZE])
     np.take(patch.shelf_table(), core.pos, axis=0, out=out[..., STATE_SIZE:STATE_SIZE + p], mode="clip")

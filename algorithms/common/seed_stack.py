@@ -58,6 +58,8 @@ class StackedBatch(EpisodeBatch):
         first = parts[0]
         self.config, self.parts = first.config, list(parts)
         self.sizes = [p.core.batch for p in parts]
+        # ignore: StackedRNG stands in for the batch's Generator (the draws EpisodeBatch makes,
+        # each part's from its own stream); it is no Generator subclass
         self.rng = StackedRNG([p.rng for p in parts], self.sizes)  # type: ignore[assignment]
         self.starts = np.concatenate([p.starts for p in parts])
         self.goals = np.concatenate([p.goals for p in parts])

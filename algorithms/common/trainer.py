@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from numpy.typing import DTypeLike
 from torch import nn
 
 from envs.core import WarehouseCore
@@ -49,7 +50,7 @@ def critic_features(core: WarehouseCore, out: np.ndarray | None = None) -> np.nd
     return out
 
 
-def critic_shapes(n: int) -> dict[str, tuple[tuple[int, ...], type]]:
+def critic_shapes(n: int) -> dict[str, tuple[tuple[int, ...], DTypeLike]]:
     """``RolloutBuffer`` fields of the critic's inputs for N robots (see ``critic_inputs``)."""
     return {"critic": ((n, CRITIC_FEATURES), np.float32), "t_frac": ((), np.float32)}
 
@@ -87,7 +88,7 @@ class CentralCritic(nn.Module):
 class RolloutBuffer:
     """Named, preallocated (T, B, ...) arrays filled step by step during a rollout."""
 
-    def __init__(self, horizon: int, batch: int, shapes: dict[str, tuple[tuple[int, ...], np.dtype]]):
+    def __init__(self, horizon: int, batch: int, shapes: dict[str, tuple[tuple[int, ...], DTypeLike]]):
         self.data = {k: np.zeros((horizon, batch, *shape), dtype=dt) for k, (shape, dt) in shapes.items()}
         self.rewards = np.zeros((horizon, batch), dtype=np.float32)
         self.running = np.zeros((horizon, batch), dtype=bool)

@@ -15,6 +15,10 @@ from torch import nn
 class ValueNorm(nn.Module):
     """Debiased EMA of the mean and second moment of value targets (scalars)."""
 
+    mean: torch.Tensor  # buffers (float64 scalars): EMA of G, of G^2, and the debiasing weight
+    mean_sq: torch.Tensor
+    weight: torch.Tensor
+
     def __init__(self, beta: float = 0.99, min_var: float = 1e-2) -> None:
         super().__init__()
         self.beta, self.min_var = beta, min_var

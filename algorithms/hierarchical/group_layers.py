@@ -40,7 +40,8 @@ class GroupLinear(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         z = x.shape[0] * self.seeds
         flat = x.reshape(z, -1, x.shape[-1])
-        w, b = self.weight, self.bias
+        w: torch.Tensor = self.weight
+        b: torch.Tensor = self.bias
         if w.shape[0] != z:  # shared parameters
             w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
         out = torch.baddbmm(b, flat, w)
@@ -128,12 +129,12 @@ class _MaskedSum(torch.autograd.Function):
     The mask gets no gradient."""
 
     @staticmethod
-    def forward(ctx, x: torch.Tensor, m: torch.Tensor) -> torch.Tensor:  # type: ignore[override]
+    def forward(ctx, x: torch.Tensor, m: torch.Tensor) -> torch.Tensor:
         ctx.save_for_backward(m)
         return _masked_sum(x, m)
 
     @staticmethod
-    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:  # type: ignore[override]
+    def backward(ctx, grad: torch.Tensor) -> tuple[torch.Tensor, None]:
         (m,) = ctx.saved_tensors
         return m.unsqueeze(-1) * grad.unsqueeze(-2), None
 

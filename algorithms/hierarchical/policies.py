@@ -21,13 +21,15 @@ Shelf moves are masked in pi (they are invalid and never admissible; docs/decisi
 """
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 import torch
 from torch import nn
 
 from algorithms.common.action_path import ACTION_GAIN, progress_index  # shared with the baselines
 from algorithms.common.robot_obs import robots_on_target_index
-from algorithms.hierarchical.group_layers import GroupMLP, masked_mean, relu
+from algorithms.hierarchical.group_layers import GroupLinear, GroupMLP, masked_mean, relu
 from algorithms.hierarchical.messages import GroupStructure
 from envs.actions import N_ACTIONS
 from envs.observations import PatchExtractor
@@ -96,6 +98,7 @@ class LocalPolicy(nn.Module):
     """
 
     seeds = 1  # S > 1: parameters stacked for S seeds (see ``group_layers``)
+    action_idx: torch.Tensor  # buffer (K, 5): the robot-feature column of each action's term
 
     def __init__(self, n_param_groups: int, n_groups: int, d_robot: int, hidden: int, n_refs: int,
                  obs_radius: int) -> None:
@@ -134,8 +137,9 @@ class LocalPolicy(nn.Module):
         robots (equal up to float summation order; tests/algorithms/hierarchical)."""
         z, m, n, d = h.shape
         zg = z * self.seeds  # parameter groups; (Z, M) rows are (Z S, M / S) blocks
-        first = self.head.layers[0]
-        w, b = first.weight, first.bias
+        first = cast(GroupLinear, self.head.layers[0])  # a ModuleList item is typed Module
+        w: torch.Tensor = first.weight
+        b: torch.Tensor = first.bias
         if w.shape[0] != zg:  # shared parameters
             w, b = w.expand(zg, -1, -1), b.expand(zg, -1, -1)
         per_row = torch.baddbmm(b, ctx.reshape(zg, -1, ctx.shape[-1]), w[:, d:])  # context part + bias

@@ -40,6 +40,9 @@ AGE_SCALE = 8.0  # age feature = min(age, 4 * AGE_SCALE) / AGE_SCALE
 class GroupPredictor(nn.Module):
     """f_eta_z for all receiver groups at once; tensors are group-major (Z, M, K, ...)."""
 
+    scale: torch.Tensor  # buffer (2,): the grid's (H, W), positions to [0, 1]
+    deltas: torch.Tensor  # buffer (5, 2): each action's (row, col) step
+
     def __init__(self, n_param_groups: int, n_groups: int, grid_shape: tuple[int, int],
                  hidden: int = 64, embed: int = 32) -> None:
         super().__init__()

@@ -34,6 +34,7 @@ import itertools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import cast
 
 import numpy as np
 
@@ -122,7 +123,7 @@ class SafetyFilter:
         p0 = ((nprop[:, :, None] == nprop[:, None, :])  # (2)
               | ((nprop[:, :, None] == p[:, None, :]) & (nprop[:, None, :] == p[:, :, None]))) & pair  # (3)
         bad = ~np.take_along_axis(unary, prop[..., None], axis=2)[..., 0]
-        called = ctl.any(axis=1)
+        called = cast(np.ndarray, ctl.any(axis=1))  # (G,) bool: with an axis, an array
         found = called & ~bad.any(axis=1) & ~p0.any(axis=(1, 2))
         actions = prop.copy()
         examined = called.astype(np.int64)

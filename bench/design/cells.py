@@ -48,7 +48,8 @@ class Cell(BaseModel):
     seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
     groups: int = Field(4, ge=1, le=limit("groups"), strict=True, description="number of fixed groups Z")
     ref_size: int = Field(8, ge=1, le=limit("ref_size"), strict=True, description="abstract references per group |R_z|")
-    search_radius: int = Field(2, ge=0, le=limit("search_radius"), strict=True, description="safety-filter search radius L")
+    search_radius: int = Field(2, ge=0, le=limit("search_radius"), strict=True,
+        description="safety-filter search radius L")
     c_max: int = Field(500, ge=1, le=limit("c_max"), strict=True, description="safety-filter candidate budget C_max")
     safety_filter: bool = Field(
         False, strict=True, description="safety filter on (default: the method's safety_filter_default)"
@@ -57,7 +58,8 @@ class Cell(BaseModel):
     episodes: int = Field(2000, ge=0, le=limit("episodes"), strict=True,
                           description="training episodes (0: evaluate the initialization)")
     horizon: int = Field(500, ge=1, le=MAX_HORIZON, strict=True, description="maximum episode length T")
-    eval_episodes: int = Field(100, ge=1, le=limit("eval_episodes"), strict=True, description="evaluation episodes (per execution mode)")
+    eval_episodes: int = Field(100, ge=1, le=limit("eval_episodes"), strict=True,
+        description="evaluation episodes (per execution mode)")
     eval_temperatures: tuple[float, ...] = Field(
         DEFAULT_TEMPERATURES,
         description="temperatures T != 1 of the tempered evaluation modes sample@T (learned methods; "

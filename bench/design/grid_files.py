@@ -38,9 +38,9 @@ try:
     import tomllib
 except ImportError:  # pragma: no cover - Python 3.10
     try:
-        import tomli as tomllib  # type: ignore[no-redef]
+        import tomli as tomllib  # type: ignore[no-redef]  # the same API under its 3.10 name
     except ImportError:
-        tomllib = None  # type: ignore[assignment]
+        tomllib = None  # type: ignore[assignment]  # no TOML reader: grid files say so when read
 
 TOP_KEYS = {"name", "description", "seeds", "base", "axes"}
 

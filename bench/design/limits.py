@@ -8,7 +8,7 @@ no cell id (the id hashes the values, which a bound does not touch).
 """
 from __future__ import annotations
 
-from typing import Any
+from pydantic_core import ErrorDetails
 
 # field -> (largest value, why). The paper (Sec. IV): N <= 100, T = 500, 2000 episodes,
 # 100 evaluation episodes, |R_z| = 8, L = 2, C_max = 500, 3 seeds.
@@ -44,7 +44,7 @@ def reason(field: str) -> str:
     return f" (limit {top}: {why})"
 
 
-def with_reasons(err: dict[str, Any], text: str) -> str:
+def with_reasons(err: ErrorDetails, text: str) -> str:
     """``text`` (one pydantic error's message) plus the reason of the bound it broke."""
     if err.get("type") in ("less_than_equal", "less_than"):
         return text + reason(str(err["loc"][-1]) if err.get("loc") else "")

@@ -25,7 +25,8 @@ class Snapshot:
     fraction: float  # cost-weighted fraction of the work finished, 0..1
     elapsed_s: float
     message: str = ""  # the last event, e.g. "done 3f2a... (hierarchical N=40 p=0.2)"
-    kind: str = ""  # the runner event behind it: start, started, train_chunk, eval_chunk, done, failed, retry, rerun, tick
+    # the runner event behind it: start, started, train_chunk, eval_chunk, done, failed, retry, rerun, tick
+    kind: str = ""
 
     @property
     def eta_s(self) -> float | None:

@@ -33,6 +33,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from envs.errors import BenchError
 
@@ -222,7 +223,7 @@ def _connect(address: str | None, workers: int | None) -> RayContext:
     if ray.is_initialized():
         return RayContext(False, "existing", _cluster_cpus())
     address = address or os.environ.get("RAY_ADDRESS") or None
-    quiet = dict(log_to_driver=False, logging_level=logging.ERROR)
+    quiet: dict[str, Any] = dict(log_to_driver=False, logging_level=logging.ERROR)
     if address:
         if address != "auto":
             _probe(address)

@@ -27,7 +27,7 @@ def export_run(run: Path, fmt: str, out: Path | None = None, *, execution: str =
     if fmt == "marl-eval":
         from bench.export.to_marl_eval import marl_eval_data
 
-        target = run / "export" / "marl-eval.json" if default else out
+        target = run / "export" / "marl-eval.json" if out is None else out
         if target.is_dir():
             raise BenchError(f"--out {str(target)!r} is a folder; marl-eval's export is one JSON file")
         _refuse_existing([target], default or overwrite)
@@ -37,7 +37,7 @@ def export_run(run: Path, fmt: str, out: Path | None = None, *, execution: str =
     if fmt == "csv":
         from bench.export.to_csv import tidy_tables, to_csv_bytes
 
-        folder = run / "export" / "csv" if default else out
+        folder = run / "export" / "csv" if out is None else out
         if folder.exists() and not folder.is_dir():
             raise BenchError(f"--out {str(folder)!r} is a file; the csv export writes a folder")
         targets = [folder / f"{name}.csv" for name in CSV_TABLES]

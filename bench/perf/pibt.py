@@ -47,12 +47,13 @@ def time_pibt(
     while plan_s < target_seconds or episodes == 0:
         b = EpisodeBatch(config, batch, batch_rng(seed, EVAL_STREAM, chunk), method.layout)
         chunk += 1
-        core, state = b.core, method.begin(b, ActionChoice.evaluate("planner"))
+        choice = ActionChoice.evaluate("planner")
+        core, state = b.core, method.begin(b, choice)
         while b.running:
             running = int((~core.ended).sum())
             planning = int((~core.done & ~core.ended[:, None]).sum())
             t0 = time.perf_counter()
-            dec = method.decide(b, state, True)
+            dec = method.decide(b, state, choice)
             t1 = time.perf_counter()
             res = core.step(dec.actions)
             env_s += time.perf_counter() - t1

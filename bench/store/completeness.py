@@ -28,6 +28,9 @@ from algorithms.common.execution import PLANNER
 from bench.store.run_store import RunStore
 from envs.errors import BenchError
 
+__all__ = ["RowCounts", "expected_for_cell", "expected_for_row", "expected_rows", "incomplete_cells", "shortfall",
+           "stored_rows"]
+
 
 @dataclass(frozen=True)
 class RowCounts:

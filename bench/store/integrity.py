@@ -275,7 +275,7 @@ def move_aside(store: Any, checksums: Checksums, damage: list[Damage], stamp: st
 
     if not damage:
         return None
-    base = store.root / "superseded" / f"{REPAIR_PREFIX}{stamp}"
+    base: Path = store.root / "superseded" / f"{REPAIR_PREFIX}{stamp}"
     dest, k = base, 1
     while dest.exists():  # a second repair within the same second keeps the first one's files
         k += 1

@@ -54,7 +54,8 @@ def table_bytes(table: pa.Table) -> bytes:
     ``read_table``; the rows are the same as without them)."""
     sink = pa.BufferOutputStream()  # serialize first: the only disk write is fh.write
     pq.write_table(table, sink, write_page_checksum=True)
-    return sink.getvalue().to_pybytes()
+    data: bytes = sink.getvalue().to_pybytes()  # pyarrow has no type stubs
+    return data
 
 
 def write_table(path: Path, table: pa.Table, checksums: Checksums | None = None) -> None:
@@ -152,7 +153,8 @@ class RunStore:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             os.close(fd)
-            raise BenchError(f"another bench run is using {str(self.root)!r}; wait for it or use another --out") from None
+            raise BenchError(f"another bench run is using {str(self.root)!r}; wait for it or use another "
+                             "--out") from None
         return fd
 
     def exists(self) -> bool:

@@ -13,15 +13,19 @@ from typing import Any
 
 import pyarrow as pa
 
-SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
-VERSION_KEY = b"schema_version"
+__all__ = ["CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
+           "VERSION_KEY", "file_version", "rows_to_table", "with_version"]
 
-STATUSES = ("pending", "running", "done", "failed")
+SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
+VERSION_KEY = b"schema_version"  # the Parquet metadata key holding SCHEMA_VERSION
+
+STATUSES = ("pending", "running", "done", "failed")  # a cell's status in cells.parquet
 
 # Columns added to a version-2 table after its first files were written: a file without one
 # reads as this value (for superseded_wall_s: no discarded attempt recorded).
 ADDED_CELL_COLUMNS = {"superseded_wall_s": 0.0}
 
+# One row per cell: its config, status and progress.
 CELLS_SCHEMA = pa.schema([
     pa.field("cell_id", pa.string(), nullable=False),
     pa.field("grid", pa.string()),
@@ -68,8 +72,9 @@ METRIC_FIELDS = [
     pa.field("payload_dec_per_step", pa.float64()),
     pa.field("steps", pa.int64()),
 ]
-LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")
+LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")  # the losses of a training row
 
+# One row per cell x training episode.
 TRAIN_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False)]
     + METRIC_FIELDS

@@ -4,7 +4,8 @@ per cell.
 
 The run is named by the cell id (tag ``cell_id`` too) and carries the cell's config as
 params; metrics ``train.<metric>`` per update (step = episodes trained) and
-``eval.<mode>.<metric>`` at the end (``sample@0.5`` as ``sample_t0.5``); status FINISHED or FAILED. A resumed cell continues
+``eval.<mode>.<metric>`` at the end (``sample@0.5`` as ``sample_t0.5``); status FINISHED or FAILED. A resumed cell
+continues
 its run (found by the ``cell_id`` tag). Uses ``MlflowClient`` on an explicit store URI, so
 nothing global (``mlflow.set_tracking_uri``, an active run) is touched.
 """

@@ -171,7 +171,8 @@ class Spec:
                 z = rng.standard_normal(shape)
             else:  # smoothed bootstrap: a pooled residual plus kernel noise, unit variance kept
                 h = 1.06 * len(self.z) ** -0.2  # Silverman's bandwidth for a unit-variance sample
-                z = (self.z[rng.integers(len(self.z), size=(sims, s))] + h * rng.standard_normal(shape)) / np.sqrt(1 + h * h)
+                z = ((self.z[rng.integers(len(self.z), size=(sims, s))] + h * rng.standard_normal(shape))
+                     / np.sqrt(1 + h * h))
             out.append(mu[k] + self.sd[k] * z)
         return out
 
@@ -218,7 +219,8 @@ def observed_specs(train: pd.DataFrame, evals: pd.DataFrame) -> dict[str, list[S
         mid, eff = float(np.mean([a.mean(), b.mean()])), REWARD_FRAC * abs(b.mean())
         add("hier_above_dec", C._cfg(n, p), [a, b], [mid, mid], [mid + eff, mid], v_greater)
     for large, small, p in C.PAPER["gap"]:
-        gs = [C.final_means(C.select(train, m, n, p)) for n in (large, small) for m in ("hierarchical", "decentralized")]
+        gs = [C.final_means(C.select(train, m, n, p)) for n in (large, small) for m in ("hierarchical",
+            "decentralized")]
         m = [float(g.mean()) for g in gs]
         base = m[1] + m[2] - m[3]  # gap(large) = gap(small)
         add("gap_widens", f"Gap({large}) vs Gap({small})", gs, [base, *m[1:]],

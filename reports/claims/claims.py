@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -50,7 +51,7 @@ from reports.claims.claim_power import (
     power_gap,
     power_greater,
 )
-from reports.claims.power import COULD_NOT, LOW, NO_POWER
+from reports.claims.power import COULD_NOT, LOW, NO_POWER, Power
 from reports.claims.verdicts import (
     BAND_TOL,
     BY_CONSTRUCTION,
@@ -81,7 +82,7 @@ TRAINING = "training (sampled)"
 DEFAULT_EXECUTION = {"hierarchical": "argmax", "pibt": "planner"}
 MODE_ORDER = ("argmax", "sample", "sample@0.5")
 # The paper's configurations (Sec. IV) and safety-filter settings (Sec. IV: Z = 4, L = 2, C_max = 500; |U| = 5).
-PAPER = {"fig1a": tuple((n, PAPER_FIG1_P) for n in PAPER_FIG1A_N),
+PAPER: dict[str, tuple[tuple[Any, ...], ...]] = {"fig1a": tuple((n, PAPER_FIG1_P) for n in PAPER_FIG1A_N),
          "gap": tuple((PAPER_FIG1A_N[-1], n, PAPER_FIG1_P) for n in PAPER_FIG1A_N[:-1]),
          "fig1b": tuple((n, PAPER_FIG1_P) for n in PAPER_FIG1B_N),
          "fig2": tuple((n, p) for n in PAPER_FIG2_N for p in PAPER_FIG2_P),
@@ -208,10 +209,12 @@ def _modes(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 
 # ------------------------------------------------------------------- claims
 Configs = Sequence[tuple]
+# (config label, execution, verdict, numbers, test[, power]): one check of ``_each``'s fn
+CheckRow = tuple[str, str, str, str, str] | tuple[str, str, str, str, str, Power]
 
 
 def _each(claim: Claim, paper: Configs, run: Configs,
-          fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
+          fn: Callable[[tuple, float], list[CheckRow]]) -> Claim:
     """``decide_scope`` at the paper's configurations, then at the run's own ones that are
     not paper ones (``--claims-at run``)."""
     decide_scope(claim, "paper", paper, fn)
@@ -219,7 +222,7 @@ def _each(claim: Claim, paper: Configs, run: Configs,
 
 
 def decide_scope(claim: Claim, scope: str, configs: Configs,
-                 fn: Callable[[tuple, float], list[tuple[str, str, str, str, str]]]) -> Claim:
+                 fn: Callable[[tuple, float], list[CheckRow]]) -> Claim:
     """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
     test[, power])] as the checks of ``scope`` (``power`` a ``reports.claims.power.Power``,
     only with a verdict that has seeds).

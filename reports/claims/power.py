@@ -52,7 +52,8 @@ NO_POWER = Power(float("nan"), None, "-")
 
 def contrast_power(sds: Sequence[float], counts: Sequence[int] | np.ndarray, weights: Sequence[float],
                    effect: float, alpha: float = TEST_ALPHA) -> np.ndarray:
-    """Power of the one-sided level-``alpha`` (default: the checks' ``TEST_ALPHA``) Welch t test of sum_k w_k mean_k > 0 when
+    """Power of the one-sided level-``alpha`` (default: the checks' ``TEST_ALPHA``) Welch t test of sum_k w_k mean_k >
+    0 when
     the true contrast is ``effect``; ``sds`` (K,) per-group seed standard deviations,
     ``counts`` (K,) or (K, M) seed counts (M designs at once). Returns () or (M,).
     A contrast without variance is decided exactly: power 1 if ``effect`` > 0, else 0."""

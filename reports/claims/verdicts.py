@@ -4,7 +4,8 @@ Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 i
 paper's direction), **contradicted** (significant in the opposite direction),
 **inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side). Two checks are not statistical: **verified by construction** (the payload ratio)
-and Lemma 1's arithmetic (**condition not met** when its premise fails). Each kernel takes one number (or one array of episodes) per
+and Lemma 1's arithmetic (**condition not met** when its premise fails). Each kernel takes one number (or one array of
+episodes) per
 seed and decides with a Welch / one-sample t test from ``reports.stats``; ``bench
 calibrate`` measures how often each says *supported* when the claim is false, and how
 often *contradicted* when it holds.

@@ -13,6 +13,7 @@ A store without a ``train/`` or ``eval/`` dataset still loads (empty frames).
 from __future__ import annotations
 
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,10 @@ from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from envs.errors import BenchError
 
+__all__ = ["CONFIG_COLUMNS", "Store", "execution_order", "fmt_p", "fmt_pct", "incomplete_evals", "load_store", "select",
+           "superseded_notes"]
+
+# The cell config columns joined onto every train and eval row.
 CONFIG_COLUMNS = ("method", "n_robots", "loss_p", "seed", "groups", "safety_filter")
 
 
@@ -73,7 +78,8 @@ def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
             cid = owner_cell(rel)
             found = {str(v) for v in table.column("cell_id").unique().to_pylist()}
             if cid and found and found != {cid}:
-                why = f"it holds rows of cell {', '.join(sorted(found - {cid}))}, not of {cid} (a copied or renamed file)"
+                others = ", ".join(sorted(found - {cid}))
+                why = f"it holds rows of cell {others}, not of {cid} (a copied or renamed file)"
         if why:
             problems.append(f"skipped {rel}: {Damage(rel, owner_cell(rel), why).line()}")
             if damaged is not None:
@@ -92,7 +98,7 @@ def _with_config(rows: pd.DataFrame, done: pd.DataFrame) -> pd.DataFrame:
     return out.drop_duplicates(key, keep="last").sort_values(key, kind="stable").reset_index(drop=True)
 
 
-def execution_order(modes: object) -> list[str]:
+def execution_order(modes: Iterable[object]) -> list[str]:
     """Execution modes in report order: argmax, sample, sample@T by decreasing T, planner."""
     def key(m: str) -> tuple[int, float]:
         if m == "argmax":

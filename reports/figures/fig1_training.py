@@ -11,6 +11,7 @@ drawn only when the run has hierarchical training data at N = 80-100: it never r
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -53,9 +54,10 @@ class Curve:
     window: int
 
 
-def training_curve(train: pd.DataFrame, method: str, n: int, p: float,
+def training_curve(train: pd.DataFrame, method: str, n: int, p: float | None,
                    metric: str = "team_return") -> Curve | None:
-    """Smoothed ``metric`` per episode for one (method, N, p), over the cells (seeds) present."""
+    """Smoothed ``metric`` per episode for one (method, N, p), over the cells (seeds) present
+    (p None: every p, as in ``select``)."""
     rows = select(train, method, n, p)
     if rows.empty:
         return None
@@ -103,7 +105,7 @@ def _caption(p: str, curves: list[tuple[str, int, Curve]], has_b: bool, own_y: b
     what = "(a) hierarchical (ours) vs decentralized" + (", (b) hierarchical (ours) at N = 80-100" if has_b else "")
     seeds = []
     for method in dict.fromkeys(m for m, _, _ in curves):
-        counts = {(float(n),): c.seeds for m, n, c in curves if m == method}
+        counts: dict[tuple[float, ...], int] = {(float(n),): c.seeds for m, n, c in curves if m == method}
         seeds.append(f"{method_label(method)}: {counts_text(counts)}")
     band = ("shaded band: pointwise 95% Student t interval over seeds of the mean curve, its edges thin lines"
             if max(c.seeds for _, _, c in curves) > 1 else "no band (one seed per configuration)")
@@ -141,7 +143,7 @@ def fig1_training(train: pd.DataFrame) -> Built:
         fig = new_figure(3.7 if b_ns else 1.9)
         ncol = max(len(a_ns), 1)
         if b_ns:
-            top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.1])
+            top, bottom = cast("np.ndarray", fig.subfigures(2, 1, height_ratios=[1.0, 1.1]))  # (2,) of SubFigure
         else:
             top, bottom = fig, None
         axes_a = list(top.subplots(1, ncol, squeeze=False)[0])

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from matplotlib.artist import Artist
 
 from bench.design.paper import PAPER_FIG2_N, PAPER_FIG2_P
 from reports.data.store import execution_order, fmt_p, select
@@ -85,7 +86,7 @@ def fig2_success(evals: pd.DataFrame, mode: str | None = None) -> Built:
     with paper_style():
         fig = new_figure(0.9 + 1.3 * nrow)
         axes = fig.subplots(nrow, ncol, sharex=True, sharey=True, squeeze=False)
-        handles: dict[str, object] = {}
+        handles: dict[str, Artist] = {}
         for i in range(nrow):
             for j in range(ncol):
                 ax = axes[i, j]

@@ -7,7 +7,8 @@ index prints under it, e.g. which of the paper's configurations the run lacks) a
 caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
 under the figure and ``reports.writers.save_figure`` stores as PDF metadata and a sidecar
 ``.txt``. One colour and one label per method, as the method declares them
-(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
+(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes
+of one method are
 shades of that method's colour (``shades``), never another palette.
 """
 from __future__ import annotations
@@ -16,6 +17,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import matplotlib
 import numpy as np
@@ -23,6 +25,7 @@ import seaborn as sns
 from matplotlib.axes import Axes
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
+from matplotlib.typing import RcKeyType
 
 from algorithms.base import UNRANKED
 from algorithms.registry import available, find_method
@@ -30,7 +33,7 @@ from algorithms.registry import available, find_method
 COLUMN_IN = 3.5  # paper column width, inches
 FONT_PT = 7
 DPI = 200
-RC = {
+RC: dict[RcKeyType, Any] = {
     "font.size": FONT_PT, "axes.labelsize": FONT_PT, "axes.titlesize": FONT_PT,
     "xtick.labelsize": FONT_PT, "ytick.labelsize": FONT_PT, "legend.fontsize": FONT_PT,
     "legend.title_fontsize": FONT_PT, "lines.linewidth": 1.0, "lines.markersize": 3.5,
@@ -101,10 +104,11 @@ def shades(method: str, ns: Sequence[int], spread: float = 0.35) -> dict[int, tu
     ends go toward black and white."""
     base = np.asarray(method_color(method), dtype=np.float64)
     mix = np.linspace(-spread, spread, len(ns)) if len(ns) > 1 else np.zeros(1)
-    out = {}
+    out: dict[int, tuple[float, float, float]] = {}
     for m, n in zip(mix, sorted(ns), strict=True):  # < 0 darkens toward black, > 0 lightens toward white
         c = base * (1 + m) if m < 0 else base + (1 - base) * m
-        out[int(n)] = tuple(float(x) for x in np.clip(c, 0, 1))
+        r, g, b = (float(x) for x in np.clip(c, 0, 1))
+        out[int(n)] = (r, g, b)
     return out
 
 

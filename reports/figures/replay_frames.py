@@ -75,7 +75,8 @@ def text_band(width: int, lines: Sequence[tuple[str, bool]], size: int,
 def _swatch(s: int, group: int = 0, **flags: bool) -> np.ndarray:
     """(s, s, 3) one free cell drawn by ``render_rgb`` with one robot of ``group``."""
     on_floor = flags.pop("on_floor", True)
-    return render_rgb(np.zeros((1, 1), bool), [[0, 0]], [[0, 0]], np.array([group]), cell_px=s,
+    at = np.zeros((1, 2), np.int64)  # the robot and its goal on the one cell
+    return render_rgb(np.zeros((1, 1), bool), at, at, np.array([group]), cell_px=s,
                       on_floor=np.array([on_floor]),
                       **{k: np.array([v]) for k, v in flags.items()})
 

@@ -8,7 +8,8 @@ under it and every table (Table I per execution mode, the summary, the claims' c
 their readable names and numbers, the ablation) is an HTML table with a caption, written by
 pandas' ``Styler.to_html`` with every cell escaped, in a box that scrolls when the table is
 wider or longer than the window. The claims' checks are grouped per claim, the ones
-without enough seeds in one line (``reports.pages.index_claims``). Every link is relative to the report folder and stays inside it (no ``..``),
+without enough seeds in one line (``reports.pages.index_claims``). Every link is relative to the report folder and
+stays inside it (no ``..``),
 so a copied report folder keeps working."""
 from __future__ import annotations
 
@@ -126,7 +127,8 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
     ``title`` plus the heading above the table. For pages other modules write as Markdown
     only (ablation, calibration), so the index shows them as HTML tables too."""
     out: list[tuple[str, pd.DataFrame]] = []
-    heading, rows = "", []
+    heading = ""
+    rows: list[list[str]] = []
 
     def cells(line: str) -> list[str]:
         parts = re.split(r"(?<!\\)\|", line.strip()[1:-1])

@@ -3,7 +3,8 @@
 Every done cell of the ``ablation`` grid (the ``grid`` column of cells.parquet; other
 grids' cells are never pooled in) is matched to a variant of
 ``bench.design.grids.ABLATION_VARIANTS`` by its method, |R_z| and the hyperparameters that define
-variants (other hyperparameters, such as batch sizes, are ignored). Per variant: success rate, collision rate, correction rate,
+variants (other hyperparameters, such as batch sizes, are ignored). Per variant: success rate, collision rate,
+correction rate,
 fallback rate and payload (scalars per step), each the mean over seeds of the per-seed
 evaluation mean with a 95% Student t CI over seeds (over evaluation episodes when a
 variant has one seed, as in the summary), separately per execution mode (modes are never
@@ -87,7 +88,7 @@ def ablation_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
             r = by_mode[by_mode["variant"] == v.label]
             if r.empty:
                 continue
-            rec: dict[str, object] = {"execution": mode, "variant": v.label, "method": v.method,
+            rec: dict[str, Any] = {"execution": mode, "variant": v.label, "method": v.method,
                                       "departs": v.departs, "seeds": r["cell_id"].nunique(),
                                       "eval_episodes": len(r)}
             for m in METRICS:
@@ -106,7 +107,7 @@ def _by_mode(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     return [(m, rows[rows["execution"] == m]) for m in execution_order(rows["execution"].unique())]
 
 
-def component_values(evals: pd.DataFrame, cells: pd.DataFrame) -> list[dict[str, object]]:
+def component_values(evals: pd.DataFrame, cells: pd.DataFrame) -> list[dict[str, Any]]:
     """Per execution mode and component present in the run: success(with) -
     success(without) in points, with a 95% Welch t CI over seeds (per-seed means)."""
     out = []
@@ -131,9 +132,9 @@ def _cell(v: float, lo: float, hi: float, pct: bool) -> str:
     return f"{f(v)} [{f(lo)}, {f(hi)}]" if np.isfinite(lo) else f(v)
 
 
-def _sentence(c: dict[str, object]) -> str:
-    d, lo, hi = (100 * float(c[k]) for k in ("delta", "lo", "hi"))  # type: ignore[arg-type]
-    n_a, n_b = c["seeds"]  # type: ignore[misc]
+def _sentence(c: dict[str, Any]) -> str:
+    d, lo, hi = (100 * float(c[k]) for k in ("delta", "lo", "hi"))
+    n_a, n_b = c["seeds"]
     span = f" [{lo:+.1f}, {hi:+.1f}]" if np.isfinite(lo) else ""
     if min(n_a, n_b) < 3:
         verdict = "fewer than 3 seeds on an arm: no verdict"
@@ -156,7 +157,7 @@ def setting(cells: pd.DataFrame) -> str:
     return "; ".join(parts)
 
 
-def ablation_markdown(frame: pd.DataFrame, components: list[dict[str, object]], where: str = "") -> str:
+def ablation_markdown(frame: pd.DataFrame, components: list[dict[str, Any]], where: str = "") -> str:
     unit = frame["ci_over"].iloc[0] if len(frame) else "seeds"
     lines = ["# Ablation of the hierarchical method", "", *([f"Setting: {where}.", ""] if where else []),
              "Each variant changes one design choice of the paper's method (the `departs` column "

@@ -88,10 +88,12 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
                 out.at[idx, "rank"] = int(ranks[idx])
     order = {m: i for i, m in enumerate(execution_order(out["execution"]))}
     out = out.assign(_m=out["execution"].map(order), _l=out["method"].map(lambda m: label_order(method_label(m))))
-    return out.sort_values(["n_robots", "loss_p", "_m", "_l", "method"]).drop(columns=["_m", "_l"]).reset_index(drop=True)
+    ordered = out.sort_values(["n_robots", "loss_p", "_m", "_l", "method"])
+    return ordered.drop(columns=["_m", "_l"]).reset_index(drop=True)
 
 
-def score_matrices(evals: pd.DataFrame, mode: str) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
+def score_matrices(evals: pd.DataFrame, mode: str,
+                   ) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
     """Per method, its (seeds x configurations) success matrix in mode ``mode`` (a planner in
     ``planner``) over the configurations every method covers, using the seeds every one of
     those configurations has; the configurations; the seeds used per method."""
@@ -156,7 +158,8 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
             cols = [mat[:, j] for j in range(mat.shape[1])]
             lo, hi = _stratified_ci(cols, _iqm)
             iqm_rows.append({"execution": mode, "method": m, "label": method_label(m), "configurations": len(cfgs),
-                             "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)), "iqm_lo": lo, "iqm_hi": hi})
+                             "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)),
+                                 "iqm_lo": lo, "iqm_hi": hi})
         for x, y in permutations(mats, 2):
             a, b = mats[x], mats[y]
             k = a.shape[1]
@@ -206,7 +209,8 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     else:
         lines += ["| execution | method | configurations | seeds | IQM success [95% CI] |", "|---|---|---|---|---|"]
         for r in iqm.itertuples(index=False):
-            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
+            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | "
+                         f"{ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
         lines += ["", "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
                   "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
                   "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
@@ -220,8 +224,9 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     for r in safety.itertuples(index=False):
         cand = "—" if not np.isfinite(r.mean_candidates) else f"{r.mean_candidates:.1f}"
         pay = "—" if not np.isfinite(r.payload_scalars_per_step) else f"{r.payload_scalars_per_step:,.1f}"
-        lines.append(f"| {r.label} | {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.seeds} | "
-                     f"{pct(r.collision_rate) if r.collision_rate >= 1e-3 or r.collision_rate == 0 else f'{100 * r.collision_rate:.3g}%'} | "
+        coll = (pct(r.collision_rate) if r.collision_rate >= 1e-3 or r.collision_rate == 0
+                else f"{100 * r.collision_rate:.3g}%")
+        lines.append(f"| {r.label} | {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.seeds} | {coll} | "
                      f"{pct(r.correction_rate)} | {pct(r.fallback_rate)} | {cand} | {pay} |")
     return "\n".join(lines) + "\n"
 
@@ -267,7 +272,8 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                     ax.plot(x, g["success"], "o-", color=method_color(m), label=method_label(m), ms=2.5)
                     ax.fill_between(x, g["success_lo"], g["success_hi"], color=method_color(m), alpha=0.15, lw=0)
                 ax.set_ylim(-0.02, 1.02)
-                ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, {mode}")
+                ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
+                             f"{mode}")
                 ax.set_xticks(sorted(part[against].unique()) if len(part) else [])
                 if i == len(modes) - 1:
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")

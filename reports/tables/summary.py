@@ -1,7 +1,8 @@
 """Summary of every configuration group (method x N x p x execution mode) with CIs.
 
 One row per configuration and execution mode (argmax, sample, sample@T; planner for PIBT;
-every mode ran on the same evaluation scenarios, docs/decisions/0068). For each row: number of cells (all statuses) and of done seeds, evaluation episodes,
+every mode ran on the same evaluation scenarios, docs/decisions/0068). For each row: number of cells (all statuses)
+and of done seeds, evaluation episodes,
 and for success rate, team return, collision rate, correction rate and payload the mean
 over seeds of per-seed evaluation means with a 95% Student t CI over seeds (a bootstrap CI
 over evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
@@ -120,7 +121,8 @@ def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
     for _, r in frame.iterrows():
         filt = bool(r.get("safety_filter", True))
         rows.append([
-            str(r["method"]) + variant_suffix(str(r.get("variant", "") or "")), str(r["n_robots"]), f"{r['loss_p']:g}", str(r["execution"]),
+            str(r["method"]) + variant_suffix(str(r.get("variant", "") or "")), str(r["n_robots"]),
+                f"{r['loss_p']:g}", str(r["execution"]),
             f"{r['seeds']} ({r['cells_done']}/{r['cells']}"
             + (f", {r['cells_failed']} failed)" if r["cells_failed"] else ")"),
             str(r["eval_episodes"]),
@@ -143,7 +145,8 @@ def ci_display(frame: pd.DataFrame, labels: dict[str, str], metrics: dict[str, t
     ``fmt_ci``)."""
     out = {h: frame[c].astype(str).tolist() for c, h in labels.items()}
     for m, (h, kind) in metrics.items():
-        out[h] = [fmt_ci(v, lo, hi, kind) for v, lo, hi in zip(frame[m], frame[f"{m}_lo"], frame[f"{m}_hi"], strict=True)]
+        out[h] = [fmt_ci(v, lo, hi, kind)
+                  for v, lo, hi in zip(frame[m], frame[f"{m}_lo"], frame[f"{m}_hi"], strict=True)]
     return pd.DataFrame(out)
 
 

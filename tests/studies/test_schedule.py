@@ -57,7 +57,8 @@ def test_plan__tpe_replicates_every_point_it_completes(tmp_path: Path, settings:
         assert reps == list(range(len(reps)))
 
 
-def test_plan__a_waiting_requeued_trial_runs_before_anything_is_enqueued(settings: TrialSettings, tmp_path: Path) -> None:
+def test_plan__a_waiting_requeued_trial_runs_before_anything_is_enqueued(settings: TrialSettings,
+                                                                         tmp_path: Path) -> None:
     space = search_space(overrides={"ref_size": [2, 4]})
     plan = SearchPlan.make("grid", space, 2, seed=0)
     study = make_study(tmp_path, settings)

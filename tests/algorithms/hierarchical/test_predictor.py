@@ -42,7 +42,8 @@ def test_predictor_loss__ignores_delivered_links() -> None:
     slots[..., -1] = False  # padding slots never count
     moved = pred.clone()
     moved[..., -1, :] += 5.0
-    assert torch.equal(predictor_loss(moved, target, lost, slots, 10.0), predictor_loss(pred, target, lost, slots, 10.0))
+    assert torch.equal(predictor_loss(moved, target, lost, slots, 10.0),
+                       predictor_loss(pred, target, lost, slots, 10.0))
 
 
 def test_prediction_error__absent_robot_counts_only_its_present_flag() -> None:

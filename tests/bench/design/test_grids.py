@@ -97,8 +97,10 @@ def test_grid_file__toml_base_crossed_with_axes_including_params(tmp_path: Path)
 
 
 def test_grid_file__yaml_gives_the_same_cells_as_toml(tmp_path: Path) -> None:
-    (tmp_path / "g.toml").write_text('[base]\nmethod = "pibt"\nlayout = "tiny"\n[axes]\nn_robots = [4, 8]\nloss_p = [0.2]\n')
-    (tmp_path / "g.yaml").write_text("base:\n  method: pibt\n  layout: tiny\naxes:\n  n_robots: [4, 8]\n  loss_p: [0.2]\n")
+    (tmp_path / "g.toml").write_text('[base]\nmethod = "pibt"\nlayout = "tiny"\n[axes]\nn_robots = [4, 8]\nloss_p = '
+                                     '[0.2]\n')
+    (tmp_path / "g.yaml").write_text("base:\n  method: pibt\n  layout: tiny\naxes:\n  n_robots: [4, 8]\n  loss_p: "
+                                     "[0.2]\n")
     assert [c.cell_id for c in load_grid_file(tmp_path / "g.toml").cells] == [
         c.cell_id for c in load_grid_file(tmp_path / "g.yaml").cells]
 

@@ -377,7 +377,8 @@ def test_matrix__a_flipped_bit_or_a_misplaced_unit_is_named_and_repair_redoes_on
     data = bytearray(victim.read_bytes())
     data[len(data) // 2] ^= 0x08
     victim.write_bytes(bytes(data))
-    with pytest.raises(BenchError, match=rf"damaged file matrix/{victim.parent.name}/{victim.name}: .*bench matrix.*--repair"):
+    with pytest.raises(BenchError,
+        match=rf"damaged file matrix/{victim.parent.name}/{victim.name}: .*bench matrix.*--repair"):
         run_matrix(run, **args)
     s = run_matrix(run, repair=True, **args)
     assert (s.written, s.skipped) == (1, 7)

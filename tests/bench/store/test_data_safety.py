@@ -285,7 +285,8 @@ def test_completeness__a_done_cell_missing_training_rows_is_trained_again(finish
     grid = load_grid_file(grid_file)
     store = RunStore(out)
     cell = grid.cells[0]
-    assert expected_for_cell(cell).train == 8 and expected_for_cell(cell).eval == 15  # 5 episodes x argmax, sample, sample@0.5
+    # 5 episodes x argmax, sample, sample@0.5
+    assert expected_for_cell(cell).train == 8 and expected_for_cell(cell).eval == 15
     parts = store.train_parts(cell.cell_id)
     parts[1][1].unlink()  # a training part of a finished cell disappears
     states, _ = plan_run(store, grid, fresh=False)

@@ -57,7 +57,8 @@ def test_cell_variants__names_every_departing_key_and_a_setting_a_cell_lacks() -
                     ("b", "hierarchical", 40, {"messages": "oracle", "ref_hold": 10}, {})])
     assert cell_variants(cells).to_dict() == {"a": "", "b": "messages=oracle, ref_hold=10"}
     no_budget = cells.assign(config_json=[json.dumps({"seed": 0}), json.dumps({"seed": 1, "episodes": 50})])
-    assert cell_variants(no_budget).to_dict() == {"a": "episodes=None", "b": "episodes=50, messages=oracle, ref_hold=10"}
+    assert cell_variants(no_budget).to_dict() == {"a": "episodes=None", "b": "episodes=50, messages=oracle, "
+                                                                             "ref_hold=10"}
 
 
 def test_cell_variants__the_same_nested_setting_written_in_another_key_order_is_one_variant() -> None:

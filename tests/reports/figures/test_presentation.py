@@ -63,7 +63,8 @@ def test_figures__every_caption_names_configuration_seeds_episodes_and_band(whic
     train, evals = request.getfixturevalue(which)
     c1, c2, c3 = fig1_training(train).caption, fig2_success(evals).caption, fig3_payload(evals).caption
     assert "p = 0.2" in c1 and "2 seeds at N = " in c1 and "training episodes" in c1
-    assert re.search(r"moving average over ([2-9]|\d\d+) episodes|not smoothed", c1) and "Student t interval over seeds" in c1
+    assert re.search(r"moving average over ([2-9]|\d\d+) episodes|not "
+                     r"smoothed", c1) and "Student t interval over seeds" in c1
     assert "2 seeds at N = " in c2 and "evaluation episodes per seed" in c2 and "Thin lines: each seed" in c2
     assert "p = 0.2" in c3 and "IC3Net: 2 seeds at N =" in c3
 
