@@ -50,7 +50,8 @@ from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout
 
-__all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits", "sample_categorical"]
+__all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits",
+           "sample_categorical"]
 
 UNRANKED = 100  # legend_rank of a method that declares none: after the paper's methods
 # ``Method.paper_role``: the paper's own method, one of the baselines it is compared with, or

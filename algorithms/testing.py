@@ -78,7 +78,8 @@ class MethodContract:
         assert _HEX.match(cls.color), f"color must be '#rrggbb', got {cls.color!r}"
         assert isinstance(cls.payload_model, str) and cls.payload_model
         assert issubclass(cls.Params, MethodParams)
-        assert cls.paper_role in (REFERENCE, BASELINE, ""), f"paper_role must be REFERENCE, BASELINE or '', got {cls.paper_role!r}"
+        assert cls.paper_role in (REFERENCE, BASELINE, ""), \
+            f"paper_role must be REFERENCE, BASELINE or '', got {cls.paper_role!r}"
         modes = cls.execution_modes()
         assert modes and (modes == ("planner",)) == (not cls.learned)
 

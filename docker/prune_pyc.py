@@ -13,7 +13,8 @@ import sysconfig
 from pathlib import Path
 
 ENTRY_POINTS = (
-    "bench.cli", "bench.execute.runner", "bench.execute.worker", "bench.execute.executor", "bench.store.run_store", "bench.execute.matrix",
+    "bench.cli", "bench.execute.runner", "bench.execute.worker", "bench.execute.executor",
+    "bench.store.run_store", "bench.execute.matrix",
     "reports", "reports.stats", "studies", "algorithms.registry", "envs.warehouse_v0",
     "torch", "ray", "ray.util", "ray.dashboard.agent", "ray._private.runtime_env.agent.main",
     "ray._private.log_monitor", "ray.scripts.scripts",

@@ -28,7 +28,8 @@ ALLOWED = {
     "reports/figures/fig1_training.py": "the paper's Fig. 1 (hierarchical vs decentralized)",
     "reports/figures/fig2_success.py": "the paper's Fig. 2 (hierarchical vs IC3Net)",
     "reports/figures/fig3_payload.py": "the paper's Fig. 3 (hierarchical vs all-to-all payload)",
-    "reports/data/payload.py": "the payload points of the paper's Fig. 3 and its payload claim (hierarchical vs decentralized)",
+    "reports/data/payload.py": "the payload points of the paper's Fig. 3 and its payload claim "
+                               "(hierarchical vs decentralized)",
     "reports/tables/table1_safety.py": "the paper's Table I (the hierarchical method's filter)",
     "reports/tables/ablation.py": "the ablation of the paper's method against its baseline",
     "studies/objective.py": "the paper's study (|R_z| x L of its method) is the default study",

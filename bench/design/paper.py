@@ -38,7 +38,8 @@ PAPER_EVAL_EPISODES = 100
 PAPER_FIG1A_N: tuple[int, ...] = (20, 40, 60)
 PAPER_FIG1B_N: tuple[int, ...] = (80, 90, 100)
 PAPER_FIG1_P = 0.2
-# Fig. 2 (fig:fig2, paper line 723): "teams of 40 and 60 robots under communication loss probabilities p in {0.2,0.4,0.6}".
+# Fig. 2 (fig:fig2, paper line 723): "teams of 40 and 60 robots under communication loss
+# probabilities p in {0.2,0.4,0.6}".
 PAPER_FIG2_N: tuple[int, ...] = (40, 60)
 PAPER_FIG2_P: tuple[float, ...] = PAPER_P
 # Fig. 3 (fig:fig3) states no p; the bench shows it at the p of Fig. 1 and Table I.

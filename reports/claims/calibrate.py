@@ -193,7 +193,8 @@ def sim_family_above_baselines(rng: np.random.Generator, s: int, effect: bool) -
     """A run's own method (``mine``, a name no package registers) above each baseline, as
     the claims page judges it (reports.claims.method_claims): against decentralized in two
     modes and against PIBT's planner from each (4 checks); +0.2 success (effect)."""
-    parts = [_eval("decentralized", 20, {"success_rate": _success(rng, s, 0.6)}, 0.2, mode) for mode in FAMILY_MODES[:2]]
+    parts = [_eval("decentralized", 20, {"success_rate": _success(rng, s, 0.6)}, 0.2, mode)
+             for mode in FAMILY_MODES[:2]]
     parts.append(_eval("pibt", 20, {"success_rate": _success(rng, s, 0.6)}, 0.2, "planner"))
     parts += [_eval("mine", 20, {"success_rate": _success(rng, s, 0.6 + 0.2 * effect)}, 0.2, mode)
               for mode in FAMILY_MODES[:2]]

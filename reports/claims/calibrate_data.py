@@ -4,7 +4,8 @@ Every check of every statistical claim is simulated at its real seed counts (5 v
 the store has them) and its real contradiction level 0.05 / k, and every claim as a whole
 (its k checks at once). The claims of a run's own methods, "M above each baseline"
 (``reports.claims.method_claims``), are the family ``above_baselines``: the paper's method in
-M's place against each baseline at every configuration and mode pair the store has. Each group's per-seed values are drawn as ``mu + sd z``: ``mu``
+M's place against each baseline at every configuration and mode pair the store has. Each group's
+per-seed values are drawn as ``mu + sd z``: ``mu``
 put on the claim's boundary (the null) or at the stated effect, ``sd`` the group's own
 observed seed spread, and ``z`` either resampled from the claim's pooled standardized
 per-seed residuals (the data's own shape: its skew and collapsed seeds; a smoothed
@@ -261,10 +262,11 @@ def observed_specs(train: pd.DataFrame, evals: pd.DataFrame) -> dict[str, list[S
     # a user's, so the paper's method stands in for M, with its own spread, seeds and modes.
     baselines, _ = MC.methods_by_role(ev)
     for ref in sorted(m for m in set(map(str, ev["method"])) if MC.paper_role(m) == REFERENCE):
-        for b, n, p, mode, mm, bb in MC.paired_rows(ev, ref, baselines):
+        for bname, n_b, p_b, m_mode, mm, bb in MC.paired_rows(ev, ref, baselines):
             gs = [C.seed_means(mm, "success_rate"), C.seed_means(bb, "success_rate")]
             mid = float(np.mean([g[np.isfinite(g)].mean() for g in gs]))
-            add(FAMILY, f"vs {b} {C._cfg(n, p)} {mode}", gs, [mid, mid], [mid + EFFECT_SUCCESS, mid], v_greater)
+            add(FAMILY, f"vs {bname} {C._cfg(n_b, p_b)} {m_mode}", gs, [mid, mid],
+                [mid + EFFECT_SUCCESS, mid], v_greater)
     specs: dict[str, list[Spec]] = {}
     for key, rows in out.items():
         z = _pooled([(r[0], r[1]) for r in rows])

@@ -127,7 +127,8 @@ def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None
         lines += [f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
                   for c in own]
     for c in claims:
-        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "", f"*{'Paper' if c.home == 'paper' else 'Claim'}:* {c.statement}", "",
+        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "",
+                  f"*{'Paper' if c.home == 'paper' else 'Claim'}:* {c.statement}", "",
                   f"*Test:* {c.criterion}", "", f"**Verdict: {c.verdict}**", "",
                   "| scope | configuration | execution | verdict | numbers | test | power |",
                   "|---|---|---|---|---|---|---|"]

@@ -25,7 +25,8 @@ FIG1_CAPTION = "under different robot team sizes, with a 0.2 communication loss 
 FIG2 = ("We compare the proposed method with IC3Net for team sizes of $40$ and $60$ robots and communication "
         "loss probabilities $p\\in\\{0.2,0.4,0.6\\}$.")
 # line 746 (Table I) and its rows, lines 759-763 (N & collision & correction & mean candidates)
-TABLE1 = "safety-related metrics for robot team sizes $40,60,80,90$, and $100$ under a communication loss probability of $p=0.2$."
+TABLE1 = ("safety-related metrics for robot team sizes $40,60,80,90$, and $100$ under a communication loss "
+          "probability of $p=0.2$.")
 TABLE1_ROWS = """40  & 0.00\\% & 3.45\\% & 3.79  \\\\
 60  & 0.00\\% & 5.48\\% & 16.44 \\\\
 80  & 0.00\\% & 7.90\\% & 24.15 \\\\

@@ -103,7 +103,8 @@ def test_claims_page_adds_the_runs_methods_and_keeps_the_papers_page() -> None:
     page = claims_markdown(paper + mine)
     assert page.startswith(claims_markdown(paper).split("\n## above_ic3net")[0])
     assert "## Methods of this run above each baseline" in page
-    assert "| [above_baselines_mine](#above_baselines_mine) | mine above each baseline (mean success) | **supported** |" in page
+    assert ("| [above_baselines_mine](#above_baselines_mine) | mine above each baseline (mean success) "
+            "| **supported** |") in page
     assert "## above_baselines_mine" in page and "*Claim:* mine is a method of this run" in page
     assert "Methods of this run" not in claims_markdown(paper)
     frame = claims_frame(paper + mine)
