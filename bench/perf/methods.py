@@ -35,7 +35,7 @@ from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
-from bench.perf.baselines import PAPER_EPISODES, PAPER_HORIZON, time_training
+from bench.perf.timing import PAPER_EPISODES, PAPER_HORIZON, time_training
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
 
