@@ -7,7 +7,11 @@ A method is built from an environment config, its hyperparameters (a pydantic mo
   processes, rollout storage when ``choice.training``); ``decide(batch, state, choice)`` ->
   a ``Decision`` for the current step, its controls picked by ``choice(logits)`` (argmax or
   a sample, algorithms/common/execution.py). The shared loops below drive these.
-* ``evaluate(chunk, seed, execution)`` -> one metric row per evaluation episode of that
+* ``run(batch, choice, observer)``: the shared episode loop; an ``observer`` (optional)
+  is called once per step with a ``StepRecord`` (algorithms/common/observer.py: positions,
+  controls proposed and executed, messages delivered, the filter's decisions) and changes
+  no number. ``evaluate`` passes its ``observer`` on.
+* ``evaluate(chunk, seed, execution, observer)`` -> one metric row per evaluation episode of that
   chunk in one execution mode (``argmax``, ``sample``, ``sample@T``; ``planner`` for a
   planner); every mode sees the same scenarios and loss draws; chunks are fixed-size, so
   evaluation fans out over workers and gives the same rows in any split.
@@ -46,6 +50,7 @@ from algorithms.common.execution import (
     parse_execution,
     sample_categorical,
 )
+from algorithms.common.observer import Observer, Snapshot, step_record
 from envs.config import EnvConfig, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout
@@ -156,17 +161,22 @@ class Method(ABC):
         return None
 
     # ------------------------------------------------------------------ loops
-    def run(self, batch: EpisodeBatch, choice: ActionChoice) -> tuple[Any, list[dict[str, Any]]]:
-        """Run every episode of ``batch`` to its end; returns (state, metric rows)."""
+    def run(self, batch: EpisodeBatch, choice: ActionChoice, observer: Observer | None = None,
+            ) -> tuple[Any, list[dict[str, Any]]]:
+        """Run every episode of ``batch`` to its end; returns (state, metric rows).
+        ``observer`` (optional) receives a ``StepRecord`` after every step."""
         core = batch.core
         stats = EpisodeStats(core.batch, core.n, self.env.d_m)
         state = self.begin(batch, choice)
         while batch.running:
             running = ~core.ended
+            t, before = core.t, None if observer is None else Snapshot.of(core)
             dec = self.decide(batch, state, choice)
             res = core.step(dec.actions)
             stats.add(running, res, dec)
             self.observe(batch, state, res)
+            if observer is not None and before is not None:
+                observer(step_record(t, running, before, dec, res, core))
         return state, stats.finish(core.done)
 
     @classmethod
@@ -186,17 +196,18 @@ class Method(ABC):
         return ActionChoice.evaluate(mode.name, seed, chunk)
 
     def evaluate(self, chunk: int, seed: int | None = None, execution: str | None = None,
-                 ) -> list[dict[str, Any]]:
+                 observer: Observer | None = None) -> list[dict[str, Any]]:
         """Rows of evaluation chunk ``chunk`` (episodes chunk*eval_chunk + k) in mode
         ``execution`` (default argmax, planner for a planner); each row names its mode
-        (``execution``) and its scenario (``scenario``, a hash of starts and goals)."""
+        (``execution``) and its scenario (``scenario``, a hash of starts and goals).
+        ``observer`` sees every step of the chunk's batch (see ``run``)."""
         size = self.params.eval_chunk
         seed = self.seed if seed is None else int(seed)
         choice = self.execution_choice(execution, seed, chunk)
         batch = EpisodeBatch(self.env, size, batch_rng(seed, EVAL_STREAM, chunk), self.layout)
         scenarios = batch.scenario_hashes()
         with torch.inference_mode():
-            _, rows = self.run(batch, choice)
+            _, rows = self.run(batch, choice, observer)
         for k, row in enumerate(rows):
             row["episode"] = chunk * size + k
             row["execution"] = choice.name

@@ -187,7 +187,7 @@ class DecentralizedMethod(Method):
 
     def decide(self, batch: EpisodeBatch, state: DecentralizedState, choice: ActionChoice) -> Decision:
         core, buf = batch.core, state.buffer
-        state.board.receive()
+        delivered = state.board.receive()  # (B, N_send, N_recv)
         # Training: observations, masks and critic inputs go straight into the buffer row.
         obs = self.observe_robots(state, None if buf is None else buf.row("obs"))
         mask = np.empty(core.pos.shape + (N_ACTIONS,), dtype=bool) if buf is None else buf.row("mask")
@@ -199,7 +199,7 @@ class DecentralizedMethod(Method):
         if buf is not None:
             store_critic_inputs(buf, core, self.env.horizon)
             buf.add(actions=actions, active=~core.done & state.running[:, None])
-        dec = Decision(actions=actions, payload=float(state.board.payload))
+        dec = Decision(actions=actions, payload=float(state.board.payload), robot_links=delivered)
         if self.filter is not None:
             self.apply_filter(self.filter, state.board, logits, dec)
         return dec

@@ -322,7 +322,7 @@ class IC3NetMethod(Method):
                                            if p.value_norm else values).numpy()}
             buf.add(alive=alive_n, actions=actions, gates=gates, active=alive & state.running[:, None],
                     **baseline)
-        return Decision(actions=actions, payload=payload)
+        return Decision(actions=actions, payload=payload, robot_links=links)
 
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
         state.collided = result.collision

@@ -13,7 +13,9 @@ the harness reads are declared and valid; ``decide`` gives an integer action in 
 every robot; evaluation rows carry every metric in range, with the same scenarios in every
 execution mode; a learned method's update changes its parameters with finite losses, a
 planner learns nothing; the same seed gives the same rows, and evaluation chunks do not
-consume the training streams (any worker split gives the same rows); a checkpoint saved
+consume the training streams (any worker split gives the same rows); an observer passed to
+``evaluate`` sees one ``StepRecord`` per step with the documented shapes and changes no
+number; a checkpoint saved
 with ``torch.save`` and loaded with ``torch.load(weights_only=True)`` continues exactly.
 Mirrors Optuna's shared storage tests (``optuna.testing``). About 5-20 s per method.
 """
@@ -32,6 +34,7 @@ import torch
 from algorithms.base import BASELINE, REFERENCE, Method, MethodParams
 from algorithms.common.episodes import EVAL_METRICS, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
+from algorithms.common.observer import StepRecord
 from algorithms.registry import method_class
 from envs.config import EnvConfig
 
@@ -161,3 +164,26 @@ class MethodContract:
                                       rows_frame(restored.train_iteration()))
         for x, y in zip(parameters(m), parameters(restored), strict=True):
             assert torch.equal(x, y)
+
+    def test_an_observer_sees_every_step_and_changes_no_number(self, method_spec: str) -> None:
+        seen: list[StepRecord] = []
+        observed, plain = self.make(method_spec), self.make(method_spec)
+        rows = observed.evaluate(0, observer=seen.append)
+        pd.testing.assert_frame_equal(pd.DataFrame(rows), pd.DataFrame(plain.evaluate(0)))
+        b, n, z = self.params["eval_chunk"], self.env.n_robots, self.env.groups
+        assert [r.t for r in seen] == list(range(len(seen))), "one record per step, in order"
+        for k, row in enumerate(rows):  # each episode is seen on each of its steps
+            assert sum(int(r.running[k]) for r in seen) == row["steps"]
+        for r in seen:
+            assert r.running.shape == (b,) and r.fallbacks.shape == r.candidates.shape == (b,)
+            for a in (r.goal, r.before.pos, r.before.done, r.before.on_floor, r.after.pos, r.after.done,
+                      r.after.on_floor, r.proposed, r.actions, r.corrected):
+                assert a.shape == (b, n)
+            assert r.actions.min() >= 0 and r.actions.max() <= 4
+            assert r.group_links.dtype == bool and r.group_links.shape in ((b, 0, 0), (b, z, z))
+            assert r.robot_links.dtype == bool and r.robot_links.shape in ((b, 0, 0), (b, n, n))
+            if not r.has_proposals:
+                assert np.array_equal(r.proposed, r.actions) and not r.corrected.any()
+            assert not (r.corrected & ~r.result.active).any(), "only active robots are corrected"
+        # Observing draws from no stream: what follows is unchanged too.
+        pd.testing.assert_frame_equal(rows_frame(observed.train_iteration()), rows_frame(plain.train_iteration()))

@@ -5,7 +5,8 @@ from ``cells.parquet`` (``config_json``), its method from the registry with the 
 seed, its trained state from ``checkpoints/<cell_id>.pt`` (``weights_only`` load), and
 evaluation chunk ``episode // eval_chunk`` is run exactly as the bench's evaluator runs it
 (``Method.evaluate(chunk, seed, execution)``, in one execution mode: argmax by default,
-planner for PIBT), with hooks that record episode ``episode % eval_chunk`` step by step.
+planner for PIBT), with an observer (the Method contract's hook, ``Recorder``) that keeps
+episode ``episode % eval_chunk`` step by step.
 The recorded episode's metrics are checked against its stored evaluation row of the same
 mode, so a GIF never shows an episode other than the one in the store.
 
@@ -29,16 +30,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from algorithms.base import Method
-from algorithms.common.episodes import Decision, EpisodeBatch
-from algorithms.common.execution import ActionChoice
+from algorithms.common.observer import StepRecord
 from algorithms.registry import method_class
 from bench.design.cells import Cell
 from bench.store.checkpoints import load_checkpoint
 from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA
-from envs.channel import LossProcess, comm_graph, group_assignment
-from envs.core import StepResult
+from envs.channel import comm_graph, group_assignment
 from envs.errors import BenchError
 from envs.render import render_rgb, write_gif
 from reports.figures.plotting import method_label
@@ -74,92 +72,31 @@ class Step:
 
 @dataclass
 class Recorder:
-    """Collects the steps of episode ``k`` of an evaluation batch (hooks below)."""
+    """Observer (``Method.evaluate(..., observer=rec)``) that keeps the steps of episode
+    ``k`` of the evaluation batch: one ``Step`` for the start, then one per step it runs."""
 
     k: int
     adjacency: np.ndarray  # (Z, Z) bool edges z' -> z of the communication graph
     steps: list[Step] = field(default_factory=list)
     goal: np.ndarray | None = None
-    latest_links: np.ndarray | None = None
-    pending: tuple[np.ndarray, np.ndarray | None, np.ndarray | None] | None = None
     has_proposals: bool = False  # the method reported proposals (it has a safety filter)
 
-    def on_links(self, avail: np.ndarray) -> None:
-        """Availability drawn by a loss process: kept (on graph edges) when it is group-level
-        (B, Z, Z); robot-level processes (B, N, N) of other methods are ignored."""
-        a = np.asarray(avail)
-        z = len(self.adjacency)
-        if a.ndim == 3 and a.shape[1:] == (z, z) and a.shape[0] > self.k:
-            self.latest_links = a[self.k] & self.adjacency
-
-    def begin(self, batch: EpisodeBatch) -> None:
-        core, k = batch.core, self.k
-        self.goal = core.goal[k].copy()
-        n = core.n
-        self.steps = [Step(0, core.pos[k].copy(), core.done[k].copy(), core.occupying[k].copy(),
-                           np.zeros(n, bool), np.zeros(n, bool), None)]
-
-    def decided(self, batch: EpisodeBatch, dec: Decision) -> None:
-        if batch.core.ended[self.k]:
-            self.pending = None
+    def __call__(self, rec: StepRecord) -> None:
+        k = self.k
+        if not self.steps:  # the first record: the start, before any control
+            start = rec.before
+            self.goal = rec.goal[k].copy()
+            n = len(start.pos[k])
+            self.steps = [Step(0, start.pos[k], start.done[k], start.on_floor[k],
+                               np.zeros(n, bool), np.zeros(n, bool), None)]
+        if not rec.running[k]:
             return
-        links = getattr(dec, "links", None)
-        links = np.asarray(links)[self.k] if links is not None else self.latest_links
-        proposed = None if dec.proposed is None else np.asarray(dec.proposed)[self.k].copy()
-        self.has_proposals |= proposed is not None
-        self.pending = (np.asarray(dec.actions)[self.k].copy(), proposed, links)
-
-    def observed(self, batch: EpisodeBatch, res: StepResult) -> None:
-        if self.pending is None:
-            return
-        actions, proposed, links = self.pending
-        core, k = batch.core, self.k
-        active = res.active[k]
-        corrected = (proposed != actions) & active if proposed is not None else np.zeros_like(active)
-        self.steps.append(Step(len(self.steps), core.pos[k].copy(), core.done[k].copy(),
-                               core.occupying[k].copy(), res.collision[k] & active, corrected,
-                               None if links is None else np.asarray(links, dtype=bool)))
-        self.pending = None
-
-
-def _hook(method: Method, rec: Recorder) -> None:
-    """Wrap the method's begin/decide/observe (instance attributes) to feed ``rec``."""
-    begin, decide, observe = method.begin, method.decide, method.observe
-
-    def _begin(batch: EpisodeBatch, choice: ActionChoice) -> Any:
-        state = begin(batch, choice)
-        rec.begin(batch)
-        return state
-
-    def _decide(batch: EpisodeBatch, state: Any, choice: ActionChoice) -> Decision:
-        dec = decide(batch, state, choice)
-        rec.decided(batch, dec)
-        return dec
-
-    def _observe(batch: EpisodeBatch, state: Any, result: Any) -> None:
-        rec.observed(batch, result)
-        observe(batch, state, result)
-
-    method.begin, method.decide, method.observe = _begin, _decide, _observe  # type: ignore[method-assign]
-
-
-def _run_recorded(method: Method, chunk: int, seed: int, rec: Recorder,
-                  execution: str | None = None) -> list[dict[str, Any]]:
-    """``method.evaluate(chunk, seed, execution)`` with every group-level loss draw
-    reported to ``rec``."""
-    original: Callable[[LossProcess], np.ndarray] = LossProcess.step
-
-    def step(self: LossProcess) -> np.ndarray:
-        out = original(self)
-        rec.on_links(out)
-        return out
-
-    _hook(method, rec)
-    LossProcess.step = step  # type: ignore[method-assign]
-    try:
-        return method.evaluate(chunk, seed, execution)
-    finally:
-        LossProcess.step = original  # type: ignore[method-assign]
+        self.has_proposals |= rec.has_proposals
+        links = rec.group_links  # (B, Z', Z); (B, 0, 0) without a group channel
+        active = rec.result.active[k]
+        self.steps.append(Step(len(self.steps), rec.after.pos[k], rec.after.done[k], rec.after.on_floor[k],
+                               rec.result.collision[k] & active, rec.corrected[k],
+                               links[k] & self.adjacency if links.shape[1:] == self.adjacency.shape else None))
 
 
 def render_steps(layout: Any, rec: Recorder, groups: np.ndarray, adjacency: np.ndarray,
@@ -321,7 +258,7 @@ def write_replay(run_dir: Path | str, cell_id: str, episode: int, out: Path | st
         raise BenchError(f"--execution {choice.name!r}: cell {cell_id} was evaluated in "
                          f"{', '.join(modes)}")
     progress("re-running the episode", 0, 1)
-    rows = _run_recorded(method, chunk, cell.seed, rec, choice.name)
+    rows = method.evaluate(chunk, cell.seed, choice.name, observer=rec)
     progress("re-running the episode", 1, 1)
     if k >= len(rows):  # the last chunk may be cut short by eval_episodes
         raise BenchError(f"episode {episode} was not produced by evaluation chunk {chunk}")

@@ -4,7 +4,7 @@
 
 For every done hierarchical cell of the run (or the cells named) loads its checkpoint and
 prints one JSON line: the cell's N, p, seed, variant parameters, training episodes, and
-``algorithms.hierarchical.reference_probe.probe_reference`` on evaluation scenarios (entropy of
+``scripts/reference_probe.py``'s ``probe_reference`` on evaluation scenarios (entropy of
 mu, I(r; o), I(r; u_i | s), the share of the modal argmax r, success with argmax r vs a
 uniform r). Evaluation streams only; the checkpoint is not modified.
 """
@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pandas as pd
 import torch
+from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from algorithms.hierarchical.method import HierarchicalMethod
-from algorithms.hierarchical.reference_probe import probe_reference
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import build_method

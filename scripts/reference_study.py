@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.hierarchical.method import HierarchicalMethod
-from algorithms.hierarchical.reference_probe import probe_reference
 from algorithms.hierarchical.training import policy_update
 from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
@@ -36,7 +36,7 @@ def gradient_agreement(m: HierarchicalMethod, seed: int, pairs: int = 2) -> dict
         batch = EpisodeBatch(c.env, c.params.batch_episodes, batch_rng(seed, 2, k), c.layout)
         with torch.no_grad():
             state, _ = c.run(batch, ActionChoice.train(c.torch_gen))
-        policy_update(c, state.buffer)
+        policy_update(c.learner(), state.buffer)
         def flat(mod: torch.nn.Module) -> torch.Tensor:
             return torch.cat([q.grad.reshape(-1) for q in mod.parameters() if q.grad is not None])
         return flat(c.reference), flat(c.local)

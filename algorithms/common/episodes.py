@@ -71,6 +71,8 @@ class Decision:
     pred_sq_err: np.ndarray | None = None  # (B,) summed squared error of predicted messages
     pred_count: np.ndarray | None = None  # (B,) number of lost messages predicted
     payload: np.ndarray | float = 0.0  # (B,) or scalar: scalars transmitted this step
+    group_links: np.ndarray | None = None  # (B, Z', Z) bool: inter-group link z' -> z delivered
+    robot_links: np.ndarray | None = None  # (B, N_send, N_recv) bool: robot-to-robot messages delivered
 
 
 # The per-episode metric columns of every row ``EpisodeStats`` writes.

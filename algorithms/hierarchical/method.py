@@ -13,21 +13,24 @@ predictors are trained with their own supervised loss and optimizer (eq:gru_pred
 Variants (parameters, defaults are the paper's; docs/decisions/0118): what fills
 lost links (``messages``), the fallback (``fallback``), resampling a fallen-back group at
 argmax execution (``resample_on_fallback``) and the reference layer's open choices
-(``ref_hold``, ``ref_lr``, ``ref_entropy_coef``, ``ref_embed_scale``). For probes and
-tests the controller can fix r or draw it uniformly, and record each step's
-intermediates (``Controller.trace``).
+(``ref_hold``, ``ref_lr``, ``ref_entropy_coef``, ``ref_embed_scale``).
+
+Each step reports the inter-group links delivered (``Decision.group_links``) and the
+filter's outcome to a ``Method.run`` observer (algorithms/common/observer.py). Probes that
+need the intermediates (mu's log-probs, the completed S-hat) subclass the method and
+override ``policy_forward`` or ``_receive`` (scripts/reference_probe.py, the tests).
+May import: algorithms.base, algorithms.common, algorithms.hierarchical (not reports, bench).
 """
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import torch
-from pydantic import Field
 
-from algorithms.base import REFERENCE, LearnedParams, Method
+from algorithms.base import REFERENCE, Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice, sample_categorical
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
@@ -40,11 +43,13 @@ from algorithms.hierarchical.messages import (
     group_messages,
     group_structure,
 )
+from algorithms.hierarchical.params import HierarchicalParams
 from algorithms.hierarchical.policies import (
     LocalPolicy,
     ReferencePolicy,
     neighbor_patch_size,
     neighbor_patches,
+    policy_forward,
 )
 from algorithms.hierarchical.predictor import (
     GroupPredictor,
@@ -54,46 +59,27 @@ from algorithms.hierarchical.predictor import (
     rollout_step,
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
-from algorithms.hierarchical.training import policy_update, predictor_update
+from algorithms.hierarchical.training import Learner, policy_update, predictor_update
 from envs.actions import N_ACTIONS, WAIT
 from envs.channel import GroupChannel
 from envs.config import EnvConfig
 from envs.observations import PatchExtractor, feature_size, robot_features
 
 
-class HierarchicalParams(LearnedParams):
-    """Hyperparameters of the hierarchical method (defaults: docs/decisions/0101-0118, 0126)."""
+@dataclass
+class Received:
+    """What group z holds of the other groups at one step (B episodes, K links, n slots)."""
 
-    batch_episodes: int = Field(8, ge=1, description="episodes per update, batched in one process")
-    ref_size: int = Field(8, ge=1, description="|R_z|, size of the abstract reference space")
-    search_radius: int = Field(2, ge=0, description="safety filter search radius L")
-    c_max: int = Field(500, ge=1, description="safety filter candidate budget C_max")
-    safety_filter: bool = Field(True, description="run Algorithm 1 before execution")
-    predictor_hidden: int = Field(64, ge=4, description="GRU hidden size per link")
-    predictor_embed: int = Field(32, ge=4, description="message embedding width of the predictor")
-    obs_radius: int = Field(2, ge=1, description="half-width k of the (2k+1)^2 local patches")
-    predictor_lr: float = Field(1e-3, gt=0, description="Adam learning rate of the GRU predictors")
-    share_params: bool = Field(False, description="one parameter set for all groups (paper: per group)")
-    update_chunk: int = Field(128, ge=1, description="time steps per backward pass in the update")
-    # Variants beyond the paper (docs/decisions/0118; defaults are the paper's).
-    messages: Literal["predicted", "oracle", "last"] = Field(
-        "predicted", description="S-hat on lost links: GRU prediction (paper), ground truth "
-        "(oracle upper bound) or the last received message (no predictor)")
-    fallback: Literal["joint", "per_robot"] = Field(
-        "joint", description="when no candidate is admissible: joint Wait (Alg. 1 line 12) or "
-        "only the offending robots wait")
-    resample_on_fallback: bool = Field(
-        False, description="argmax execution: a group that fell back samples a new proposal once "
-        "and is filtered again")
-    ref_hold: int = Field(1, ge=1, description="steps a sampled reference r is held (paper: 1, "
-                          "r is drawn every step)")
-    ref_lr: float | None = Field(None, gt=0, description="Adam learning rate of mu (None: lr)")
-    ref_entropy_coef: float | None = Field(
-        None, ge=0, description="entropy bonus on mu (None: entropy_coef)")
-    ref_embed_scale: float = Field(0.5, ge=0, description="init std of the reference embedding in pi")
-    ref_advantage: Literal["team", "group"] = Field(
-        "team", description="advantage weighing log mu(r^z): the team's (eq:advantage) or group z's "
-        "own return minus its share n_z/N of V")
+    avail: np.ndarray  # (B, Z, K) link delivered this step
+    own_msgs: np.ndarray  # (B, Z, n, D) true messages S_t^z of each group
+    link_msgs: np.ndarray  # (B, Z, K, n, D) true messages on each link
+    m_hat: np.ndarray  # (B, Z, K, n, D) completed S-hat (eq:interaction_state_estimate)
+    present: np.ndarray  # (B, Z, K, n) sender's robot on the floor, as received or predicted
+    cells: np.ndarray  # (B, Z, K, n) its cell, snapped to a free cell
+    heading: np.ndarray  # (B, Z, K, n) the cell its last control leads to
+    lost: np.ndarray  # (B, Z, K) valid link lost this step
+    sq_err: np.ndarray  # (B,) summed squared position error of the predictions on lost links
+    n_lost: np.ndarray  # (B,) lost links predicted
 
 
 @dataclass
@@ -107,9 +93,6 @@ class Controller:
     running: np.ndarray | None = None  # (B,) episodes running before the current step
     t: int = 0  # steps decided so far
     ref: torch.Tensor | None = None  # (Z, B) reference in force (held for ``ref_hold`` steps)
-    fixed_ref: np.ndarray | None = None  # (Z, B) r imposed at every step (probes and tests)
-    uniform_ref: bool = False  # r drawn uniformly from R_z instead of from mu (probes)
-    trace: dict[str, Any] | None = None  # a dict: ``decide`` stores the step's intermediates
     resample_gen: torch.Generator | None = None  # resample_on_fallback at argmax execution
 
 
@@ -227,24 +210,14 @@ class HierarchicalMethod(Method):
         core, gs = batch.core, self.gs
         state.running = ~core.ended
         # Channel and predictor: S_t^z, A_t^{z',z} -> S-hat_t^z.
-        avail = gs.link_availability(state.channel.step())  # (B, Z, K)
-        own_msgs = group_messages(core, gs)  # (B, Z, n, D)
-        link_msgs = gs.links(own_msgs)  # (B, Z, K, n, D)
-        if state.pred is None:
-            state.pred = initial_state(self.predictor, link_msgs)
-        m_hat = self._complete_messages(state.pred, link_msgs, avail, own_msgs)
-        sender_slots = gs.slot_valid[np.maximum(gs.neighbors, 0)] & gs.link_valid[..., None]  # (Z, K, n)
-        present = (m_hat[..., PRESENT] > 0.5) & sender_slots[None]
-        cells = self.snap(m_hat[..., POS])  # (B, Z, K, n)
-        heading = self.layout.next_cell[cells, m_hat[..., CTRL].argmax(-1)]
-        lost = ~avail & gs.link_valid[None]
-        sq_err, n_lost = self._prediction_error(cells, link_msgs, lost, sender_slots)
+        group_links = state.channel.step()  # (B, Z', Z)
+        rx = self._receive(core, state, gs.link_availability(group_links))
 
         # Policies: r ~ mu(. | Enc_r(X, G, S-hat)), U~ ~ pi(. | Enc_u(X, G, r)).
         # float16 rounding by torch: the same IEEE round-to-nearest-even values as numpy's
         # astype (tests/algorithms/hierarchical/test_hot_paths.py), 15x faster at rollout sizes.
         own = torch.from_numpy(robot_features(core, state.patch, gs.groups)).to(torch.float16).numpy()
-        nbr = neighbor_patches(state.patch, gs, cells, present, heading)
+        nbr = neighbor_patches(state.patch, gs, rx.cells, rx.present, rx.heading)
         controlled = ~core.done & state.running[:, None]
         action_mask = self.layout.move_valid[core.pos]
         ref_in, ref_new = self._reference_input(
@@ -257,21 +230,35 @@ class HierarchicalMethod(Method):
         proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
 
         dec = Decision(actions=proposed, proposed=proposed, payload=float(state.channel.payload_hier),
-                       pred_sq_err=sq_err, pred_count=n_lost)
-        if state.trace is not None:
-            state.trace.update(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
-                               ref=ref, ref_logp=ref_logp, logp=logp, m_hat=m_hat, cells=cells,
-                               present=present, link_msgs=link_msgs, avail=avail, lost=lost)
+                       pred_sq_err=rx.sq_err, pred_count=rx.n_lost, group_links=group_links)
         if p.safety_filter:
-            self._apply_filter(core, cells, present, controlled, proposed, logp, dec,
-                               resample=choice.mode.greedy and p.resample_on_fallback, gen=state.resample_gen,
-                               trace=state.trace)
+            self._apply_filter(core, rx.cells, rx.present, controlled, proposed, logp, dec,
+                               resample=choice.mode.greedy and p.resample_on_fallback, gen=state.resample_gen)
         if state.buffer is not None:
+            assert state.pred is not None
             state.buffer.add(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
                              ref=ref.numpy().T, ref_new=np.broadcast_to(ref_new, ref.shape).T,
                              proposed=proposed, critic=critic_features(core),
-                             msgs=own_msgs, avail=avail, age=state.pred.age)
+                             msgs=rx.own_msgs, avail=rx.avail, age=state.pred.age)
         return dec
+
+    def _receive(self, core: Any, state: Controller, avail: np.ndarray) -> Received:
+        """S_t^z over the links ``avail`` (B, Z, K) -> S-hat_t^z: the GRU predictors are
+        stepped (state.pred) and lost links completed (eq:predictor_input..
+        eq:interaction_state_collection)."""
+        gs = self.gs
+        own_msgs = group_messages(core, gs)  # (B, Z, n, D)
+        link_msgs = gs.links(own_msgs)  # (B, Z, K, n, D)
+        if state.pred is None:
+            state.pred = initial_state(self.predictor, link_msgs)
+        m_hat = self._complete_messages(state.pred, link_msgs, avail, own_msgs)
+        sender_slots = gs.slot_valid[np.maximum(gs.neighbors, 0)] & gs.link_valid[..., None]  # (Z, K, n)
+        present = (m_hat[..., PRESENT] > 0.5) & sender_slots[None]
+        cells = self.snap(m_hat[..., POS])  # (B, Z, K, n)
+        heading = self.layout.next_cell[cells, m_hat[..., CTRL].argmax(-1)]
+        lost = ~avail & gs.link_valid[None]
+        sq_err, n_lost = self._prediction_error(cells, link_msgs, lost, sender_slots)
+        return Received(avail, own_msgs, link_msgs, m_hat, present, cells, heading, lost, sq_err, n_lost)
 
     def _complete_messages(self, pred: PredictorState, link_msgs: np.ndarray, avail: np.ndarray,
                            own_msgs: np.ndarray) -> np.ndarray:
@@ -290,13 +277,9 @@ class HierarchicalMethod(Method):
                          ) -> tuple[torch.Tensor | None, np.ndarray]:
         """The r to impose this step, or None to draw r from mu; and whether r is new (Z, 1).
 
-        A drawn r is held for ``ref_hold`` steps (paper: 1). Probes may fix r or draw it
-        uniformly; a fixed or uniform r is never counted as mu's decision."""
-        z, k = self.env.groups, self.params.ref_size  # type: ignore[attr-defined]
-        if state.fixed_ref is not None:
-            return torch.as_tensor(np.asarray(state.fixed_ref, dtype=np.int64)), np.zeros((z, 1), bool)
-        if state.uniform_ref:
-            return torch.randint(k, (z, batch), generator=gen), np.zeros((z, 1), bool)
+        A drawn r is held for ``ref_hold`` steps (paper: 1). A probe subclass may impose r
+        (a fixed or uniform r is not mu's decision: return False for it)."""
+        z = self.env.groups
         hold = self.params.ref_hold  # type: ignore[attr-defined]
         if state.ref is not None and state.t % hold != 0:
             return state.ref, np.zeros((z, 1), bool)
@@ -311,30 +294,22 @@ class HierarchicalMethod(Method):
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- helpers
-    def group_major(self, per_robot: np.ndarray, fill: object = 0) -> torch.Tensor:
-        """(M, N, ...) per robot -> (Z, M, n, ...) tensor grouped by slot."""
-        g = self.gs.gather(per_robot, fill=fill)
-        return torch.from_numpy(np.ascontiguousarray(np.swapaxes(g, 0, 1)))
-
     def policy_forward(self, own: np.ndarray, nbr: np.ndarray, controlled: np.ndarray,
                        action_mask: np.ndarray, ref: torch.Tensor | None,
                        choice: ActionChoice | None = None,
                        ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
         (M, N), action_mask (M, N, 5). Samples r when ``ref`` is None. Returns r (Z, M),
-        log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)."""
-        feats_u = self.group_major(own).to(torch.float32)
-        feats_r = torch.cat([feats_u, self.group_major(nbr).to(torch.float32)], dim=-1)
-        mask = self.group_major(controlled, fill=False)
-        amask = self.group_major(action_mask, fill=True)
-        ref_logp = torch.log_softmax(self.reference(feats_r, mask), dim=-1)  # (Z, M, R)
-        if ref is None:
-            ref = (choice if choice is not None else ActionChoice.train(self.torch_gen))(ref_logp)
-        return ref, ref_logp, self.local(feats_u, mask, ref, amask)
+        log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)
+        (``policies.policy_forward``; r from the training stream unless ``choice`` says)."""
+        if ref is None and choice is None:
+            choice = ActionChoice.train(self.torch_gen)
+        return policy_forward(self.reference, self.local, self.gs, own, nbr, controlled, action_mask,
+                              ref, choice)
 
     def _apply_filter(self, core: Any, cells: np.ndarray, present: np.ndarray, controlled: np.ndarray,
                       proposed: np.ndarray, logp: torch.Tensor, dec: Decision, resample: bool = False,
-                      gen: torch.Generator | None = None, trace: dict[str, Any] | None = None) -> None:
+                      gen: torch.Generator | None = None) -> None:
         """Algorithm 1 for every (episode, group); the variants ``fallback="per_robot"`` and
         ``resample_on_fallback`` (argmax execution only) act on the groups that fell back."""
         gs, b, z = self.gs, core.batch, self.env.groups
@@ -358,8 +333,6 @@ class HierarchicalMethod(Method):
             fb = np.flatnonzero(res.fallback)
             res.actions[fb] = offenders_wait(self.layout.next_cell, self.layout.move_valid, pos[fb],
                                              occ[fb], ctl[fb], prop[fb], blocked[fb])
-        if trace is not None:
-            trace.update(blocked=blocked.reshape(b, z, -1), filter_fallback=res.fallback.reshape(b, z))
         dec.actions = np.where(controlled, gs.scatter(res.actions.reshape(b, z, -1), core.n), WAIT)
         dec.candidates = res.examined.reshape(b, z).sum(1)
         dec.filter_calls = res.called.reshape(b, z).sum(1)
@@ -376,11 +349,18 @@ class HierarchicalMethod(Method):
         return (err * lost).sum(axis=(1, 2)), lost.sum(axis=(1, 2)).astype(np.float64)
 
     # ---------------------------------------------------------------- update
+    def learner(self) -> Learner:
+        """The networks, optimizers and sizes the updates (training.py) read and step."""
+        return Learner(self.params, self.gs, self.env.horizon, self.env.n_robots,  # type: ignore[arg-type]
+                       self.reference, self.local, self.predictor, self.critic,
+                       self.opt_policy, self.opt_critic, self.opt_predictor)
+
     def update(self, state: Controller) -> dict[str, float]:
         assert state.buffer is not None
-        losses = policy_update(self, state.buffer)
+        learner = self.learner()
+        losses = policy_update(learner, state.buffer)
         if self.params.messages == "predicted":  # type: ignore[attr-defined]  # else unused
-            losses.update(predictor_update(self, state.buffer))
+            losses.update(predictor_update(learner, state.buffer))
         else:
             losses["predictor_loss"] = float("nan")
         return losses

@@ -16,7 +16,9 @@ mask). These depend on X^z and G^z (and the static map) only.
   (Proposition 1), by construction.
 
 Both pool over sets with masks, so any group size uses the same weights. All tensors are
-group-major (Z, M, n, ...), M = batch rows; weights are per group (see ``group_layers``).
+group-major (Z, M, n, ...), M = batch rows (``group_major``); weights are per group (see
+``group_layers``). ``policy_forward`` runs both levels from per-robot rows, for the
+rollout (``method.py``) and the update (``training.py``) alike.
 Shelf moves are masked in pi (they are invalid and never admissible; docs/decisions/0108).
 """
 from __future__ import annotations
@@ -28,6 +30,7 @@ import torch
 from torch import nn
 
 from algorithms.common.action_path import ACTION_GAIN, progress_index  # shared with the baselines
+from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import robots_on_target_index
 from algorithms.hierarchical.group_layers import GroupLinear, GroupMLP, masked_mean, relu
 from algorithms.hierarchical.messages import GroupStructure
@@ -149,3 +152,28 @@ class LocalPolicy(nn.Module):
         for k in range(1, len(layers)):  # indexed: a slice of a ModuleList builds a new one per call
             x = layers[k](relu(x))
         return x
+
+
+def group_major(gs: GroupStructure, per_robot: np.ndarray, fill: object = 0) -> torch.Tensor:
+    """(M, N, ...) per robot -> (Z, M, n, ...) tensor grouped by slot."""
+    g = gs.gather(per_robot, fill=fill)
+    return torch.from_numpy(np.ascontiguousarray(np.swapaxes(g, 0, 1)))
+
+
+def policy_forward(reference: ReferencePolicy, local: LocalPolicy, gs: GroupStructure, own: np.ndarray,
+                   nbr: np.ndarray, controlled: np.ndarray, action_mask: np.ndarray,
+                   ref: torch.Tensor | None, choice: ActionChoice | None = None,
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
+    (M, N), action_mask (M, N, 5). Picks r by ``choice`` when ``ref`` is None. Returns r
+    (Z, M), log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)."""
+    feats_u = group_major(gs, own).to(torch.float32)
+    feats_r = torch.cat([feats_u, group_major(gs, nbr).to(torch.float32)], dim=-1)
+    mask = group_major(gs, controlled, fill=False)
+    amask = group_major(gs, action_mask, fill=True)
+    ref_logp = torch.log_softmax(reference(feats_r, mask), dim=-1)  # (Z, M, R)
+    if ref is None:
+        if choice is None:
+            raise ValueError("policy_forward: give the reference r or the choice that picks it")
+        ref = choice(ref_logp)
+    return ref, ref_logp, local(feats_u, mask, ref, amask)

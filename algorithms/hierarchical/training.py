@@ -13,61 +13,83 @@
   The encoder and the decoder run in time chunks; no activation checkpointing: the
   recomputation made the update 1.7x slower and did not lower the process's peak memory,
   which the policy update sets (measured at N = 100, horizon 500; docs/decisions/0104).
+
+Both take a ``Learner``: the networks, optimizers, group structure and hyperparameters the
+method hands over (``HierarchicalMethod.learner``), so this module never imports the method.
+May import: algorithms.common, algorithms.hierarchical (params, messages, policies, predictor), envs.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from algorithms.common.trainer import RolloutBuffer, clip_and_step, critic_step, mc_returns
+from algorithms.common.trainer import CentralCritic, RolloutBuffer, clip_and_step, critic_step, mc_returns
+from algorithms.hierarchical.messages import GroupStructure
+from algorithms.hierarchical.params import HierarchicalParams
+from algorithms.hierarchical.policies import LocalPolicy, ReferencePolicy, group_major, policy_forward
 from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
-if TYPE_CHECKING:
-    from algorithms.hierarchical.method import HierarchicalMethod
+
+@dataclass(frozen=True)
+class Learner:
+    """What the updates read and step: the method's networks and optimizers (the same
+    objects, updated in place), its group structure, hyperparameters and episode sizes."""
+
+    params: HierarchicalParams
+    gs: GroupStructure
+    horizon: int  # T of the environment (the critic's time feature t / T)
+    n_robots: int  # N
+    reference: ReferencePolicy
+    local: LocalPolicy
+    predictor: GroupPredictor
+    critic: CentralCritic
+    opt_policy: torch.optim.Optimizer
+    opt_critic: torch.optim.Optimizer
+    opt_predictor: torch.optim.Optimizer
 
 
 def _entropy(logp: torch.Tensor) -> torch.Tensor:
     return -(logp.exp() * logp).sum(-1)
 
 
-def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, float]:
+def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     """One Adam step of mu, pi (team advantage) and V_omega (squared return error)."""
-    p = method.params
+    p = learner.params
     t_used = buf.t
     d = {k: v[:t_used] for k, v in buf.data.items()}
     running, rewards = buf.running[:t_used], buf.rewards[:t_used]
     t_frac = torch.from_numpy(
-        np.broadcast_to((np.arange(t_used, dtype=np.float32) / method.env.horizon)[:, None], running.shape).copy())
+        np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy())
     # The critic first (its own parameters and optimizer): one step on the whole batch,
     # and the team advantage from its values before the step.
-    crit = critic_step(method.critic, method.opt_critic, torch.from_numpy(d["critic"]), t_frac,
+    crit = critic_step(learner.critic, learner.opt_critic, torch.from_numpy(d["critic"]), t_frac,
                        rewards, running, p.normalize_advantage, p.max_grad_norm)
     values, adv, ret, n = crit.values, crit.adv, crit.returns, crit.n
     tt, bb = np.nonzero(running)
-    groups_on = method.group_major(d["controlled"][tt, bb], False).any(-1).numpy() & d["ref_new"][tt, bb].T
+    groups_on = group_major(learner.gs, d["controlled"][tt, bb], False).any(-1).numpy() & d["ref_new"][tt, bb].T
     n_group = torch.tensor(float(max(1, groups_on.sum())))  # group-steps where mu drew r
     n_robot = torch.tensor(float(max(1, d["controlled"][tt, bb].sum())))
     ref_coef = p.entropy_coef if p.ref_entropy_coef is None else p.ref_entropy_coef
-    adv_r = adv[..., None].expand(-1, -1, method.env.groups)  # (T, B, Z) weight of log mu(r^z)
+    adv_r = adv[..., None].expand(-1, -1, learner.gs.n_groups)  # (T, B, Z) weight of log mu(r^z)
     if p.ref_advantage == "group":
-        adv_r = group_advantage(method, values, d["group_reward"], running, p.normalize_advantage)
+        adv_r = group_advantage(learner, values, d["group_reward"], running, p.normalize_advantage)
 
-    method.opt_policy.zero_grad(set_to_none=True)
+    learner.opt_policy.zero_grad(set_to_none=True)
     sums = {"actor_loss": 0.0, "critic_loss": crit.loss, "entropy_ref": 0.0, "entropy_local": 0.0}
     rows = p.update_chunk * running.shape[1]
     for s in range(0, len(tt), rows):
         r_t, r_b = tt[s : s + rows], bb[s : s + rows]
         ctl = d["controlled"][r_t, r_b]
         ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))  # (Z, M)
-        _, ref_logp, logp = method.policy_forward(
-            d["own"][r_t, r_b], d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref=ref)
-        mask = method.group_major(ctl, fill=False)  # (Z, M, n)
+        _, ref_logp, logp = policy_forward(learner.reference, learner.local, learner.gs, d["own"][r_t, r_b],
+                                           d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
+        mask = group_major(learner.gs, ctl, fill=False)  # (Z, M, n)
         active = mask.any(-1)  # groups with a robot to steer
         decided = active & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))  # mu drew r
-        u = method.group_major(d["proposed"][r_t, r_b], fill=WAIT)
+        u = group_major(learner.gs, d["proposed"][r_t, r_b], fill=WAIT)
         lp_u = (logp.gather(-1, u.unsqueeze(-1)).squeeze(-1) * mask).sum(-1)  # log pi(U~ | w)
         lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * decided  # log mu(r | o)
         actor = -((adv[r_t, r_b] * lp_u.sum(0)).sum()  # eq:losses (L_l + L_r)
@@ -77,19 +99,19 @@ def policy_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, f
         (actor - ref_coef * ent_r - p.entropy_coef * ent_u).backward()
         for key, val in (("actor_loss", actor), ("entropy_ref", ent_r), ("entropy_local", ent_u)):
             sums[key] += float(val.detach())
-    clip_and_step(method.opt_policy, p.max_grad_norm)
+    clip_and_step(learner.opt_policy, p.max_grad_norm)
     sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
     return sums
 
 
-def group_advantage(method: HierarchicalMethod, values: torch.Tensor, group_reward: np.ndarray,
+def group_advantage(learner: Learner, values: torch.Tensor, group_reward: np.ndarray,
                     running: np.ndarray, normalize: bool) -> torch.Tensor:
     """(T, B, Z) per-group advantage for the reference (``ref_advantage="group"``, a departure
     from eq:advantage): group z's Monte-Carlo return of its own reward share minus the
     team value scaled by its share of the robots, n_z / N; RMS-normalized over running steps."""
     t, b, z = group_reward.shape
     g = mc_returns(group_reward.reshape(t, b * z)).reshape(t, b, z)
-    share = torch.from_numpy(method.gs.slot_valid.sum(1) / method.env.n_robots).to(torch.float32)
+    share = torch.from_numpy(learner.gs.slot_valid.sum(1) / learner.n_robots).to(torch.float32)
     adv = (g - values[..., None] * share).detach()
     mask = torch.from_numpy(running.astype(np.float32))[..., None]
     if normalize:
@@ -98,9 +120,8 @@ def group_advantage(method: HierarchicalMethod, values: torch.Tensor, group_rewa
     return adv * mask
 
 
-def predictor_targets(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, torch.Tensor]:
+def predictor_targets(gs: GroupStructure, buf: RolloutBuffer) -> dict[str, torch.Tensor]:
     """Group-major (Z, T, B, ...) training tensors of the predictor from a rollout buffer."""
-    gs = method.gs
     t_used = buf.t
     msgs = buf.data["msgs"][:t_used]  # (T, B, Z, n, D)
     avail = buf.data["avail"][:t_used]  # (T, B, Z, K)
@@ -174,14 +195,14 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     return total
 
 
-def predictor_update(method: HierarchicalMethod, buf: RolloutBuffer) -> dict[str, float]:
+def predictor_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     """One Adam step of the GRU predictors on L_c; nothing to learn without lost messages."""
-    data = predictor_targets(method, buf)
+    data = predictor_targets(learner.gs, buf)
     if not bool(data["lost"].any()):
         return {"predictor_loss": float("nan")}
-    method.opt_predictor.zero_grad(set_to_none=True)
-    loss = predictor_loss_on(method.predictor, data, method.params.update_chunk)
+    learner.opt_predictor.zero_grad(set_to_none=True)
+    loss = predictor_loss_on(learner.predictor, data, learner.params.update_chunk)
     loss.backward()
-    torch.nn.utils.clip_grad_norm_(method.predictor.parameters(), method.params.max_grad_norm)
-    method.opt_predictor.step()
+    torch.nn.utils.clip_grad_norm_(learner.predictor.parameters(), learner.params.max_grad_norm)
+    learner.opt_predictor.step()
     return {"predictor_loss": float(loss.detach())}

@@ -3,10 +3,10 @@
 ``run_baselines_suite`` trains each baseline for ``iterations`` updates of
 ``batch_episodes`` episodes (horizon 500, the paper's, on the preset sized for N; an
 untrained policy rarely finishes early, so episodes run close to the full horizon) and
-times the rollout (decide + core step, no_grad) and the update separately. Columns are
-those of ``bench.perf.methods.measure_training`` (which this module's
-``time_training`` serves): ``env_steps_per_s`` (episode-steps of training per second,
-rollout and update), ``agent_steps_per_s`` (x N), ``rollout_ms_per_step`` /
+times the rollout (decide + core step, no_grad) and the update separately
+(``bench.perf.timing.time_training``). Columns are those of
+``bench.perf.methods.measure_training``: ``env_steps_per_s`` (episode-steps of training
+per second, rollout and update), ``agent_steps_per_s`` (x N), ``rollout_ms_per_step`` /
 ``update_ms_per_step`` (per batched step of B episodes), ``paper_cell_train_min`` (one
 paper cell's training, 2000 episodes of 500 steps, from wall time) and
 ``paper_cell_train_min_cpu`` (from process CPU time: one dedicated core on a shared
@@ -17,40 +17,13 @@ episodes (rollout only, sampled actions, no storage).
 """
 from __future__ import annotations
 
-import time
-
 import pandas as pd
-import torch
 
-from algorithms.base import Method
-from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
-from algorithms.common.execution import ActionChoice
 from bench.design.paper import PAPER_EVAL_EPISODES, PAPER_HORIZON
+from bench.perf.methods import measure_training
 from envs.layouts import preset_for
 
 BASELINES = ("decentralized", "ic3net")
-
-
-def time_training(method: Method, iterations: int = 1) -> dict[str, float]:
-    """Time ``iterations`` training updates of ``method``, rollout and update apart."""
-    rollout_s = update_s = 0.0
-    batched_steps = episode_steps = 0
-    for _ in range(iterations):
-        rng = batch_rng(method.seed, TRAIN_STREAM, method.iterations)
-        batch = EpisodeBatch(method.env, method.params.batch_episodes, rng, method.layout)
-        t0 = time.perf_counter()
-        with torch.no_grad():
-            state, rows = method.run(batch, ActionChoice.train(method.torch_gen))
-        t1 = time.perf_counter()
-        method.update(state)
-        t2 = time.perf_counter()
-        method.iterations += 1
-        rollout_s += t1 - t0
-        update_s += t2 - t1
-        batched_steps += batch.core.t
-        episode_steps += int(sum(r["steps"] for r in rows))
-    return {"rollout_s": rollout_s, "update_s": update_s, "batched_steps": batched_steps,
-            "episode_steps": episode_steps}
 
 
 def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1,
@@ -61,8 +34,6 @@ def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1,
     ``layout`` None uses the preset sized for each N; the projections always assume the
     paper's 2000 x 500 training and 100 x 500 evaluation episode-steps.
     """
-    from bench.perf.methods import measure_training  # it imports this module's helpers
-
     rows = []
     for name in BASELINES:
         for n in sizes:

@@ -36,7 +36,7 @@ from algorithms.common.execution import ActionChoice
 from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
 from bench.design.paper import PAPER_C_MAX, PAPER_EPISODES, PAPER_HORIZON, PAPER_SEARCH_RADIUS
-from bench.perf.baselines import time_training
+from bench.perf.timing import time_training
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
 

@@ -88,7 +88,7 @@ class ChannelPIBT(PIBTMethod):
         type(self).drawn.append(avail.copy())
         proposed = dec.actions.copy()
         proposed[:, 0] = np.where(dec.actions[:, 0] == WAIT, 0, WAIT)  # always "corrected"
-        return Decision(actions=dec.actions, proposed=proposed, payload=dec.payload)
+        return Decision(actions=dec.actions, proposed=proposed, payload=dec.payload, group_links=avail)
 
 
 def test_recorder__links_and_corrections_are_those_of_the_episode(tmp_path, monkeypatch):
@@ -100,7 +100,7 @@ def test_recorder__links_and_corrections_are_those_of_the_episode(tmp_path, monk
     m = ChannelPIBT(env, cell.method_params().model_dump(mode="json"), seed=cell.seed)
     rec = replay.Recorder(k, ~np.eye(env.groups, dtype=bool))
     ChannelPIBT.drawn = []
-    got = replay._run_recorded(m, 1, cell.seed, rec)
+    got = m.evaluate(1, cell.seed, observer=rec)
     pd.testing.assert_frame_equal(pd.DataFrame(got), pd.DataFrame(rows[2:4]))  # recording changes nothing
     steps = rec.steps[1:]
     assert len(steps) == rows[3]["steps"]

@@ -170,7 +170,7 @@ def test_predictor_loss__equals_the_plain_unroll_loss_and_gradients() -> None:
     batch = EpisodeBatch(env, 2, batch_rng(0, 0, 0), m.layout)
     with torch.no_grad():
         state, _ = m.run(batch, ActionChoice.train(m.torch_gen))
-    data = training.predictor_targets(m, state.buffer)
+    data = training.predictor_targets(m.gs, state.buffer)
     params = list(m.predictor.parameters())
     fast = training.predictor_loss_on(m.predictor, data, chunk=7)
     plain = plain_predictor_loss(m.predictor, data)

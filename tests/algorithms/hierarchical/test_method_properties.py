@@ -16,13 +16,15 @@ from algorithms.common.execution import ARGMAX_CHOICE, ActionChoice
 from algorithms.common.trainer import team_advantage
 from algorithms.hierarchical.messages import POS
 from algorithms.hierarchical.method import HierarchicalMethod
+from algorithms.hierarchical.policies import group_major
 from envs.config import EnvConfig
+from tests.algorithms.hierarchical.traced import TracedHierarchical
 
 
 def method(n: int = 12, layout: str = "tiny", loss_p: float = 0.5, horizon: int = 30, seed: int = 0,
-           **params: object) -> HierarchicalMethod:
+           **params: object) -> TracedHierarchical:
     env = EnvConfig.make(n_robots=n, layout=layout, horizon=horizon, loss_p=loss_p)
-    return HierarchicalMethod(env, {"hidden": 16, "predictor_hidden": 16, "batch_episodes": 3, **params},
+    return TracedHierarchical(env, {"hidden": 16, "predictor_hidden": 16, "batch_episodes": 3, **params},
                               seed=seed)
 
 
@@ -31,27 +33,28 @@ def _choice(m: HierarchicalMethod, greedy: bool) -> ActionChoice:
     return ARGMAX_CHOICE if greedy else ActionChoice.train(m.torch_gen)
 
 
-def first_step(m: HierarchicalMethod, batch: EpisodeBatch, fixed_ref: np.ndarray | None = None,
+def first_step(m: TracedHierarchical, batch: EpisodeBatch, fixed_ref: np.ndarray | None = None,
                greedy: bool = True) -> dict:
     choice = _choice(m, greedy)
     state = m.begin(batch, choice)
-    state.trace, state.fixed_ref = {}, fixed_ref
+    m.trace.clear()
+    m.fixed_ref = fixed_ref
     dec = m.decide(batch, state, choice)
-    return {**state.trace, "dec": dec}
+    return {**m.trace, "dec": dec}
 
 
-def rollout(m: HierarchicalMethod, batch: EpisodeBatch, greedy: bool):
+def rollout(m: TracedHierarchical, batch: EpisodeBatch, greedy: bool):
     """Run to the end; yields (trace, decision, positions before, step result) per step."""
     choice = _choice(m, greedy)
     state = m.begin(batch, choice)
-    state.trace = {}
+    m.trace.clear()
     core = batch.core
     while batch.running:
         pos, occ = core.pos.copy(), core.occupying.copy()
         dec = m.decide(batch, state, choice)
         res = core.step(dec.actions)
         m.observe(batch, state, res)
-        yield dict(state.trace), dec, pos, occ, res
+        yield dict(m.trace), dec, pos, occ, res
     m._last_state = state  # the buffer, for the loss test
 
 
@@ -217,8 +220,8 @@ def test_method__buffer_stores_proposals_and_the_loss_uses_them() -> None:
             ref = torch.from_numpy(np.ascontiguousarray(d["ref"][tt, bb].T))
             _, ref_logp, logp = m.policy_forward(d["own"][tt, bb], d["nbr"][tt, bb], d["controlled"][tt, bb],
                                                  d["action_mask"][tt, bb], ref=ref)
-            mask = m.group_major(d["controlled"][tt, bb], fill=False)
-            u = m.group_major(controls[tt, bb], fill=4)
+            mask = group_major(m.gs, d["controlled"][tt, bb], fill=False)
+            u = group_major(m.gs, controls[tt, bb], fill=4)
             lp_u = (logp.gather(-1, u.unsqueeze(-1)).squeeze(-1) * mask).sum(-1)
             lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * mask.any(-1)
             return float(-(adv[tt, bb] * (lp_r + lp_u).sum(0)).sum() / n)

@@ -62,7 +62,7 @@ def test_predictor__training_unroll_reproduces_the_rollout_predictions() -> None
     with torch.no_grad():
         state, _ = m.run(EpisodeBatch(env, 3, batch_rng(1, 0, 0), m.layout), ActionChoice.train(m.torch_gen))
         buf, gs = state.buffer, m.gs
-        data = predictor_targets(m, buf)
+        data = predictor_targets(m.gs, buf)
         fast = predictor_loss_on(m.predictor, data, chunk=4)
         # Replay the rollout's predictor from the stored messages and availabilities.
         nb = np.maximum(gs.neighbors, 0)

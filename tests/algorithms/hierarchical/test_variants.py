@@ -18,13 +18,14 @@ from envs.config import EnvConfig
 from envs.errors import BenchError
 from envs.layouts import from_ascii
 from tests.algorithms.hierarchical.test_method_properties import rollout
+from tests.algorithms.hierarchical.traced import TracedHierarchical
 
 UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
 
 
-def dense(loss_p: float = 0.2, horizon: int = 30, **params: object) -> HierarchicalMethod:
+def dense(loss_p: float = 0.2, horizon: int = 30, **params: object) -> TracedHierarchical:
     env = EnvConfig.make(n_robots=20, layout="wh20", horizon=horizon, loss_p=loss_p)
-    return HierarchicalMethod(env, {"hidden": 16, "predictor_hidden": 16, "batch_episodes": 3,
+    return TracedHierarchical(env, {"hidden": 16, "predictor_hidden": 16, "batch_episodes": 3,
                                     "eval_chunk": 4, **params}, seed=1)
 
 
