@@ -36,7 +36,7 @@ Ray primitives used as they are: ``ray.wait`` with a timeout (the driver never b
 get), actor ``max_restarts``; ``max_task_retries`` stays 0 on purpose, so that each loss
 reaches the driver (a run counts attempts and re-dispatches from the last checkpoint to
 any worker, not only the restarted one). ``ray.util.ActorPool`` does not fit: it has no
-affinity and no health state (docs/decisions.md, "One executor").
+affinity and no health state (docs/decisions/0189).
 
 Worker actors outlive a run only in a Ray session the executor did not start (tests,
 notebooks): the next executor of the same worker class reuses them.

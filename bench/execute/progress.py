@@ -92,8 +92,8 @@ QUIET_KINDS = frozenset({"done", "failed", "retry", "rerun"})  # the events a qu
 
 class QuietLogProgress(LogProgress):
     """The log without a terminal: the first snapshot, one line per finished or failed cell
-    (and per retry or rerun), and a summary every ``every_s`` seconds (docs/decisions.md,
-    "Quiet logs")."""
+    (and per retry or rerun), and a summary every ``every_s`` seconds
+    (docs/decisions/0169)."""
 
     def __init__(self, every_s: float = QUIET_EVERY_S, stream=None) -> None:
         super().__init__(every_s, stream)

@@ -18,7 +18,7 @@ since marl-eval needs the same metrics everywhere), ``team_return`` under marl-e
 ``return``. One execution mode (default argmax;
 PIBT always ``planner``, its only mode). ``balanced`` keeps what marl-eval's matrices
 need: the tasks every exported algorithm ran, and the same seeds (the lowest ones,
-as many as the sparsest pair has) everywhere (docs/decisions.md, the new entry on the marl-eval export).
+as many as the sparsest pair has) everywhere (docs/decisions/0167).
 """
 from __future__ import annotations
 

@@ -22,7 +22,7 @@ placement only. Checksums are *in force* when checksums.json exists and the mani
 latest run record says ``"checksums": 1``; an older bench that resumed such a store since
 leaves its latest record without the flag, and the checksums (possibly stale) are then not
 enforced: the next ``bench run`` keeps the entries its files still match and records every
-file it writes from then on (docs/decisions.md).
+file it writes from then on (docs/decisions/0158).
 """
 from __future__ import annotations
 

@@ -45,7 +45,7 @@ class MlflowLogger(Observer):
         from mlflow.tracking import MlflowClient
 
         # MLflow 3.18 keeps the file store in maintenance mode and asks for this opt-in
-        # (docs/decisions.md, the new entries on tracking); `mlflow ui` needs it set as well.
+        # (docs/decisions/0166); `mlflow ui` needs it set as well.
         os.environ.setdefault("MLFLOW_ALLOW_FILE_STORE", "true")
 
         (self.root / "mlflow").mkdir(parents=True, exist_ok=True)

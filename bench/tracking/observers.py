@@ -155,7 +155,7 @@ def update_metrics(rows: Sequence[Row], batch_episodes: int) -> list[tuple[int, 
     """Per update: (episodes trained after it, metrics). A metric is the mean over the
     update's episode rows, NaN entries left out (a value every row shares, such as a loss,
     is that value exactly); a metric that is NaN in every row is omitted. Rows arrive in
-    episode order, ``batch_episodes`` per update (docs/decisions.md, the new entries on tracking)."""
+    episode order, ``batch_episodes`` per update (docs/decisions/0164)."""
     out = []
     b = max(1, int(batch_episodes))
     for start in range(0, len(rows), b):

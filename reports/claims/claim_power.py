@@ -1,7 +1,7 @@
 """The stated effect and the power of each claim check (``reports.claims.power`` over the same
 per-seed arrays the check's kernel decides on).
 
-Stated effects (docs/decisions.md, the new entries): success +``EFFECT_SUCCESS`` (10
+Stated effects (docs/decisions/0153): success +``EFFECT_SUCCESS`` (10
 points) at every percentile; final reward +10% of the baseline's mean final reward (the
 paper prints no reward numbers); a rate below its bound: the paper's own Table I value
 where it prints one, else half the bound; convergence: the seeds' own mean gain with no

@@ -49,7 +49,7 @@ MIN_SEEDS = 3
 # calibrate``, resampled rows); at 0.025 a 5-vs-5 Welch test with one collapsing side still
 # said "supported" 5.9% and two whole claims were contradicted 5.9-7%; at 0.0125 (a wider
 # band: the 98.75% one-sided bound decides) every rate is within 5% + 2 MC s.e.
-# (docs/decisions.md, the new entries).
+# (docs/decisions/0151).
 TEST_ALPHA = ALPHA / 4
 FINAL_FRAC = 0.2
 CONV_REL_TOL = 0.2
