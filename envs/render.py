@@ -1,7 +1,8 @@
 """Rendering of warehouse states as RGB frames, ANSI text and GIF files.
 
 Pure functions of arrays, shared by the PettingZoo adapter (``render_mode``: "human"
-prints ``render_ansi`` frames with ``show_in_terminal``) and by ``bench replay``: nothing here knows about the core or the env. Positions are (row, col)
+prints ``render_ansi`` frames with ``show_in_terminal``) and by ``bench replay``: nothing here knows
+about the core or the env. Positions are (row, col)
 pairs; per-robot flags are (N,) bool arrays. Frames are drawn with numpy fancy indexing
 (no Python loop over robots, no matplotlib).
 

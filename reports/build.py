@@ -11,7 +11,8 @@ generators are seeded, so the same store gives the same numbers.
 
 Outputs: fig1_training, fig2_success_percentiles (the run's first execution mode, argmax
 when it has it) and fig2_success_percentiles_<mode> for each other mode, fig3_comm_payload
-(.png at 200 dpi, .pdf and the caption in .txt), table1_safety.{md,tex,csv}, summary.{md,csv}, success_by_mode.md (the README's
+(.png at 200 dpi, .pdf and the caption in .txt), table1_safety.{md,tex,csv}, summary.{md,csv},
+success_by_mode.md (the README's
 results table), progress.md, claims.{md,csv}, calibration.{json,md} (the
 calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/matrix/ exists
 (reports/matrix.py), index.md, index.html.
@@ -184,7 +185,8 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
              "safety_all_methods.csv"]
     captions = []
     for stem, built in (("success_vs_n", success_figure(board, "n_robots")),
-                        ("success_vs_p", success_figure(board, "loss_p")), ("performance_profiles", profile_figure(evals))):
+                        ("success_vs_p", success_figure(board, "loss_p")),
+                        ("performance_profiles", profile_figure(evals))):
         save_figure(built.fig, out / stem, built.caption)
         files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
         captions.append(built.caption)

@@ -198,7 +198,8 @@ class _Run:
         """The manifest's entry of this run gets its end, wall time and cells finished
         (issue 13: commit, machine and wall time of each part of a long run)."""
         manifest = self.store.read_manifest()
-        if not manifest or not manifest.get("runs") or manifest["runs"][-1].get("started") != self.run_record["started"]:
+        runs = manifest.get("runs") if manifest else None
+        if not runs or runs[-1].get("started") != self.run_record["started"]:
             return
         done = sum(s.phase == "done" for s in self.states)
         self.run_record.update({
