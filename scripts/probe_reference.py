@@ -17,13 +17,12 @@ from pathlib import Path
 
 import pandas as pd
 import torch
+from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import build_method
 from bench.store.checkpoints import load_checkpoint
-
-from reference_probe import probe_reference  # scripts/reference_probe.py
 
 
 def main() -> int:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
@@ -21,8 +22,6 @@ from algorithms.hierarchical.method import HierarchicalMethod
 from algorithms.hierarchical.training import policy_update
 from envs.config import EnvConfig
 from envs.layouts import PAPER_MAP
-
-from reference_probe import probe_reference  # scripts/reference_probe.py
 
 
 def gradient_agreement(m: HierarchicalMethod, seed: int, pairs: int = 2) -> dict[str, float]:
