@@ -25,10 +25,21 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from algorithms.common.trainer import CentralCritic, RolloutBuffer, clip_and_step, critic_step, mc_returns
+from algorithms.common.trainer import (
+    CentralCritic,
+    RolloutBuffer,
+    clip_and_step,
+    critic_step,
+    mc_returns,
+)
 from algorithms.hierarchical.messages import GroupStructure
 from algorithms.hierarchical.params import HierarchicalParams
-from algorithms.hierarchical.policies import LocalPolicy, ReferencePolicy, group_major, policy_forward
+from algorithms.hierarchical.policies import (
+    LocalPolicy,
+    ReferencePolicy,
+    group_major,
+    policy_forward,
+)
 from algorithms.hierarchical.predictor import GroupPredictor, predictor_loss
 from envs.actions import WAIT
 
