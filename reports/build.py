@@ -30,7 +30,7 @@ from bench.store.study_files import CONFIG_FILE, LINK_KEY, REPORT_PAGES, report_
 from bench.store.study_files import REPORT_DIR as STUDY_REPORT_DIR
 from envs.atomic import temp_target
 from envs.errors import BenchError
-from reports.claims.claims import all_claims
+from reports.claims.catalog import all_claims
 from reports.claims.method_claims import method_claims
 from reports.claims.page import (
     calibration_markdown,

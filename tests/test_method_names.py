@@ -23,6 +23,7 @@ ALLOWED = {
     "bench/perf/baselines.py": "benchmarks of the built-in baselines' kernels",
     "bench/perf/peers.py": "benchmarks the built-in decentralized trainer against TorchRL's MAPPO",
     "reports/claims/claims.py": "the paper's own claims (Sec. IV) are about its method and baselines",
+    "reports/claims/catalog.py": "the list of the paper's claims, each about its method and baselines",
     "reports/claims/calibrate.py": "simulates the paper's claims on synthetic rows of those methods",
     "reports/claims/calibrate_data.py": "resamples the paper's claims from the committed rows of those methods",
     "reports/figures/fig1_training.py": "the paper's Fig. 1 (hierarchical vs decentralized)",

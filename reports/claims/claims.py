@@ -430,31 +430,3 @@ def claim_lemma1(configs: Configs = PAPER["lemma1"], run: Configs = ()) -> Claim
                  f"n_z = {n_z}: bound {b:,} {'<=' if b <= c_max else '>'} C_max = {c_max}",
                  "arithmetic (no data)")]
     return _each(claim, configs, run, one)
-
-
-def all_claims(train: pd.DataFrame, evals: pd.DataFrame, at: str = "paper",
-               cells: pd.DataFrame | None = None) -> list[Claim]:
-    """Every claim at the paper's configurations; with ``at="run"`` also at the run's own
-    (N, p) (and, for Lemma 1, the run's (N, Z, L, C_max) from ``cells``)."""
-    if at not in ("paper", "run"):
-        raise ValueError(f"claims at {at!r}: expected 'paper' or 'run'")
-    r = at == "run"
-    fig1 = run_configs(train, ("hierarchical", "decentralized")) if r else []
-    gaps = [(big, n, p) for (big, pb) in fig1 for (n, p) in fig1 if pb == p and n < big]
-    hier_t = run_configs(train, ("hierarchical",)) if r else []
-    fig2 = run_configs(evals, ("hierarchical", "ic3net")) if r else []
-    hier_e = run_configs(evals, ("hierarchical",)) if r else []
-    lemma: list[tuple] = []
-    if r and cells is not None and len(cells):
-        h = cells[(cells["method"] == "hierarchical") & cells["safety_filter"].astype(bool)]
-        lemma = sorted({(int(a), int(b), int(c), int(d)) for a, b, c, d in
-                        h[["n_robots", "groups", "search_radius", "c_max"]].itertuples(index=False)})
-    from reports.claims import (
-        table1_claims as T,  # imports this module: Table I's further statements
-    )
-    return [claim_hier_above_dec(train, run=fig1), claim_gap_widens(train, run=gaps),
-            claim_convergence(train, run=hier_t), claim_above_ic3net(evals, run=fig2),
-            claim_no_collisions(evals, run=hier_e), T.claim_collisions_printed(evals, run=hier_e),
-            claim_few_corrections(evals, run=hier_e), T.claim_mean_candidates(evals, run=hier_e),
-            T.claim_searches_grow(evals), T.claim_normal_search(evals, run=hier_e),
-            claim_payload_ratio(evals), claim_lemma1(run=lemma)]

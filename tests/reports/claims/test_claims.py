@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 
 from algorithms.hierarchical.safety_filter import lemma1_count
+from reports.claims.catalog import all_claims
 from reports.claims.claims import (
     Check,
-    all_claims,
     claim_above_ic3net,
     claim_convergence,
     claim_few_corrections,
