@@ -23,14 +23,16 @@ from algorithms import registry
 registry.register("toy", {toy!r})
 import bench.execute.signals
 from bench.cli import main
-import reports.build as build, studies.cli as tune_cli, bench.execute.matrix as matrix, reports.replay as replay
+import envs.atomic as atomic, reports.build as build, studies.cli as tune_cli, bench.execute.matrix as matrix, reports.replay as replay
 
 def stop(*a, **k):
     os.kill(os.getpid(), signal.SIGTERM)
     raise AssertionError("SIGTERM was not handled")
 
 def save_figure(fig, stem, caption=""):  # the report is killed in the middle of its first write
-    return build._atomic(stem.with_suffix(".png"), lambda tmp: (Path(tmp).write_text("partial"), stop()))
+    with atomic.atomic_path(stem.with_suffix(".png")) as tmp:
+        Path(tmp).write_text("partial")
+        stop()
 
 build.save_figure = save_figure
 tune_cli.tune_study = matrix.run_matrix = replay.write_replay = stop
