@@ -23,7 +23,8 @@ from algorithms import registry
 registry.register("toy", {toy!r})
 import bench.execute.signals
 from bench.cli import main
-import envs.atomic as atomic, reports.build as build, studies.cli as tune_cli, bench.execute.matrix as matrix, reports.replay as replay
+import envs.atomic as atomic, reports.build as build, studies.cli as tune_cli
+import bench.execute.matrix as matrix, reports.replay as replay
 
 def stop(*a, **k):
     os.kill(os.getpid(), signal.SIGTERM)
@@ -49,7 +50,6 @@ for name, args in json.loads(sys.argv[1]).items():
     out[name] = [code, err.getvalue()]
 print(json.dumps(out))
 '''
-
 
 
 def test_sigterm__report_tune_matrix_and_replay_exit_143_with_one_line_and_no_temp_file(
