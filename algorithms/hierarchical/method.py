@@ -123,11 +123,12 @@ class HierarchicalMethod(Method):
         self.critic = CentralCritic(p.critic_hidden)
         if p.ref_lr is None:  # one group: checkpoints keep the optimizer layout of the default
             self.opt_policy = torch.optim.Adam(
-                list(self.reference.parameters()) + list(self.local.parameters()), lr=p.lr)
+                [*self.reference.parameters(), *self.local.parameters()], lr=p.lr)
         else:
-            self.opt_policy = torch.optim.Adam([
+            param_groups: list[dict[str, Any]] = [
                 {"params": list(self.reference.parameters()), "lr": p.ref_lr},
-                {"params": list(self.local.parameters())}], lr=p.lr)
+                {"params": list(self.local.parameters())}]
+            self.opt_policy = torch.optim.Adam(param_groups, lr=p.lr)
         self.opt_critic = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.opt_predictor = torch.optim.Adam(self.predictor.parameters(), lr=p.predictor_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max)
@@ -161,7 +162,7 @@ class HierarchicalMethod(Method):
         return view
 
     def load_stack(self, methods: Sequence[Method]) -> None:
-        b = self.params.batch_episodes  # type: ignore[attr-defined]
+        b = self.params.batch_episodes
         with torch.no_grad():
             for name in self.STACKED:
                 per_seed = [dict(getattr(m, name).named_parameters()) for m in methods]
@@ -184,6 +185,7 @@ class HierarchicalMethod(Method):
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
         if choice.mode.greedy and p.resample_on_fallback:  # derived from the batch seed, no draw from its rng
             seq = batch.rng.bit_generator.seed_seq
+            assert isinstance(seq, np.random.SeedSequence)  # EpisodeBatch seeds every rng from one
             child = np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, 0x5E5A))
             ctrl.resample_gen = torch.Generator().manual_seed(int(child.generate_state(1, np.uint64)[0] >> 2))
         if choice.training:
@@ -287,6 +289,7 @@ class HierarchicalMethod(Method):
 
     def observe(self, batch: EpisodeBatch, state: Controller, result: Any) -> None:
         if state.buffer is not None:
+            assert state.running is not None  # set by decide() before every step
             # Group z's part of eq:reward: its robots' terms over N (sums to the team reward).
             terms = result.progress + result.goal_bonus + result.collision_penalty + result.time_penalty
             state.buffer.data["group_reward"][state.buffer.t] = (

@@ -197,9 +197,9 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
 
     h_sel, mem, age, target = pick(hid), pick(data["mem"]), pick(data["age"]), pick(data["link"])
     total = torch.zeros(())
-    rows = max(1, chunk * b * k)
-    for s in range(0, width, rows):
-        sl = slice(s, s + rows)
+    step = max(1, chunk * b * k)  # lost links decoded at a time
+    for s in range(0, width, step):
+        sl = slice(s, s + step)
 
         pred = model.decode(h_sel[:, sl], mem[:, sl], age[:, sl])
         total = total + predictor_loss(pred, target[:, sl], valid[:, sl], slots[:, sl], data["n_group_steps"])

@@ -181,7 +181,7 @@ class _Run:
         now = datetime.now(timezone.utc).isoformat(timespec="seconds")
         manifest = (None if self.fresh else store.read_manifest()) or {"created": now, "runs": []}
         v = versions()
-        self.run_record = {"grid": self.grid.name, "started": now, "command": self.command,
+        self.run_record: dict[str, Any] = {"grid": self.grid.name, "started": now, "command": self.command,
                            "git": v["git"], "machine": machine(), "workers": self.n_workers,
                            "cells_done_before": sum(s.phase == "done" for s in self.states),
                            RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/store/integrity.py)
@@ -199,7 +199,7 @@ class _Run:
         (issue 13: commit, machine and wall time of each part of a long run)."""
         manifest = self.store.read_manifest()
         runs = manifest.get("runs") if manifest else None
-        if not runs or runs[-1].get("started") != self.run_record["started"]:
+        if manifest is None or not runs or runs[-1].get("started") != self.run_record["started"]:
             return
         done = sum(s.phase == "done" for s in self.states)
         self.run_record.update({

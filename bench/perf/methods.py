@@ -175,9 +175,11 @@ def measure_filter(n_robots: int, layout: str, horizon: int = 100, batch_episode
     """Safety-filter cost in one rollout of the (untrained) hierarchical method."""
     torch.set_num_threads(1)
     env = EnvConfig.make(n_robots=n_robots, layout=layout, horizon=horizon, loss_p=loss_p)
-    m = method_class("hierarchical")(env, {"search_radius": search_radius, "c_max": c_max}, seed=seed)
+    # Any: the method's own `filter` attribute (not part of the Method contract) is swapped
+    # for a timed wrapper.
+    m: Any = method_class("hierarchical")(env, {"search_radius": search_radius, "c_max": c_max}, seed=seed)
     timed = _TimedFilter(m.filter)
-    m.filter = timed  # type: ignore[assignment]
+    m.filter = timed
     batch = EpisodeBatch(env, batch_episodes, batch_rng(seed, TRAIN_STREAM, 0), m.layout)
     with torch.no_grad():
         m.run(batch, ActionChoice.train(m.torch_gen))
