@@ -77,6 +77,15 @@ RECORDS: dict[tuple[str, str], dict[str, tuple[Any, str]]] = {
         "cells_done_before": (0, "the run folder's first record of its own"),
         "cells_done_after": (84, "cells_imported"),
     },
+    ("full", "2026-12-04T21:11:11+00:00"): {
+        "cells_done_in_run": (6, "cells.parquet as the run left it (commit e6ca913): hierarchical N = 80, p = 0.6 and "
+                                 "N = 90, p = 0.4, seeds 0-2, done in this part"),
+        "cells_done_after": (99, "cells.parquet as the run left it (commit e6ca913)"),
+        "ended": (None, "the session that ran it was cut off and its process ended with it, before the bench wrote "
+                        "its end; its training rows (per-episode wall_s of the three seed stacks it trained: 613 + "
+                        "1,188 + 585 s) put the end after about 21:53 UTC"),
+        "wall_s": (None, "no end (see ended); at least 2,386 s of training by the same rows"),
+    },
     ("ablation", "2026-12-01T18:19:45+00:00"): {
         "git": ("40869b65cf2f-dirty", "the manifest's git_sha written when this run started (commit bf756ce)"),
         "workers": (1, "its command (--workers 1)"),

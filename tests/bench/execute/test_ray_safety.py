@@ -164,7 +164,7 @@ def slow_grid(toy: str, tmp_path: Path) -> Path:
     return write_grid_file(tmp_path / "g.toml", base, {"seed": [0, 1]})
 
 
-def _wait_for_checkpoint(proc: subprocess.Popen, store: RunStore, timeout: float = 150) -> None:
+def _wait_for_checkpoint(proc: subprocess.Popen, store: RunStore, timeout: float = 300) -> None:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline and proc.poll() is None:
         if store.ckpt_dir.is_dir() and any(store.ckpt_dir.glob("*.pt")):
