@@ -173,8 +173,11 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
 
 def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
     """Per method, N, p and mode: seeds and the mean over seeds of each column of ``SAFETY``
-    (NaN when the method never ran a filter: its rows hold NaN)."""
+    (NaN when the method never ran a filter: its rows hold NaN for fallbacks and candidates,
+    and 0 corrections, which this table shows as NaN too: nothing was there to correct)."""
     keys = ["method", "n_robots", "loss_p", "execution"]
+    if "safety_filter" in evals:
+        evals = evals.assign(correction_rate=evals["correction_rate"].where(evals["safety_filter"].astype(bool)))
     per_seed = evals.groupby([*keys, "seed"], sort=True)[list(SAFETY)].mean().reset_index()
     out = per_seed.groupby(keys, sort=True).agg(seeds=("seed", "nunique"), **{c: (c, "mean") for c in SAFETY})
     out = out.reset_index()

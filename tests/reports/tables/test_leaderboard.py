@@ -24,6 +24,7 @@ from reports.tables.leaderboard import (
     _poi,
     aggregate_frame,
     leaderboard_frame,
+    safety_frame,
     score_matrices,
 )
 from tests.bench.conftest import toy_spec, write_finished_store
@@ -57,6 +58,20 @@ def test_leaderboard__ranks_within_a_configuration_and_planners_rank_with_every_
     assert board.loc[("planner", "p"), "rank"] == 2
     assert board.loc[("argmax", "a"), "success"] == pytest.approx(0.3)
     assert board.loc[("argmax", "a"), "seeds"] == 2
+
+
+def test_safety_frame__means_over_seeds_and_no_correction_rate_where_no_filter_ran() -> None:
+    def row(method: str, filt: bool, seed: int, episode: int, corr: float, coll: float) -> dict[str, object]:
+        return dict(method=method, n_robots=4, loss_p=0.2, execution="argmax", seed=seed, episode=episode,
+                    safety_filter=filt, collision_rate=coll, correction_rate=corr, fallback_rate=np.nan if not filt
+                    else 0.5, mean_candidates=np.nan if not filt else 3.0, payload_scalars_per_step=12.0)
+    ev = pd.DataFrame([row("f", True, 0, 0, 0.1, 0.0), row("f", True, 0, 1, 0.3, 0.0), row("f", True, 1, 0, 0.5, 0.0),
+                       row("n", False, 0, 0, 0.0, 0.2), row("n", False, 1, 0, 0.0, 0.4)])
+    out = safety_frame(ev).set_index("method")
+    assert out.loc["f", "correction_rate"] == pytest.approx((0.2 + 0.5) / 2)  # per-seed means, then over seeds
+    assert out.loc["f", "seeds"] == 2 and out.loc["f", "mean_candidates"] == pytest.approx(3.0)
+    assert np.isnan(out.loc["n", "correction_rate"]) and np.isnan(out.loc["n", "fallback_rate"])
+    assert out.loc["n", "collision_rate"] == pytest.approx(0.3)
 
 
 def test_score_matrices__only_configurations_every_method_covers_and_their_common_seeds() -> None:
