@@ -27,6 +27,7 @@ how many; per-configuration rows use every seed.
 from __future__ import annotations
 
 from itertools import permutations
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +40,7 @@ from reports.figures.plotting import (
     label_order,
     method_color,
     method_label,
+    method_style,
     new_figure,
     paper_style,
     placeholder,
@@ -272,7 +274,8 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                 for m in _methods(part):
                     g = part[part["method"] == m].sort_values(against)
                     x = g[against].to_numpy(dtype=float)
-                    ax.plot(x, g["success"], "o-", color=method_color(m), label=method_label(m), ms=2.5)
+                    ax.plot(x, g["success"], marker="o", ls=method_style(m), color=method_color(m),
+                            label=method_label(m), ms=2.5)
                     ax.fill_between(x, g["success_lo"], g["success_hi"], color=method_color(m), alpha=0.15, lw=0)
                 ax.set_ylim(-0.02, 1.02)
                 ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
@@ -282,14 +285,13 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")
                 if j == 0:
                     ax.set_ylabel("success rate")
-        handles, labels = axes[0][0].get_legend_handles_labels()
-        for row in axes:
-            for ax in row:
-                for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                    if lab not in labels:
-                        handles.append(h)
-                        labels.append(lab)
-        fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4), frameon=False)
+        legend: dict[str, Any] = {}  # label -> handle, every method of any panel once
+        for ax in axes.flat:
+            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+                legend.setdefault(lab, h)
+        labels = sorted(legend, key=lambda lab: (label_order(lab), lab))
+        fig.legend([legend[lab] for lab in labels], labels, loc="outside lower center", ncol=min(len(labels), 4),
+                   frameon=False)
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
@@ -313,7 +315,8 @@ def profile_figure(evals: pd.DataFrame) -> Built:
             placeholder(ax, "no configuration covered by every method")
             return Built(fig, ["no configuration covered by every method"], "")
         for m, mat in mats.items():
-            ax.plot(taus, [(mat > t).mean() for t in taus], color=method_color(m), label=method_label(m))
+            ax.plot(taus, [(mat > t).mean() for t in taus], color=method_color(m), ls=method_style(m),
+                    label=method_label(m))
         ax.set_xlabel(r"success rate $\tau$")
         ax.set_ylabel(r"fraction of runs with success $> \tau$")
         ax.legend(frameon=False)
