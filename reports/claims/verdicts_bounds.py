@@ -51,7 +51,10 @@ def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = TE
         return NOT_ENOUGH, seeds_msg(m.size), "-"
     t = t_test([-m], [1.0], null=-bound)  # contrast -mean - (-bound) > 0: mean below the bound
     f = (lambda x: f"{_g(100 * x)}%") if pct else _g
-    nums = (f"{what} {f(m.mean())} [95% CI {f(-t.hi)}, {f(-t.lo)}] vs {f(bound)}; one-sided p = "
+    lo, hi = -t.hi, -t.lo
+    if pct:  # a rate's interval stops at what a rate can be (decisions/0035); the test is unchanged
+        lo, hi = max(lo, 0.0), min(hi, 1.0)
+    nums = (f"{what} {f(m.mean())} [95% CI {f(lo)}, {f(hi)}] vs {f(bound)}; one-sided p = "
             f"{_g(t.p_greater)}")
     return (decide(t, contra_alpha=contra_alpha), nums,
             f"one-sample t over {m.size} seeds against {f(bound)}{contra_note(contra_alpha)}")
