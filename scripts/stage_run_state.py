@@ -5,8 +5,9 @@ any fresh clone).
     git commit -m "reproduction/paper: state at ..."
 
 Stages what a rerun of ``bench run`` needs to resume and what ``bench report`` reads:
-``cells.parquet``, ``manifest.json``, ``train/``, ``eval/``, ``matrix/`` and ``report/``
-when present, the rows of ``superseded/`` cells (trained with other parameters; not their
+``cells.parquet``, ``manifest.json``, ``checksums.json`` (a clone's ``bench run`` checks the
+stored files against it, bench/store/integrity.py), ``train/``, ``eval/``, ``matrix/`` and
+``report/`` when present, the rows of ``superseded/`` cells (trained with other parameters; not their
 checkpoints), and the checkpoints of the cells that are not done (a resumed cell restarts
 from them). Checkpoints of done cells stay out of git (``reproduction/.gitignore``) and are
 removed from the index if an earlier commit held them while the cell was running; the files
@@ -27,7 +28,7 @@ import pandas as pd
 from bench.store.run_store import RunStore
 from envs.errors import BenchError
 
-DATA = ("cells.parquet", "manifest.json", "train", "eval", "matrix", "report")
+DATA = ("cells.parquet", "manifest.json", "checksums.json", "train", "eval", "matrix", "report")
 
 
 def plan(run: Path, tracked: set[str]) -> tuple[list[str], list[str]]:

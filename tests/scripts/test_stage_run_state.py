@@ -19,12 +19,13 @@ def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: 
     pd.DataFrame({"cell_id": ["aaa", "bbb", "ccc"], "status": ["done", "running", "pending"]}).to_parquet(
         run / "cells.parquet")
     (run / "manifest.json").write_text("{}")
+    (run / "checksums.json").write_text("{}")
     for cid in ("aaa", "bbb"):
         (run / "checkpoints" / f"{cid}.pt").write_bytes(b"x")
     tracked = {str(run / "checkpoints" / "aaa.pt"), str(run / "checkpoints" / "bbb.pt"), str(run / "train" / "x")}
     add, drop = stage.plan(run, tracked)
-    assert add == [str(run / "cells.parquet"), str(run / "manifest.json"), str(run / "train"),
-                   str(run / "checkpoints" / "bbb.pt")]  # no eval/, matrix/ or report/ yet; ccc has none
+    assert add == [str(run / "cells.parquet"), str(run / "manifest.json"), str(run / "checksums.json"),
+                   str(run / "train"), str(run / "checkpoints" / "bbb.pt")]  # no eval/, matrix/, report/; ccc: none
     assert drop == [str(run / "checkpoints" / "aaa.pt")]  # done: its checkpoint leaves the index only
     assert (run / "checkpoints" / "aaa.pt").exists()
 
