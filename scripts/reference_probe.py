@@ -62,7 +62,7 @@ class ProbedHierarchical(HierarchicalMethod):
     def _reference_input(self, state: Controller, batch: int, gen: torch.Generator,
                          ) -> tuple[torch.Tensor | None, np.ndarray]:
         if self.uniform:
-            k = self.params.ref_size  # type: ignore[attr-defined]
+            k = self.params.ref_size
             return torch.randint(k, (self.env.groups, batch), generator=gen), np.zeros((self.env.groups, 1), bool)
         return super()._reference_input(state, batch, gen)
 

@@ -105,10 +105,11 @@ class HierarchicalMethod(Method):
     safety_filter_default = True  # Sec. III-C: the predictive safety filter is part of the method
     payload_model = "inter-group messages on delivered links: (Z - 1) N d_m per step at most (Sec. III-A)"
     Params = HierarchicalParams
+    params: HierarchicalParams
 
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:
         super().__init__(env, params, seed)
-        p: HierarchicalParams = self.params  # type: ignore[assignment]
+        p = self.params
         self.gs = group_structure(env)
         z = env.groups
         pz = 1 if p.share_params else z
@@ -140,7 +141,7 @@ class HierarchicalMethod(Method):
 
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
-        return not cls.parse_params(params).share_params  # type: ignore[attr-defined]
+        return not cls.parse_params(params).share_params  # type: ignore[attr-defined]  # Params is HierarchicalParams
 
     @classmethod
     def stack_view(cls, methods: Sequence[Method]) -> HierarchicalMethod:
@@ -150,7 +151,7 @@ class HierarchicalMethod(Method):
         first = methods[0]
         if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
             raise ValueError("stack_view: the methods must differ only in their seed")
-        if first.params.share_params:  # type: ignore[attr-defined]
+        if first.params.share_params:  # type: ignore[attr-defined]  # every m is cls: checked above
             raise NotImplementedError("hierarchical: seed stacking needs per-group parameters")
         rng = torch.get_rng_state()  # building the view must not move the global stream
         view = cls(first.env, first.params.model_dump(), seed=first.seed)
@@ -169,7 +170,7 @@ class HierarchicalMethod(Method):
                 for key, param in getattr(self, name).named_parameters():
                     stacked = torch.stack([ps[key] for ps in per_seed], dim=1)  # (Z, S, ...)
                     param.data = stacked.reshape(-1, *stacked.shape[2:])
-        self._decoders = [(m.predictor, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]
+        self._decoders = [(m.predictor, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]  # stack_view's
 
     def modules(self) -> dict[str, torch.nn.Module | torch.optim.Optimizer]:
         return {
@@ -180,7 +181,7 @@ class HierarchicalMethod(Method):
 
     # ------------------------------------------------------------- controller
     def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> Controller:
-        p: HierarchicalParams = self.params  # type: ignore[assignment]
+        p = self.params
         core = batch.core
         ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
         if choice.mode.greedy and p.resample_on_fallback:  # derived from the batch seed, no draw from its rng
@@ -208,7 +209,7 @@ class HierarchicalMethod(Method):
         return ctrl
 
     def decide(self, batch: EpisodeBatch, state: Controller, choice: ActionChoice) -> Decision:
-        p: HierarchicalParams = self.params  # type: ignore[assignment]
+        p = self.params
         core, gs = batch.core, self.gs
         state.running = ~core.ended
         # Channel and predictor: S_t^z, A_t^{z',z} -> S-hat_t^z.
@@ -267,7 +268,7 @@ class HierarchicalMethod(Method):
         """M-hat (B, Z, K, n, D) (eq:interaction_state_estimate): received messages on delivered
         links; on lost links the GRU prediction (paper), the ground truth (``messages="oracle"``,
         an upper bound for any predictor) or the last received message (``"last"``)."""
-        mode = self.params.messages  # type: ignore[attr-defined]
+        mode = self.params.messages
         if mode == "predicted":
             with torch.no_grad():
                 return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs, self._decoders)
@@ -282,7 +283,7 @@ class HierarchicalMethod(Method):
         A drawn r is held for ``ref_hold`` steps (paper: 1). A probe subclass may impose r
         (a fixed or uniform r is not mu's decision: return False for it)."""
         z = self.env.groups
-        hold = self.params.ref_hold  # type: ignore[attr-defined]
+        hold = self.params.ref_hold
         if state.ref is not None and state.t % hold != 0:
             return state.ref, np.zeros((z, 1), bool)
         return None, np.ones((z, 1), bool)
@@ -332,7 +333,7 @@ class HierarchicalMethod(Method):
             again = self.filter(pos[fb], occ[fb], ctl[fb], prop[fb], lp[fb], blocked[fb])
             res.actions[fb], res.fallback[fb] = again.actions, again.fallback
             res.examined[fb] += again.examined
-        if self.params.fallback == "per_robot" and res.fallback.any():  # type: ignore[attr-defined]
+        if self.params.fallback == "per_robot" and res.fallback.any():
             fb = np.flatnonzero(res.fallback)
             res.actions[fb] = offenders_wait(self.layout.next_cell, self.layout.move_valid, pos[fb],
                                              occ[fb], ctl[fb], prop[fb], blocked[fb])
@@ -354,7 +355,7 @@ class HierarchicalMethod(Method):
     # ---------------------------------------------------------------- update
     def learner(self) -> Learner:
         """The networks, optimizers and sizes the updates (training.py) read and step."""
-        return Learner(self.params, self.gs, self.env.horizon, self.env.n_robots,  # type: ignore[arg-type]
+        return Learner(self.params, self.gs, self.env.horizon, self.env.n_robots,
                        self.reference, self.local, self.predictor, self.critic,
                        self.opt_policy, self.opt_critic, self.opt_predictor)
 
@@ -362,7 +363,7 @@ class HierarchicalMethod(Method):
         assert state.buffer is not None
         learner = self.learner()
         losses = policy_update(learner, state.buffer)
-        if self.params.messages == "predicted":  # type: ignore[attr-defined]  # else unused
+        if self.params.messages == "predicted":  # else unused
             losses.update(predictor_update(learner, state.buffer))
         else:
             losses["predictor_loss"] = float("nan")
