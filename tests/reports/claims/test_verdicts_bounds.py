@@ -30,8 +30,10 @@ def test_check_below__direction_numbers_and_its_contradiction_level():
     v, nums, test = check_below(np.array([0.01, 0.02, 0.03]), 0.07, "fallback rate")
     assert v == SUPPORTED
     assert nums.startswith("fallback rate 2% [95% CI 0%, 4.48%] vs 7%; one-sided p = ")  # t: -0.484%, 4.48%
-    assert "r 83.3% [95% CI 31.6%, 100%] vs 99.5%" in check_below(np.array([0.6, 0.9, 1.0]), 0.995, "r")[1]  # t: .., 135%
-    assert "[95% CI -0.00484, 0.0448] vs 0.07" in check_below(np.array([0.01, 0.02, 0.03]), 0.07, "x", pct=False)[1]
+    near_one = check_below(np.array([0.6, 0.9, 1.0]), 0.995, "r")[1]
+    assert "r 83.3% [95% CI 31.6%, 100%] vs 99.5%" in near_one  # t: 31.6%, 135%
+    not_a_rate = check_below(np.array([0.01, 0.02, 0.03]), 0.07, "x", pct=False)[1]
+    assert "[95% CI -0.00484, 0.0448] vs 0.07" in not_a_rate  # pct=False: the t interval as it is
     assert test == "one-sample t over 3 seeds against 7%"
     assert check_below(np.array([0.07, 0.08, 0.09]), 0.03, "x")[0] == CONTRADICTED
     assert check_below(np.array([0.0, 0.05, 0.1]), 0.05, "x")[0] == INCONCLUSIVE
