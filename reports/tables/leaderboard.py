@@ -309,7 +309,7 @@ def profile_figure(evals: pd.DataFrame) -> Built:
     mats, cfgs, used = score_matrices(evals, mode) if len(evals) else ({}, [], {})
     taus = np.linspace(0.0, 1.0, 101)
     with paper_style():
-        fig = new_figure(2.2)
+        fig = new_figure(2.9)
         ax = fig.add_subplot()
         if not mats:
             placeholder(ax, "no configuration covered by every method")
@@ -319,7 +319,8 @@ def profile_figure(evals: pd.DataFrame) -> Built:
                     label=method_label(m))
         ax.set_xlabel(r"success rate $\tau$")
         ax.set_ylabel(r"fraction of runs with success $> \tau$")
-        ax.legend(frameon=False)
+        handles, labels = ax.get_legend_handles_labels()  # below the axes: curves run through every corner
+        fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 2), frameon=False)
     caption = (f"Performance profiles ({mode} execution; planners in their own mode): the fraction of each "
                f"method's (seed, configuration) runs with success above tau, over the {len(cfgs)} "
                f"configurations every method covers (seeds per method: "
