@@ -25,13 +25,13 @@ from reports.figures.plotting import (
     Built,
     choose,
     fmt_list,
-    label_order,
     method_color,
     method_label,
     method_style,
     new_figure,
     paper_style,
     placeholder,
+    ranked_legend,
     shades,
     thousands,
 )
@@ -148,7 +148,6 @@ def fig1_training(train: pd.DataFrame) -> Built:
             top, bottom = fig, None
         axes_a = list(top.subplots(1, ncol, squeeze=False)[0])
         with_data = []
-        handles: dict[str, object] = {}
         for k, ax in enumerate(axes_a):
             if k >= len(a_ns):
                 placeholder(ax, f"no training data\nat p = {ptxt}")
@@ -170,14 +169,12 @@ def fig1_training(train: pd.DataFrame) -> Built:
             ax.set_title(f"N = {n}")
             _episode_axis(ax, 3)
             ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
-            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                handles.setdefault(lab, h)
         own_y = fit_ylims(with_data) and len(with_data) > 1
         axes_a[0].set_ylabel("team return")
         top.supxlabel("training episode", fontsize=FONT_PT)
+        handles, order = ranked_legend(axes_a)
         if handles:
-            order = sorted(handles, key=label_order)
-            top.legend([handles[k] for k in order], order, loc="outside upper center",
+            top.legend(handles, order, loc="outside upper center",
                        ncol=len(handles), frameon=False, handlelength=2.5, columnspacing=1.0)
         if bottom is not None:
             axes_a[0].annotate("(a)", (0.0, 1.0), xycoords="axes fraction", xytext=(-18, 4),

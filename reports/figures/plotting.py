@@ -88,6 +88,17 @@ def label_order(label: str) -> int:
     return _ranks().get(label, UNRANKED)
 
 
+
+def ranked_legend(axes: Iterable[Axes]) -> tuple[list[Any], list[str]]:
+    """(handles, labels) of every labelled artist of ``axes``, each label once (its first
+    handle), in ``label_order`` (ties: first appearance)."""
+    handles: dict[str, Any] = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(lab, h)
+    labels = sorted(handles, key=label_order)
+    return [handles[lab] for lab in labels], labels
+
 @lru_cache(maxsize=1)
 def _ranks() -> dict[str, int]:
     ranks: dict[str, int] = {}

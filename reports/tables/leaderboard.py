@@ -27,7 +27,6 @@ how many; per-configuration rows use every seed.
 from __future__ import annotations
 
 from itertools import permutations
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -44,6 +43,7 @@ from reports.figures.plotting import (
     new_figure,
     paper_style,
     placeholder,
+    ranked_legend,
 )
 from reports.stats import mean_ci
 
@@ -285,13 +285,8 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")
                 if j == 0:
                     ax.set_ylabel("success rate")
-        legend: dict[str, Any] = {}  # label -> handle, every method of any panel once
-        for ax in axes.flat:
-            for h, lab in zip(*ax.get_legend_handles_labels(), strict=True):
-                legend.setdefault(lab, h)
-        labels = sorted(legend, key=lambda lab: (label_order(lab), lab))
-        fig.legend([legend[lab] for lab in labels], labels, loc="outside lower center", ncol=min(len(labels), 4),
-                   frameon=False)
+        handles, labels = ranked_legend(axes.flat)  # every method of any panel once
+        fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4), frameon=False)
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
