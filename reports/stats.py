@@ -120,6 +120,15 @@ def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[floa
     return float(a.mean()), t.lo, t.hi
 
 
+def cut_interval(lo: float, hi: float, floor: float = 0.0, ceil: float = 1.0) -> tuple[float, float]:
+    """An interval ``[lo, hi]`` cut at the values its quantity can take (a rate: [0, 1]).
+
+    A t interval over a few seeds can reach past them (a success rate's CI below 0%);
+    cutting keeps its coverage (the true mean lies inside the range). Only what is shown
+    changes: tests use the t statistics as they are (docs/decisions/0035)."""
+    return float(np.clip(lo, floor, ceil)), float(np.clip(hi, floor, ceil))
+
+
 def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Difference of mean curves a - b with one-sided simultaneous bounds (Bonferroni).

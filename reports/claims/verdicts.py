@@ -30,6 +30,7 @@ from reports.stats import (
     TTest,
     convergence_test,
     curve_shape,
+    cut_interval,
     probability_of_improvement,
     quantile_curve,
     simultaneous_band,
@@ -204,9 +205,8 @@ def check_corrections(m: np.ndarray, bound: float = MAX_CORRECTION,
     t = t_test([m], [1.0], null=bound)
     verdict = (SUPPORTED if t.p_less < TEST_ALPHA  # >= 3 finite values: t is always valid
                else CONTRADICTED if t.p_greater < contra_alpha else INCONCLUSIVE)
-    # The interval is shown cut at the rate's range [0, 1] (as every rate's CI in the
-    # report; coverage is kept); the test above uses the t statistics as they are.
-    nums = (f"correction rate {m.mean():.2%} [95% CI {max(t.lo, 0.0):.2%}, {min(t.hi, 1.0):.2%}], "
+    lo, hi = cut_interval(t.lo, t.hi)  # shown within [0, 1]; the test above is unchanged
+    nums = (f"correction rate {m.mean():.2%} [95% CI {lo:.2%}, {hi:.2%}], "
             f"one-sided p = {_g(t.p_less)}")
     return (verdict, nums,
             f"one-sample t over {m.size} seeds against {bound:.0%}{contra_note(contra_alpha)}")

@@ -29,7 +29,7 @@ from reports.claims.verdicts import (
     decide,
     seeds_msg,
 )
-from reports.stats import t_test
+from reports.stats import cut_interval, t_test
 
 NEAR_TOL = 0.5  # "as in Table I": within +-50% of the paper's printed value
 
@@ -51,9 +51,7 @@ def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = TE
         return NOT_ENOUGH, seeds_msg(m.size), "-"
     t = t_test([-m], [1.0], null=-bound)  # contrast -mean - (-bound) > 0: mean below the bound
     f = (lambda x: f"{_g(100 * x)}%") if pct else _g
-    lo, hi = -t.hi, -t.lo
-    if pct:  # a rate's interval stops at what a rate can be (decisions/0035); the test is unchanged
-        lo, hi = max(lo, 0.0), min(hi, 1.0)
+    lo, hi = cut_interval(-t.hi, -t.lo) if pct else (-t.hi, -t.lo)  # a rate's CI stops at [0, 1]
     nums = (f"{what} {f(m.mean())} [95% CI {f(lo)}, {f(hi)}] vs {f(bound)}; one-sided p = "
             f"{_g(t.p_greater)}")
     return (decide(t, contra_alpha=contra_alpha), nums,

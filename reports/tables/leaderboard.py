@@ -45,7 +45,7 @@ from reports.figures.plotting import (
     placeholder,
     ranked_legend,
 )
-from reports.stats import mean_ci
+from reports.stats import cut_interval, mean_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
@@ -71,7 +71,7 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
     rows = []
     for (n, p, mode, method), g in scores.groupby(["n_robots", "loss_p", "execution", "method"], sort=True):
         mean, lo, hi = mean_ci(g["success_rate"].to_numpy(), LEVEL)
-        lo, hi = (float(np.clip(v, 0.0, 1.0)) if np.isfinite(v) else v for v in (lo, hi))  # a rate
+        lo, hi = cut_interval(lo, hi)  # a rate (NaN with one seed stays NaN)
         rows.append({"n_robots": int(n), "loss_p": float(p), "execution": mode, "method": method,
                      "label": method_label(method), "seeds": len(g), "success": mean,
                      "success_lo": lo, "success_hi": hi})

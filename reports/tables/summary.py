@@ -16,7 +16,7 @@ import pandas as pd
 
 from reports.data.store import execution_order, fmt_pct
 from reports.data.variants import cell_variants, variant_suffix
-from reports.stats import bootstrap_ci, iqm, mean_ci
+from reports.stats import bootstrap_ci, cut_interval, iqm, mean_ci
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
@@ -35,7 +35,7 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
     floor, ceil = metric_range(metric)
     if len(per_seed) >= 2:
         mean, lo, hi = mean_ci(per_seed.to_numpy())
-        return mean, float(np.clip(lo, floor, ceil)), float(np.clip(hi, floor, ceil)), "seeds"
+        return (mean, *cut_interval(lo, hi, floor, ceil), "seeds")
     vals = rows[metric].to_numpy(dtype=np.float64)
     vals = vals[np.isfinite(vals)]
     if vals.size == 0:
@@ -46,8 +46,7 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
 
 def metric_range(metric: str) -> tuple[float, float]:
     """The values ``metric`` can take: [0, 1] for a rate, [0, inf) for counts and payloads,
-    else unbounded. A t interval over a few seeds can reach past them (a success rate's CI
-    below 0%); it is cut at the range, which keeps its coverage (the true mean is inside)."""
+    else unbounded; a CI is shown cut at them (``reports.stats.cut_interval``)."""
     if metric.endswith("_rate"):
         return 0.0, 1.0
     if metric.startswith(("payload", "mean_candidates", "predictor_error")):

@@ -18,6 +18,7 @@ from reports.stats import (
     bootstrap_ci,
     convergence_test,
     curve_shape,
+    cut_interval,
     iqm,
     mean_ci,
     percentile_curve,
@@ -317,6 +318,15 @@ def test_t_test__rate_under_the_null_and_power_by_simulation():
     assert null <= 0.05 + 0.0138
     assert null > 0.02  # not vacuous either
     assert power > 0.6
+
+
+def test_cut_interval__stops_a_rate_at_0_and_1_and_keeps_what_is_inside():
+    assert cut_interval(-0.2, 0.4) == (0.0, 0.4)
+    assert cut_interval(0.7, 1.3) == (0.7, 1.0)
+    assert cut_interval(0.1, 0.9) == (0.1, 0.9)
+    assert cut_interval(-5.0, 3.0, 0.0, float("inf")) == (0.0, 3.0)  # a payload: [0, inf)
+    lo, hi = cut_interval(float("nan"), float("nan"))
+    assert np.isnan(lo) and np.isnan(hi)  # one seed: no interval to cut
 
 
 def test_mean_ci__covers_the_mean_95_percent_at_three_seeds():
