@@ -56,6 +56,7 @@ from reports.tables.leaderboard import (
     safety_frame,
     success_figure,
 )
+from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown
 from reports.tables.progress import progress_markdown
 from reports.tables.success_table import success_markdown
 from reports.tables.summary import (
@@ -181,8 +182,11 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "leaderboard_aggregate.csv", iqm.to_csv(index=False))
     write_text(out / "leaderboard_improvement.csv", poi.to_csv(index=False))
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
+    leaders = leaders_frame(evals)
+    write_text(out / "leaders.md", leaders_markdown(leaders))
+    write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
-             "safety_all_methods.csv"]
+             "safety_all_methods.csv", "leaders.md", "leaders.csv"]
     captions = []
     for stem, built in (("success_vs_n", success_figure(board, "n_robots")),
                         ("success_vs_p", success_figure(board, "loss_p")),
@@ -193,7 +197,10 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     return Entry("Leaderboard: every method of the run", tuple(files),
                  tables=(("Success rate per configuration and execution mode: mean over seeds [95% CI over seeds] "
                           "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
-                          "columns of every method: leaderboard.md.", leaderboard_display(board)),),
+                          "columns of every method: leaderboard.md.", leaderboard_display(board)),
+                         ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
+                          "the runner-up (the margin's 95% Welch CI over seeds excludes 0, or not; pointwise). "
+                          "Counts and the distance to the planners: leaders.md.", leaders_display(leaders))),
                  image="success_vs_n.png", caption=captions[0])
 
 

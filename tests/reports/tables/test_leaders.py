@@ -1,0 +1,82 @@
+"""Who leads where (reports/tables/leaders.py): leader, runner-up, margin with its Welch CI,
+the planner kept apart, and the page's wording, on scores worked out by hand."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats as sps
+
+from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown
+
+
+def _evals(rows: list[tuple[str, int, float, str, int, float]]) -> pd.DataFrame:
+    """Eval rows (method, N, p, execution, seed, success), one episode each."""
+    return pd.DataFrame([dict(method=m, n_robots=n, loss_p=p, execution=e, seed=s, success_rate=v, episode=0)
+                         for m, n, p, e, s, v in rows],
+                        columns=["method", "n_robots", "loss_p", "execution", "seed", "success_rate", "episode"])
+
+
+def _seeds(method: str, n: int, p: float, mode: str, values: tuple[float, ...]) -> list:
+    return [(method, n, p, mode, s, v) for s, v in enumerate(values)]
+
+
+A, B, C = (0.8, 0.9, 1.0), (0.2, 0.3, 0.4), (0.5, 0.6, 0.7)
+
+
+def test_leaders__leader_runner_up_and_the_welch_margin() -> None:
+    ev = _evals(_seeds("b", 4, 0.2, "argmax", B) + _seeds("a", 4, 0.2, "argmax", A)
+                + _seeds("c", 4, 0.2, "argmax", C) + _seeds("pibt", 4, 0.2, "planner", (1.0, 1.0, 1.0)))
+    row = leaders_frame(ev).iloc[0]
+    assert (row["leader"], row["runner_up"], row["methods"]) == ("a", "c", 3)  # the planner is not in the race
+    assert row["leader_success"] == pytest.approx(0.9) and row["runner_up_success"] == pytest.approx(0.6)
+    assert row["margin"] == pytest.approx(0.3)
+    # equal variances 0.01 at 3 seeds each: se = sqrt(2 * 0.01 / 3), df = 4
+    half = sps.t.ppf(0.975, 4) * np.sqrt(2 * 0.01 / 3)
+    assert (row["margin_lo"], row["margin_hi"]) == (pytest.approx(0.3 - half), pytest.approx(0.3 + half))
+    # the gap to the planner: 0.9 - 1.0 with the leader's own t interval (the planner has no variance)
+    half_a = sps.t.ppf(0.975, 2) * 0.1 / np.sqrt(3)
+    assert row["planner"] == "pibt" and row["gap_to_planner"] == pytest.approx(-0.1)
+    assert (row["gap_lo"], row["gap_hi"]) == (pytest.approx(-0.1 - half_a), pytest.approx(min(1.0, -0.1 + half_a)))
+
+
+def test_leaders__one_learned_method_has_no_runner_up_and_each_mode_is_its_own_race() -> None:
+    ev = _evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("a", 4, 0.2, "sample", B)
+                + _seeds("b", 4, 0.2, "sample", C) + _seeds("a", 8, 0.4, "argmax", B))
+    f = leaders_frame(ev).set_index(["n_robots", "execution"])
+    assert f.loc[(4, "argmax"), "runner_up"] == "" and np.isnan(f.loc[(4, "argmax"), "margin"])
+    assert f.loc[(4, "sample"), "leader"] == "b"  # in sample mode b beats a
+    assert f.loc[(8, "argmax"), "leader"] == "a" and f.loc[(8, "argmax"), "planner"] == ""
+    assert len(f) == 3  # no row for (8, sample): nothing ran there
+
+
+def test_leaders__a_margin_is_cut_at_plus_minus_one_and_an_unseparated_lead_is_written_approx() -> None:
+    wide = (0.0, 1.0, 0.05)  # a noisy leader: its margin's t interval reaches past +-100 pp
+    ev = _evals(_seeds("a", 4, 0.2, "argmax", wide) + _seeds("b", 4, 0.2, "argmax", (0.3, 0.3, 0.3)))
+    row = leaders_frame(ev).iloc[0]
+    assert row["leader"] == "a" and row["margin_lo"] == -1.0 and row["margin_hi"] == 1.0
+    page = leaders_markdown(leaders_frame(ev))
+    assert "a 35.0% ≈ b 30.0% (+5.0 pp [-100.0, +100.0])" in page
+    assert "a leads 1 of 1 configurations with two or more learned methods (0 by a margin whose CI excludes 0)" in page
+
+
+def test_leaders__the_page_says_separated_leads_and_the_distance_to_the_planner() -> None:
+    ev = _evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("b", 4, 0.2, "argmax", B)
+                + _seeds("a", 4, 0.6, "argmax", B) + _seeds("pibt", 4, 0.2, "planner", (1.0, 1.0, 1.0))
+                + _seeds("pibt", 4, 0.6, "planner", (1.0, 1.0, 1.0)))
+    page = leaders_markdown(leaders_frame(ev))
+    assert "| 4 | a 90.0% > b 30.0% (+60.0 pp [" in page
+    assert "| a 30.0% (only learned method) |" in page
+    assert "1 configurations have one learned method" in page
+    # gaps -0.1 (CI below 0 at 3 seeds? 0.9 +- 0.248: no) and -0.7 (yes)
+    assert "(PIBT: 100.0%) is -70.0 to -10.0 pp; its CI lies below 0 at 1 and above 0 at 0 of the 2" in page
+    table = leaders_display(leaders_frame(ev))
+    assert list(table.columns) == ["execution", "N", "p = 0.2", "p = 0.6"]
+    assert table.loc[0, "p = 0.2"] == "a > b (+60.0 pp)"  # the index page's narrow cell
+    assert table.loc[0, "p = 0.6"] == "a (only learned method)"
+
+
+def test_leaders__an_empty_run_has_an_empty_page() -> None:
+    empty = _evals([])
+    assert leaders_frame(empty).empty and leaders_display(leaders_frame(empty)).empty
+    assert "No learned method was evaluated yet." in leaders_markdown(leaders_frame(empty))
