@@ -1,4 +1,5 @@
-"""Who leads where: per configuration and learned execution mode, the leading learned method.
+"""Who leads where: per configuration and learned execution mode, the leading learned method
+(docs/decisions/0194).
 
 A pure function of the per-seed success scores (``leaderboard.seed_scores``), the seed as
 the unit, as the rest of the leaderboard:
