@@ -29,12 +29,11 @@ from reports.tables.leaderboard import PLANNER, seed_scores
 COLUMNS = ["n_robots", "loss_p", "execution", "methods", "leader", "leader_success", "runner_up",
            "runner_up_success", "margin", "margin_lo", "margin_hi", "planner", "planner_success",
            "gap_to_planner", "gap_lo", "gap_hi"]
-NAN = float("nan")
 
 
 def _ranked(group: pd.DataFrame) -> list[tuple[str, np.ndarray]]:
     """(method, per-seed scores) by decreasing mean success, ties in legend order."""
-    per = [(m, g["success_rate"].to_numpy(dtype=float)) for m, g in group.groupby("method", sort=True)]
+    per = [(m, g["success_rate"].to_numpy()) for m, g in group.groupby("method")]
     return sorted(per, key=lambda t: (-float(np.nanmean(t[1])), label_order(method_label(t[0])), t[0]))
 
 
@@ -45,7 +44,7 @@ def leaders_frame(evals: pd.DataFrame) -> pd.DataFrame:
     scores = seed_scores(evals)
     rows = []
     modes = [m for m in execution_order(scores["execution"]) if m != PLANNER]
-    for (n, p), cfg in scores.groupby(["n_robots", "loss_p"], sort=True):
+    for (n, p), cfg in scores.groupby(["n_robots", "loss_p"]):
         planners = _ranked(cfg[cfg["execution"] == PLANNER])
         for mode in modes:
             ranked = _ranked(cfg[cfg["execution"] == mode])
@@ -53,9 +52,7 @@ def leaders_frame(evals: pd.DataFrame) -> pd.DataFrame:
                 continue
             (lead, a), rest = ranked[0], ranked[1:]
             row = {"n_robots": int(n), "loss_p": float(p), "execution": mode, "methods": len(ranked),
-                   "leader": lead, "leader_success": float(np.nanmean(a)), "runner_up": "",
-                   "runner_up_success": NAN, "margin": NAN, "margin_lo": NAN, "margin_hi": NAN,
-                   "planner": "", "planner_success": NAN, "gap_to_planner": NAN, "gap_lo": NAN, "gap_hi": NAN}
+                   "leader": lead, "leader_success": float(np.nanmean(a)), "runner_up": "", "planner": ""}
             if rest:
                 second, b = rest[0]
                 margin, lo, hi = _diff(a, b)
@@ -67,21 +64,21 @@ def leaders_frame(evals: pd.DataFrame) -> pd.DataFrame:
                 row.update(planner=best, planner_success=float(np.nanmean(c)),
                            gap_to_planner=gap, gap_lo=lo, gap_hi=hi)
             rows.append(row)
-    return pd.DataFrame(rows, columns=COLUMNS)
+    return pd.DataFrame(rows, columns=COLUMNS)  # what a row leaves out is NaN
 
 
 def _diff(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
     """mean(a) - mean(b) with its 95% Welch t CI over seeds, cut at [-1, 1] (a difference
     of two rates; ``cut_interval``)."""
     t = t_test([a, b], [1.0, -1.0])
-    return (float(np.nanmean(a) - np.nanmean(b)), *cut_interval(t.lo, t.hi, -1.0, 1.0))
+    return (float(np.nanmean(a) - np.nanmean(b)), *cut_interval(t.lo, t.hi, floor=-1.0))
 
 
 def _pp(v: float) -> str:
     return f"{100 * v:+.1f}"
 
 
-def _cell(r: pd.Series, full: bool = True) -> str:
+def _cell(r: pd.Series, full: bool) -> str:
     """``Leader 84.3% > Runner-up 48.5% (+35.8 pp [+6.1, +65.5])``, or without the rates and
     the interval (``full=False``: the index page's narrow cells); ``Leader 61.4% (only
     learned method)``."""
@@ -102,12 +99,16 @@ def leaders_display(frame: pd.DataFrame, full: bool = False) -> pd.DataFrame:
     if frame.empty:
         return pd.DataFrame()
     shown = frame.assign(text=frame.apply(_cell, axis=1, full=full), p=frame["loss_p"].map(lambda p: f"p = {fmt_p(p)}"))
-    wide = shown.pivot_table(index=["execution", "n_robots"], columns="p", values="text", aggfunc="first",
-                             sort=False).reset_index()
+    wide = shown.pivot_table(index=["execution", "n_robots"], columns="p", values="text", aggfunc="first").reset_index()
     order = {m: i for i, m in enumerate(execution_order(frame["execution"]))}
-    wide = wide.sort_values(["execution", "n_robots"], key=lambda s: s.map(order) if s.name == "execution" else s)
+    wide = wide.assign(_m=wide["execution"].map(order)).sort_values(["_m", "n_robots"]).drop(columns="_m")
     ps = [f"p = {fmt_p(p)}" for p in sorted(frame["loss_p"].unique())]
     return wide[["execution", "n_robots", *ps]].rename(columns={"n_robots": "N"}).fillna("").reset_index(drop=True)
+
+
+def _n(k: int, noun: str) -> str:
+    """``1 configuration``, ``2 configurations``."""
+    return f"{k} {noun}{'' if k == 1 else 's'}"
 
 
 def _counts(part: pd.DataFrame) -> str:
@@ -116,10 +117,11 @@ def _counts(part: pd.DataFrame) -> str:
     contested = part[part["runner_up"] != ""]
     out = []
     for m, g in sorted(contested.groupby("leader"), key=lambda t: (-len(t[1]), label_order(method_label(t[0])))):
-        out.append(f"{method_label(m)} leads {len(g)} of {len(contested)} configurations with two or more "
+        out.append(f"{method_label(m)} leads {len(g)} of {_n(len(contested), 'configuration')} with two or more "
                    f"learned methods ({int((g['margin_lo'] > 0).sum())} by a margin whose CI excludes 0)")
     if len(contested) < len(part):
-        out.append(f"{len(part) - len(contested)} configurations have one learned method")
+        alone = len(part) - len(contested)
+        out.append(f"{_n(alone, 'configuration')} {'has' if alone == 1 else 'have'} one learned method")
     return "; ".join(out)
 
 
@@ -130,11 +132,14 @@ def _planner_line(part: pd.DataFrame) -> str:
         return "no planner ran at these configurations."
     labels = ", ".join(sorted({method_label(m) for m in have["planner"]}))
     below, above = int((have["gap_hi"] < 0).sum()), int((have["gap_lo"] > 0).sum())
-    lo, hi = (f"{100 * v:.1f}%" for v in (have["planner_success"].min(), have["planner_success"].max()))
-    return (f"the leading learned method's success minus the best planner's ({labels}: {lo}"
-            f"{'' if lo == hi else f' to {hi}'}) is {_pp(have['gap_to_planner'].min())} to "
-            f"{_pp(have['gap_to_planner'].max())} pp; its CI lies below 0 at {below} and above 0 at {above} "
-            f"of the {len(have)} configurations with a planner.")
+    def span(values: pd.Series, fmt) -> str:  # "a" or "a to b"
+        lo, hi = fmt(values.min()), fmt(values.max())
+        return lo if lo == hi else f"{lo} to {hi}"
+
+    return (f"the leading learned method's success minus the best planner's ({labels}: "
+            f"{span(have['planner_success'], lambda v: f'{100 * v:.1f}%')}) is "
+            f"{span(have['gap_to_planner'], _pp)} pp; its CI lies below 0 at {below} and above 0 at {above} "
+            f"of the {_n(len(have), 'configuration')} with a planner.")
 
 
 def leaders_markdown(frame: pd.DataFrame) -> str:

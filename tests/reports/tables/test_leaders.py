@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown
+from reports.tables.leaders import COLUMNS, leaders_display, leaders_frame, leaders_markdown
 
 
 def _evals(rows: list[tuple[str, int, float, str, int, float]]) -> pd.DataFrame:
@@ -22,11 +22,12 @@ def _seeds(method: str, n: int, p: float, mode: str, values: tuple[float, ...]) 
 
 
 A, B, C = (0.8, 0.9, 1.0), (0.2, 0.3, 0.4), (0.5, 0.6, 0.7)
+ONE = (1.0, 1.0, 1.0)
 
 
 def test_leaders__leader_runner_up_and_the_welch_margin() -> None:
     ev = _evals(_seeds("b", 4, 0.2, "argmax", B) + _seeds("a", 4, 0.2, "argmax", A)
-                + _seeds("c", 4, 0.2, "argmax", C) + _seeds("pibt", 4, 0.2, "planner", (1.0, 1.0, 1.0)))
+                + _seeds("c", 4, 0.2, "argmax", C) + _seeds("pibt", 4, 0.2, "planner", ONE))
     row = leaders_frame(ev).iloc[0]
     assert (row["leader"], row["runner_up"], row["methods"]) == ("a", "c", 3)  # the planner is not in the race
     assert row["leader_success"] == pytest.approx(0.9) and row["runner_up_success"] == pytest.approx(0.6)
@@ -48,6 +49,8 @@ def test_leaders__one_learned_method_has_no_runner_up_and_each_mode_is_its_own_r
     assert f.loc[(4, "sample"), "leader"] == "b"  # in sample mode b beats a
     assert f.loc[(8, "argmax"), "leader"] == "a" and f.loc[(8, "argmax"), "planner"] == ""
     assert len(f) == 3  # no row for (8, sample): nothing ran there
+    page = leaders_markdown(leaders_frame(ev))
+    assert "2 configurations have one learned method. Against the planners: no planner ran at these" in page
 
 
 def test_leaders__a_margin_is_cut_at_plus_minus_one_and_an_unseparated_lead_is_written_approx() -> None:
@@ -57,19 +60,13 @@ def test_leaders__a_margin_is_cut_at_plus_minus_one_and_an_unseparated_lead_is_w
     assert row["leader"] == "a" and row["margin_lo"] == -1.0 and row["margin_hi"] == 1.0
     page = leaders_markdown(leaders_frame(ev))
     assert "a 35.0% ≈ b 30.0% (+5.0 pp [-100.0, +100.0])" in page
-    assert "a leads 1 of 1 configurations with two or more learned methods (0 by a margin whose CI excludes 0)" in page
+    assert "a leads 1 of 1 configuration with two or more learned methods (0 by a margin whose CI excludes 0)" in page
 
 
-def test_leaders__the_page_says_separated_leads_and_the_distance_to_the_planner() -> None:
+def test_leaders__the_index_page_table_has_one_narrow_cell_per_configuration() -> None:
     ev = _evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("b", 4, 0.2, "argmax", B)
-                + _seeds("a", 4, 0.6, "argmax", B) + _seeds("pibt", 4, 0.2, "planner", (1.0, 1.0, 1.0))
-                + _seeds("pibt", 4, 0.6, "planner", (1.0, 1.0, 1.0)))
-    page = leaders_markdown(leaders_frame(ev))
-    assert "| 4 | a 90.0% > b 30.0% (+60.0 pp [" in page
-    assert "| a 30.0% (only learned method) |" in page
-    assert "1 configurations have one learned method" in page
-    # gaps -0.1 (CI below 0 at 3 seeds? 0.9 +- 0.248: no) and -0.7 (yes)
-    assert "(PIBT: 100.0%) is -70.0 to -10.0 pp; its CI lies below 0 at 1 and above 0 at 0 of the 2" in page
+                + _seeds("a", 4, 0.6, "argmax", B) + _seeds("pibt", 4, 0.2, "planner", ONE)
+                + _seeds("pibt", 4, 0.6, "planner", ONE))
     table = leaders_display(leaders_frame(ev))
     assert list(table.columns) == ["execution", "N", "p = 0.2", "p = 0.6"]
     assert table.loc[0, "p = 0.2"] == "a > b (+60.0 pp)"  # the index page's narrow cell
@@ -79,4 +76,83 @@ def test_leaders__the_page_says_separated_leads_and_the_distance_to_the_planner(
 def test_leaders__an_empty_run_has_an_empty_page() -> None:
     empty = _evals([])
     assert leaders_frame(empty).empty and leaders_display(leaders_frame(empty)).empty
-    assert "No learned method was evaluated yet." in leaders_markdown(leaders_frame(empty))
+    assert list(leaders_frame(empty).columns) == COLUMNS  # leaders.csv has its header even so
+    intro = PAGE.split("\n")[:4]  # title, blank, what the page says, blank
+    assert leaders_markdown(leaders_frame(empty)) == "\n".join([*intro, "No learned method was evaluated yet.", ""])
+
+
+# Every case on one page: separated and unseparated leads, a tie broken by name, a lone
+# learned method, a missing configuration, planners below, level with and above the leader.
+PAGE_EVALS = (_seeds("b", 4, 0.2, "argmax", B) + _seeds("a", 4, 0.2, "argmax", A)
+              + _seeds("a", 4, 0.2, "sample", B) + _seeds("b", 4, 0.2, "sample", C)
+              + _seeds("pibt", 4, 0.2, "planner", ONE)
+              + _seeds("a", 4, 0.6, "argmax", C) + _seeds("pibt", 4, 0.6, "planner", (0.2, 0.2, 0.2))
+              + _seeds("pibt", 8, 0.2, "planner", ONE) + _seeds("b", 8, 0.2, "argmax", ONE)
+              + _seeds("a", 8, 0.2, "argmax", ONE)
+              + _seeds("c", 8, 0.2, "sample", A) + _seeds("a", 8, 0.2, "sample", B)
+              + _seeds("c", 8, 0.6, "sample", A) + _seeds("a", 8, 0.6, "sample", B))
+# Worked out by hand: margins 0.6 +- t(4) sqrt(2 x 0.01 / 3) = +-0.227, 0.3 +- 0.227; gaps to
+# the planner -0.1 and +0.4 +- t(2) 0.1 / sqrt(3) = +-0.248; the ties at 1.0 have no variance.
+PAGE = "\n".join((
+    '# Who leads where',
+    '',
+    'Per configuration (team size N, loss probability p) and learned execution mode: the learned '
+    "method with the highest mean success over seeds, then the runner-up, and the leader's margin in "
+    'percentage points [95% Welch t CI over seeds]. ">" where that interval excludes 0, "≈" where it '
+    'does not. The leader is picked by its mean and the intervals are pointwise (not corrected for '
+    'the number of configurations): this describes the run, the calibrated verdicts are in claims.md.'
+    ' Planners have full information and are listed apart, as a ceiling.',
+    '',
+    '## argmax',
+    '',
+    '| N | p = 0.2 | p = 0.6 |',
+    '|---|---|---|',
+    '| 4 | a 90.0% > b 30.0% (+60.0 pp [+37.3, +82.7]) | a 60.0% (only learned method) |',
+    '| 8 | a 100.0% ≈ b 100.0% (+0.0 pp [+0.0, +0.0]) | — |',
+    '',
+    'a leads 2 of 2 configurations with two or more learned methods (1 by a margin whose CI excludes '
+    "0); 1 configuration has one learned method. Against the planners: the leading learned method's "
+    "success minus the best planner's (PIBT: 20.0% to 100.0%) is -10.0 to +40.0 pp; its CI lies below"
+    ' 0 at 0 and above 0 at 1 of the 3 configurations with a planner.',
+    '',
+    '## sample',
+    '',
+    '| N | p = 0.2 | p = 0.6 |',
+    '|---|---|---|',
+    '| 4 | b 60.0% > a 30.0% (+30.0 pp [+7.3, +52.7]) | — |',
+    '| 8 | c 90.0% > a 30.0% (+60.0 pp [+37.3, +82.7]) | c 90.0% > a 30.0% (+60.0 pp [+37.3, +82.7]) |',
+    '',
+    'c leads 2 of 3 configurations with two or more learned methods (2 by a margin whose CI excludes '
+    '0); b leads 1 of 3 configurations with two or more learned methods (1 by a margin whose CI '
+    "excludes 0). Against the planners: the leading learned method's success minus the best planner's"
+    ' (PIBT: 100.0%) is -40.0 to -10.0 pp; its CI lies below 0 at 1 and above 0 at 0 of the 2 '
+    'configurations with a planner.',
+    '',
+))
+
+
+def test_leaders__the_page_word_for_word() -> None:
+    assert leaders_markdown(leaders_frame(_evals(PAGE_EVALS))) == PAGE
+
+
+def test_leaders__rows_by_configuration_and_modes_in_report_order() -> None:
+    ev = _evals(_seeds("a", 8, 0.2, "sample@0.5", A) + _seeds("a", 4, 0.6, "sample@1.5", A)
+                + _seeds("a", 4, 0.2, "argmax", A) + _seeds("a", 4, 0.2, "sample@0.5", A))
+    f = leaders_frame(ev)
+    assert list(zip(f["n_robots"], f["loss_p"], f["execution"], strict=True)) == [
+        (4, 0.2, "argmax"), (4, 0.2, "sample@0.5"), (4, 0.6, "sample@1.5"), (8, 0.2, "sample@0.5")]
+    shown = leaders_display(f)  # sample@1.5 before sample@0.5 (decreasing T), not alphabetical
+    assert list(zip(shown["execution"], shown["N"], strict=True)) == [
+        ("argmax", 4), ("sample@1.5", 4), ("sample@0.5", 4), ("sample@0.5", 8)]
+    assert shown.loc[0, "p = 0.6"] == ""  # nothing ran there
+
+
+def test_leaders__ties_go_to_the_method_listed_first_and_so_do_equal_counts() -> None:
+    ev = _evals(_seeds("decentralized", 4, 0.2, "argmax", ONE) + _seeds("hierarchical", 4, 0.2, "argmax", ONE)
+                + _seeds("decentralized", 8, 0.2, "argmax", A) + _seeds("hierarchical", 8, 0.2, "argmax", B)
+                + _seeds("pibt", 4, 0.2, "planner", ONE) + _seeds("astar", 8, 0.2, "planner", ONE))
+    f = leaders_frame(ev)
+    assert list(f["leader"]) == ["hierarchical", "decentralized"]  # the paper's method is listed first
+    page = leaders_markdown(f)
+    assert page.index("Hierarchical (ours) leads 1 of 2") < page.index("Decentralized leads 1 of 2")
+    assert "the best planner's (PIBT, astar: 100.0%)" in page  # every planner named once
