@@ -1,8 +1,11 @@
 """The effective rates a run's done cells observed (bench/design/cost_calibration.py), per method,
-phase and N with their spread; ``--write`` stores them as the built-in rates of `bench
-grids` (bench/design/cost_rates.json). Run it on the reproduction whenever its state is committed:
+phase and N with their spread, and per method the worker-hours `bench grids` estimated for
+the done cells against what they took; ``--write`` stores the rates as the built-in rates of
+`bench grids` (bench/design/cost_rates.json). Run it on the reproduction whenever its state
+is committed:
 
     .venv/bin/python scripts/calibrate_costs.py reproduction/paper --write
+    .venv/bin/python scripts/calibrate_costs.py reproduction/full --stack-seeds 3 --exclude-run reproduction/paper
 """
 from __future__ import annotations
 
@@ -11,21 +14,32 @@ import json
 from pathlib import Path
 
 from bench.design import costs
-from bench.design.cost_calibration import observed_costs, rates_file
+from bench.design.cost_calibration import estimate_vs_realized, observed_costs, rates_file
+from bench.store.run_store import RunStore
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run", type=Path)
     ap.add_argument("--write", action="store_true", help=f"write {costs.RATES_FILE}")
+    ap.add_argument("--stack-seeds", type=int, default=1, help="the run's bench run --stack-seeds (for the estimate)")
+    ap.add_argument("--exclude-run", type=Path, help="leave out the cells of this run (copied in, trained elsewhere)")
     args = ap.parse_args()
-    observed = observed_costs(args.run)
+    observed = observed_costs(args.run)  # refuses a folder without cells.parquet
     for (method, n), g in observed.groupby(["method", "n_robots"]):
         for phase in ("train", "eval"):
             v = g[f"{phase}_rate"].dropna()
             if len(v):
                 print(f"{method} N={n} {phase}: {len(v)} cells, median {v.median():,.0f}, "
                       f"{v.min():,.0f}-{v.max():,.0f} agent-steps/s")
+    other = RunStore(args.exclude_run).read_cells() if args.exclude_run is not None else None
+    table = estimate_vs_realized(RunStore(args.run).read_cells(), args.stack_seeds,
+                                 exclude=() if other is None else other["cell_id"])
+    print("worker-hours of the done cells, estimated with the built-in rates (bench grids) and realized "
+          "(their wall_s):")
+    for r in table.itertuples(index=False):
+        print(f"  {r.method}: {r.cells} cells, estimated {r.estimated_h:.2f} h, realized {r.realized_h:.2f} h "
+              f"(x{r.ratio:.2f})")
     content = rates_file(observed, args.run.as_posix())
     if args.write:
         costs.RATES_FILE.write_text(json.dumps(content, indent=1) + "\n")

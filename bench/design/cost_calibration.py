@@ -15,6 +15,7 @@ other processes), as a user's run will.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,31 @@ def costs_of(cells: pd.DataFrame, train: pd.DataFrame) -> pd.DataFrame:
                          eval_rate=eval_steps / e if eval_steps and e > 0 else np.nan))
     return pd.DataFrame(rows, columns=["cell_id", "method", "n_robots", "train_s", "eval_s",
                                        "train_rate", "eval_rate"])
+
+
+def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates | None = None,
+                         exclude: Iterable[str] = ()) -> pd.DataFrame:
+    """Per method, over the done cells of a run's ``cells.parquet`` rows but ``exclude``
+    (e.g. cells copied in from another run): cells, the worker-hours ``bench grids``
+    estimated for them (``rates``, default the built-in ones; stacks as ``bench run
+    --stack-seeds stack_seeds`` forms them over all the run's cells) and the worker-hours
+    they took (the sum of their ``wall_s``: a stacked cell's is its share of the stack),
+    and realized / estimate; a last row ``all`` sums them."""
+    every = [Cell.model_validate_json(j) for j in cells["config_json"]]
+    stacks = dict(zip(cells["cell_id"], costs.stack_sizes(every, stack_seeds), strict=True))
+    skip = set(exclude)
+    rows = []
+    for r, cell in zip(cells.itertuples(index=False), every, strict=True):
+        if r.status == "done" and r.cell_id not in skip:
+            estimate = costs.cell_seconds(cell, rates, stacks[r.cell_id])
+            rows.append({"method": cell.method, "estimated_h": estimate / 3600, "realized_h": float(r.wall_s) / 3600})
+    frame = pd.DataFrame(rows, columns=["method", "estimated_h", "realized_h"])
+    out = frame.groupby("method", sort=True).agg(cells=("method", "size"), estimated_h=("estimated_h", "sum"),
+                                                 realized_h=("realized_h", "sum")).reset_index()
+    total = pd.DataFrame([{"method": "all", "cells": len(frame), "estimated_h": frame["estimated_h"].sum(),
+                           "realized_h": frame["realized_h"].sum()}])
+    out = pd.concat([out, total], ignore_index=True) if len(out) else total
+    return out.assign(ratio=out["realized_h"] / out["estimated_h"].where(out["estimated_h"] > 0))
 
 
 def observed_rates(observed: pd.DataFrame) -> Rates:

@@ -11,6 +11,7 @@ import pytest
 
 from bench.design import costs
 from bench.design.cost_calibration import (
+    estimate_vs_realized,
     merged_rates,
     observed_costs,
     observed_rates,
@@ -186,3 +187,30 @@ def test_builtin_estimate__of_the_reproductions_done_cells_is_their_measured_cos
     done = [cells[cid] for cid in reproduction["cell_id"] if cid in cells]
     measured = (reproduction["train_s"].sum() + reproduction["eval_s"].sum()) / 3600
     assert costs.grid_cell_hours(done) == pytest.approx(measured, rel=0.25)
+
+
+def test_estimate_vs_realized__per_method_with_the_runs_stacks_and_without_excluded_cells() -> None:
+    """Two done hierarchical seeds of one configuration (a stack of 3 with the third,
+    pending), one done decentralized cell, one copied-in cell left out: estimates at the
+    stack size the run formed, realized = the cells' wall_s, ratios, and a total row."""
+    grid = get_grid("paper").cells
+    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    d0, d1 = [c for c in grid if c.method == "decentralized"][:2]
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status=s, wall_s=w, config_json=c.canonical_json())
+                          for c, s, w in ((h[0], "done", 3600.0), (h[1], "done", 7200.0), (h[2], "pending", 0.0),
+                                          (d0, "done", 1800.0), (d1, "done", 99.0))])
+    out = estimate_vs_realized(cells, stack_seeds=3, exclude=[d1.cell_id]).set_index("method")
+    assert list(out.index) == ["decentralized", "hierarchical", "all"]
+    assert list(out["cells"]) == [1, 2, 3]
+    est_h = (costs.cell_seconds(h[0], None, 3) + costs.cell_seconds(h[1], None, 3)) / 3600
+    est_d = costs.cell_seconds(d0) / 3600
+    assert costs.cell_seconds(h[0], None, 3) < costs.cell_seconds(h[0])  # the stack is what is charged
+    assert out.loc["hierarchical", "estimated_h"] == pytest.approx(est_h)
+    assert out.loc["hierarchical", "realized_h"] == pytest.approx(3.0)
+    assert out.loc["decentralized", "realized_h"] == pytest.approx(0.5)  # d1 is left out
+    assert out.loc["all", "estimated_h"] == pytest.approx(est_h + est_d)
+    assert out.loc["all", "ratio"] == pytest.approx(3.5 / (est_h + est_d))
+    unstacked = estimate_vs_realized(cells, stack_seeds=1).set_index("method")
+    assert unstacked.loc["hierarchical", "estimated_h"] == pytest.approx(
+        (costs.cell_seconds(h[0]) + costs.cell_seconds(h[1])) / 3600)
+    assert unstacked.loc["decentralized", "cells"] == 2
