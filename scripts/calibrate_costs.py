@@ -11,30 +11,46 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
+
+import pandas as pd
 
 from bench.design import costs
 from bench.design.cost_calibration import estimate_vs_realized, observed_costs, rates_file
 from bench.store.run_store import RunStore
+from envs.errors import BenchError
 
 
-def main() -> None:
+def cells_of(run: Path) -> pd.DataFrame:
+    """The run's ``cells.parquet`` rows; BenchError naming the folder without one."""
+    cells = RunStore(run).read_cells()
+    if cells is None:
+        raise BenchError(f"no results store at {str(run)!r}: cells.parquet not found")
+    return cells
+
+
+def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run", type=Path)
     ap.add_argument("--write", action="store_true", help=f"write {costs.RATES_FILE}")
     ap.add_argument("--stack-seeds", type=int, default=1, help="the run's bench run --stack-seeds (for the estimate)")
     ap.add_argument("--exclude-run", type=Path, help="leave out the cells of this run (copied in, trained elsewhere)")
     args = ap.parse_args()
-    observed = observed_costs(args.run)  # refuses a folder without cells.parquet
+    try:
+        cells = cells_of(args.run)
+        copied = cells_of(args.exclude_run)["cell_id"] if args.exclude_run is not None else ()
+    except BenchError as exc:
+        print(f"calibrate_costs: {exc}", file=sys.stderr)
+        return 2
+    observed = observed_costs(args.run)
     for (method, n), g in observed.groupby(["method", "n_robots"]):
         for phase in ("train", "eval"):
             v = g[f"{phase}_rate"].dropna()
             if len(v):
                 print(f"{method} N={n} {phase}: {len(v)} cells, median {v.median():,.0f}, "
                       f"{v.min():,.0f}-{v.max():,.0f} agent-steps/s")
-    other = RunStore(args.exclude_run).read_cells() if args.exclude_run is not None else None
-    table = estimate_vs_realized(RunStore(args.run).read_cells(), args.stack_seeds,
-                                 exclude=() if other is None else other["cell_id"])
+    table = estimate_vs_realized(cells, args.stack_seeds, exclude=copied)
     print("worker-hours of the done cells, estimated with the built-in rates (bench grids) and realized "
           "(their wall_s):")
     for r in table.itertuples(index=False):
@@ -44,7 +60,8 @@ def main() -> None:
     if args.write:
         costs.RATES_FILE.write_text(json.dumps(content, indent=1) + "\n")
         print(f"wrote {costs.RATES_FILE}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
