@@ -1,7 +1,9 @@
-"""Optuna studies of the hierarchical method's open design choices (SPEC 6, issue #7).
+"""Optuna studies: ``bench tune`` tunes a learned method by one protocol for every method.
 
-``bench tune`` (studies/cli.py) searches |R_z| (``ref_size``) and L (``search_radius``),
-optionally C_max, for a chosen N, p and layout; see docs/studies.md.
+Built for the hierarchical method's open design choices (SPEC 6): |R_z| (``ref_size``), L
+(``search_radius``), optionally C_max; any learned method's parameters with ``--method`` and
+``--param`` (the same budget and protocol for each), for a chosen N, p and layout.
+``studies/cli.py`` is the command; docs/studies.md the guide.
 
 May import: envs, algorithms, bench, reports (the top layer of .importlinter).
 """

@@ -1,5 +1,5 @@
-"""Tables: Table I, the summary and success tables, progress, the ablation and the
-leaderboard (with its figures).
+"""Tables: Table I, the summary and success tables, progress, the ablation, the
+leaderboard (with its figures) and who leads where.
 
 May import: envs, algorithms, bench, reports.figures, reports.data, reports.stats (the layers of .importlinter).
 """
