@@ -18,7 +18,7 @@ the cell's config columns; reports/data/store.py), seed as the unit everywhere:
   (NaN where no filter runs), and the payload it measured (scalars per step);
 * ``success_figure``: success with its 95% CI against N at each p, or against p at each
   N, one row of panels per execution mode; ``profile_figure``: performance profiles
-  (fraction of (seed, configuration) runs with success > tau).
+  (fraction of (seed, configuration) runs with success > tau) with stratified bootstrap bands.
 
 Seeds: aggregates need the same seeds in every configuration (a score matrix), so they
 use the seeds every covered configuration of the method has (``common_seeds``) and say
@@ -119,15 +119,32 @@ def score_matrices(evals: pd.DataFrame, mode: str,
     return mats, cfgs, used
 
 
-def _stratified_ci(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[float, float]:
+def _stratified_band(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """95% percentile CI of ``statistic(*samples, axis=-1)`` with each sample (a
     configuration's seeds) resampled on its own: the stratified bootstrap
-    (``scipy.stats.bootstrap``, vectorized: every sample arrives shaped (..., n))."""
+    (``scipy.stats.bootstrap``, vectorized: every sample arrives shaped (..., n)). A
+    statistic of k values returns them first, shaped (k, ...): then (k,) bounds. NaN
+    where a configuration has fewer than 2 seeds."""
     if any(len(s) < 2 for s in samples):
-        return np.nan, np.nan
+        return np.array(np.nan), np.array(np.nan)
     res = sps.bootstrap(samples, statistic, n_resamples=N_BOOT, confidence_level=LEVEL, method="percentile",
                         vectorized=True, random_state=np.random.default_rng(seed))
-    return float(res.confidence_interval.low), float(res.confidence_interval.high)
+    return np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
+
+
+def _stratified_ci(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[float, float]:
+    """``_stratified_band`` of a statistic of one value."""
+    lo, hi = _stratified_band(samples, statistic, seed)
+    return float(lo), float(hi)
+
+
+def _profile(taus: np.ndarray):
+    """rliable's score distribution at each of ``taus``: the fraction of the matrix's scores
+    (every seed of every configuration) above tau, batched; returned shaped (len(taus), ...)."""
+    def stat(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
+        flat = np.concatenate([np.moveaxis(c, axis, -1) for c in cols], axis=-1)
+        return np.moveaxis((flat[..., None, :] > taus[:, None]).mean(axis=-1), -1, 0)
+    return stat
 
 
 def _iqm(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
@@ -298,7 +315,8 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
 
 def profile_figure(evals: pd.DataFrame) -> Built:
     """Performance profiles: per method, the fraction of its (seed, configuration) runs whose
-    success exceeds tau, over the configurations every method covers (argmax; planners)."""
+    success exceeds tau, over the configurations every method covers (argmax; planners),
+    with a 95% stratified bootstrap band (seeds resampled within each configuration)."""
     modes = [m for m in execution_order(evals["execution"]) if m != PLANNER] if len(evals) else []
     mode = modes[0] if modes else PLANNER
     mats, cfgs, used = score_matrices(evals, mode) if len(evals) else ({}, [], {})
@@ -310,8 +328,11 @@ def profile_figure(evals: pd.DataFrame) -> Built:
             placeholder(ax, "no configuration covered by every method")
             return Built(fig, ["no configuration covered by every method"], "")
         for m, mat in mats.items():
-            ax.plot(taus, [(mat > t).mean() for t in taus], color=method_color(m), ls=method_style(m),
-                    label=method_label(m))
+            cols = [mat[:, j] for j in range(mat.shape[1])]
+            ax.plot(taus, _profile(taus)(*cols), color=method_color(m), ls=method_style(m), label=method_label(m))
+            lo, hi = _stratified_band(cols, _profile(taus))
+            if lo.ndim:  # no band with a single seed
+                ax.fill_between(taus, lo, hi, color=method_color(m), alpha=0.15, lw=0)
         ax.set_xlabel(r"success rate $\tau$")
         ax.set_ylabel(r"fraction of runs with success $> \tau$")
         handles, labels = ax.get_legend_handles_labels()  # below the axes: curves run through every corner
@@ -319,5 +340,6 @@ def profile_figure(evals: pd.DataFrame) -> Built:
     caption = (f"Performance profiles ({mode} execution; planners in their own mode): the fraction of each "
                f"method's (seed, configuration) runs with success above tau, over the {len(cfgs)} "
                f"configurations every method covers (seeds per method: "
-               + ", ".join(f"{method_label(m)} {k}" for m, k in used.items()) + ").")
+               + ", ".join(f"{method_label(m)} {k}" for m, k in used.items())
+               + "); shaded: 95% stratified bootstrap CI (seeds resampled within each configuration).")
     return Built(fig, [], caption)

@@ -22,6 +22,8 @@ from reports.data.store import load_store
 from reports.tables.leaderboard import (
     _iqm,
     _poi,
+    _profile,
+    _stratified_band,
     aggregate_frame,
     leaderboard_frame,
     safety_frame,
@@ -44,6 +46,24 @@ def test_iqm_and_improvement__equal_rliables_metrics_on_a_hand_made_matrix() -> 
     # per configuration: #(x > y) + #ties / 2 over 12 pairs: (8 + 0.5) / 12 and (6 + 0.5) / 12
     assert _poi(2)(*x.T, *y.T) == pytest.approx(rly_metrics.probability_of_improvement(x, y))
     assert rly_metrics.probability_of_improvement(x, y) == pytest.approx((8.5 / 12 + 6.5 / 12) / 2)
+
+
+def test_profile__the_fraction_of_runs_above_tau_with_a_stratified_band() -> None:
+    x = np.array([[0.1, 0.9], [0.5, 0.7], [0.3, 0.2]])  # 3 seeds x 2 configurations
+    taus = np.array([0.0, 0.25, 0.6, 0.9])
+    cols = [x[:, 0], x[:, 1]]
+    # scores 0.1 0.5 0.3 | 0.9 0.7 0.2: above 0 all 6, above 0.25 four, above 0.6 two, above 0.9 none
+    assert _profile(taus)(*cols) == pytest.approx([1.0, 4 / 6, 2 / 6, 0.0])
+    lo, hi = _stratified_band(cols, _profile(taus))
+    assert lo.shape == hi.shape == (4,)
+    assert lo[0] == hi[0] == 1.0 and lo[3] == hi[3] == 0.0  # no resample moves these
+    assert lo[1] < 4 / 6 < hi[1] and lo[2] < 2 / 6 < hi[2]
+    # each configuration resampled on its own: configuration 1's seeds never land in 0's
+    same = [np.array([0.2, 0.2, 0.2]), np.array([0.8, 0.8, 0.8])]
+    lo, hi = _stratified_band(same, _profile(np.array([0.5])))
+    assert lo[0] == hi[0] == 0.5  # a pooled bootstrap would spread it over [0, 1]
+    lo, hi = _stratified_band([np.array([0.4])], _profile(taus))
+    assert lo.ndim == 0 and np.isnan(lo)  # one seed: no band
 
 
 def test_leaderboard__ranks_within_a_configuration_and_planners_rank_with_every_mode() -> None:
