@@ -7,8 +7,9 @@ the unit, as the rest of the leaderboard:
 * ``leaders_frame``: per (N, p) and learned execution mode, among the learned methods with
   that mode, the leader (highest mean success over seeds) and the runner-up, the leader's
   margin over the runner-up with a 95% Welch t CI over seeds (``reports.stats.t_test``),
-  and the best planner at that configuration (full information: a ceiling, not a rival)
-  with the leader's gap to it, also with a Welch CI;
+  and the best planner at that configuration (kept out of the race: PIBT plans with full
+  information, a ceiling rather than a rival) with the leader's gap to it, also with a
+  Welch CI;
 * ``leaders_markdown`` / ``leaders_display``: one N x p matrix per mode, and how many
   configurations each method leads.
 
@@ -112,8 +113,8 @@ def _n(k: int, noun: str) -> str:
 
 
 def _counts(part: pd.DataFrame) -> str:
-    """``Decentralized leads 7 of 15 contested configurations (5 by a margin whose CI
-    excludes 0), ...; 3 configurations have one learned method``."""
+    """``Decentralized leads 7 of 15 configurations with two or more learned methods (5 by a
+    margin whose CI excludes 0); ...; 3 configurations have one learned method``."""
     contested = part[part["runner_up"] != ""]
     out = []
     for m, g in sorted(contested.groupby("leader"), key=lambda t: (-len(t[1]), label_order(method_label(t[0])))):
@@ -132,6 +133,7 @@ def _planner_line(part: pd.DataFrame) -> str:
         return "no planner ran at these configurations."
     labels = ", ".join(sorted({method_label(m) for m in have["planner"]}))
     below, above = int((have["gap_hi"] < 0).sum()), int((have["gap_lo"] > 0).sum())
+
     def span(values: pd.Series, fmt) -> str:  # "a" or "a to b"
         lo, hi = fmt(values.min()), fmt(values.max())
         return lo if lo == hi else f"{lo} to {hi}"
@@ -150,8 +152,8 @@ def leaders_markdown(frame: pd.DataFrame) -> str:
              "with the highest mean success over seeds, then the runner-up, and the leader's margin in percentage "
              "points [95% Welch t CI over seeds]. \">\" where that interval excludes 0, \"≈\" where it does not. "
              "The leader is picked by its mean and the intervals are pointwise (not corrected for the number of "
-             "configurations): this describes the run, the calibrated verdicts are in claims.md. Planners have "
-             "full information and are listed apart, as a ceiling.", ""]
+             "configurations): this describes the run, the calibrated verdicts are in claims.md. Planners are "
+             "listed apart, as a reference (PIBT plans with full information).", ""]
     if frame.empty:
         return "\n".join(lines + ["No learned method was evaluated yet.", ""])
     display = leaders_display(frame, full=True)

@@ -101,7 +101,7 @@ PAGE = "\n".join((
     'percentage points [95% Welch t CI over seeds]. ">" where that interval excludes 0, "≈" where it '
     'does not. The leader is picked by its mean and the intervals are pointwise (not corrected for '
     'the number of configurations): this describes the run, the calibrated verdicts are in claims.md.'
-    ' Planners have full information and are listed apart, as a ceiling.',
+    ' Planners are listed apart, as a reference (PIBT plans with full information).',
     '',
     '## argmax',
     '',
