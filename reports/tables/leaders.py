@@ -152,7 +152,8 @@ def leaders_markdown(frame: pd.DataFrame) -> str:
              "with the highest mean success over seeds, then the runner-up, and the leader's margin in percentage "
              "points [95% Welch t CI over seeds]. \">\" where that interval excludes 0, \"≈\" where it does not. "
              "The leader is picked by its mean and the intervals are pointwise (not corrected for the number of "
-             "configurations): this describes the run, the calibrated verdicts are in claims.md. Planners are "
+             "configurations; where no method is better, \">\" appears at under 5% of them, simulated): this "
+             "describes the run, the calibrated verdicts are in claims.md. Planners are "
              "listed apart, as a reference (PIBT plans with full information).", ""]
     if frame.empty:
         return "\n".join(lines + ["No learned method was evaluated yet.", ""])

@@ -100,8 +100,9 @@ PAGE = "\n".join((
     "method with the highest mean success over seeds, then the runner-up, and the leader's margin in "
     'percentage points [95% Welch t CI over seeds]. ">" where that interval excludes 0, "≈" where it '
     'does not. The leader is picked by its mean and the intervals are pointwise (not corrected for '
-    'the number of configurations): this describes the run, the calibrated verdicts are in claims.md.'
-    ' Planners are listed apart, as a reference (PIBT plans with full information).',
+    'the number of configurations; where no method is better, ">" appears at under 5% of them, '
+    'simulated): this describes the run, the calibrated verdicts are in claims.md. Planners are '
+    'listed apart, as a reference (PIBT plans with full information).',
     '',
     '## argmax',
     '',
