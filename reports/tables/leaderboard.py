@@ -327,10 +327,11 @@ def profile_figure(evals: pd.DataFrame) -> Built:
         if not mats:
             placeholder(ax, "no configuration covered by every method")
             return Built(fig, ["no configuration covered by every method"], "")
+        profile = _profile(taus)
         for m, mat in mats.items():
             cols = [mat[:, j] for j in range(mat.shape[1])]
-            ax.plot(taus, _profile(taus)(*cols), color=method_color(m), ls=method_style(m), label=method_label(m))
-            lo, hi = _stratified_band(cols, _profile(taus))
+            ax.plot(taus, profile(*cols), color=method_color(m), ls=method_style(m), label=method_label(m))
+            lo, hi = _stratified_band(cols, profile)
             if lo.ndim:  # no band with a single seed
                 ax.fill_between(taus, lo, hi, color=method_color(m), alpha=0.15, lw=0)
         ax.set_xlabel(r"success rate $\tau$")
