@@ -4,7 +4,8 @@ Its controller is greedy shortest-path progress with a random action with probab
 ``1 / ref_size`` (evaluation included), so a larger ``ref_size`` gives a higher success
 rate: studies can be tested for pruning and ranking without the real method. ``update``
 learns nothing. With ``crash_file`` set, the first ``train_iteration`` anywhere creates that
-file and kills its own process (a crashed worker); later ones run normally.
+file and kills its own process (a crashed worker); later ones run normally. The file is
+created atomically, so two workers that start at once cannot both crash.
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from pydantic import Field
 from algorithms.base import Method, MethodParams
 from algorithms.common.episodes import Decision, EpisodeBatch
 from envs.observations import action_progress
+from tests.crash_once import first_claim
 
 
 class FakeParams(MethodParams):
@@ -45,8 +47,7 @@ class FakeHierarchical(Method):
     def train_iteration(self) -> list[dict[str, float]]:
         if self.params.fail:
             raise RuntimeError("deliberate failure")
-        if self.params.crash_file and not os.path.exists(self.params.crash_file):
-            open(self.params.crash_file, "w").close()
+        if self.params.crash_file and first_claim(self.params.crash_file):
             os._exit(17)
         return super().train_iteration()
 

@@ -21,6 +21,7 @@ from bench.execute.executor import (
     Unit,
     WorkerLost,
 )
+from tests.crash_once import first_claim
 
 
 class Worker:
@@ -45,8 +46,7 @@ class Worker:
 
     def die_once(self, marker: str, x: int) -> int:
         """The worker dies (SIGKILL on Ray, WorkerLost in-process) the first time, anywhere."""
-        if not os.path.exists(marker):
-            Path(marker).write_text("died")
+        if first_claim(marker):
             _die()
         return x * x
 

@@ -230,9 +230,9 @@ def test_matrix__a_worker_that_dies_is_retried_on_ray(toy: str, tiny_run: Path, 
             import os
             import signal
 
-            if not os.path.exists(marker):
-                with open(marker, "w") as fh:
-                    fh.write(str(os.getpid()))
+            from tests.crash_once import first_claim
+
+            if first_claim(marker):
                 os.kill(os.getpid(), signal.SIGKILL)
             return super().eval_chunk(spec, state_box, chunk, execution)
 
