@@ -56,7 +56,7 @@ from reports.tables.leaderboard import (
     safety_frame,
     success_figure,
 )
-from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown
+from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown, per_method_frame
 from reports.tables.progress import progress_markdown
 from reports.tables.success_table import success_markdown
 from reports.tables.summary import (
@@ -183,7 +183,7 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "leaderboard_improvement.csv", poi.to_csv(index=False))
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
     leaders = leaders_frame(evals)
-    write_text(out / "leaders.md", leaders_markdown(leaders))
+    write_text(out / "leaders.md", leaders_markdown(leaders, per_method_frame(evals, leaders)))
     write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]

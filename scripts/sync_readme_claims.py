@@ -8,8 +8,10 @@ Replaces the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``:
   ``progress`` with ``<run>/report/progress.md`` and ``success`` with
   ``<run>/report/success_by_mode.md`` (all written by ``bench report``), verbatim;
 * in ``README.md``: ``headline`` with the header and the rows of ``success_by_mode.md`` at
-  the configurations of ``HEADLINE``, and ``verdicts`` with the count of each verdict per
-  claim in ``claims_table.md``.
+  the configurations of ``HEADLINE``, ``verdicts`` with the count of each verdict per
+  claim in ``claims_table.md``, and, once the full grid has a report, ``full_leaders`` with
+  the rows of the "Per method" table of ``reproduction/full/report/leaders.md`` in the
+  modes of ``FULL_MODES``.
 
 So no verdict, success rate or status on either page is typed by hand; ``tests/reproduction``
 checks that both pages agree with the committed report.
@@ -26,6 +28,8 @@ BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md",  # page 
 PAGE = "docs/reproduction.md"  # where BLOCKS go, verbatim
 README = "README.md"
 HEADLINE = ("| 40 | 0.2 |", "| 100 | 0.2 |")  # success_by_mode.md rows (N, p) the README shows
+FULL = ROOT / "reproduction" / "full"  # the full grid, whose leaders.md gives the README's full_leaders
+FULL_MODES = ("| argmax |", "| sample |")  # its per-method rows the README shows
 
 
 def markers(name: str) -> tuple[str, str]:
@@ -65,11 +69,23 @@ def verdicts(claims_table: str) -> str:
     return "\n".join(rows) + "\n"
 
 
-def expected_blocks(run: Path) -> dict[str, dict[str, str]]:
-    """page (relative to the repository) -> marker name -> the text its block must hold."""
+def per_method(leaders: str) -> str:
+    """The header and the ``FULL_MODES`` rows of leaders.md's "Per method" table."""
+    from reports.tables.leaders import PER_METHOD_HEADING
+
+    section = leaders.split(f"\n{PER_METHOD_HEADING}\n", 1)[1].split("\n## ", 1)[0]
+    table = [ln for ln in section.splitlines() if ln.startswith("|")]
+    return "\n".join(table[:2] + [ln for ln in table[2:] if ln.startswith(FULL_MODES)]) + "\n"
+
+
+def expected_blocks(run: Path, full: Path = FULL) -> dict[str, dict[str, str]]:
+    """page (relative to the repository) -> marker name -> the text its block must hold
+    (``full_leaders`` only once ``full`` has a report)."""
     report = {name: (run / "report" / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
-    return {PAGE: report,
-            README: {"headline": headline(report["success"]), "verdicts": verdicts(report["claims_table"])}}
+    readme = {"headline": headline(report["success"]), "verdicts": verdicts(report["claims_table"])}
+    if (full / "report" / "leaders.md").is_file():
+        readme["full_leaders"] = per_method((full / "report" / "leaders.md").read_text(encoding="utf-8"))
+    return {PAGE: report, README: readme}
 
 
 def main() -> int:

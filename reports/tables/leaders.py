@@ -11,7 +11,10 @@ the unit, as the rest of the leaderboard:
   information, a ceiling rather than a rival) with the leader's gap to it, also with a
   Welch CI;
 * ``leaders_markdown`` / ``leaders_display``: one N x p matrix per mode, and how many
-  configurations each method leads.
+  configurations each method leads;
+* ``per_method_frame`` / ``per_method_markdown``: per learned execution mode and learned method,
+  how many configurations it leads and how far it stays from the best planner at each
+  configuration it shares with one (its own gap, leader or not).
 
 The leader is picked by its mean, and each interval is pointwise (not corrected for the
 N x p configurations): a margin whose interval excludes 0 is written ">", otherwise "≈".
@@ -27,6 +30,8 @@ from reports.figures.plotting import label_order, method_label
 from reports.stats import cut_interval, t_test
 from reports.tables.leaderboard import PLANNER, seed_scores
 
+PER_METHOD_COLUMNS = ["execution", "method", "configurations", "contested", "leads", "separated_leads",
+                   "with_planner", "gap_min", "gap_max", "below_planner", "above_planner"]
 COLUMNS = ["n_robots", "loss_p", "execution", "methods", "leader", "leader_success", "runner_up",
            "runner_up_success", "margin", "margin_lo", "margin_hi", "planner", "planner_success",
            "gap_to_planner", "gap_lo", "gap_hi"]
@@ -68,6 +73,57 @@ def leaders_frame(evals: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=COLUMNS)  # what a row leaves out is NaN
 
 
+def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame:
+    """One row per (learned execution mode, learned method), in mode then legend order:
+    ``configurations`` it ran at, ``contested`` (with another learned method), ``leads`` and
+    ``separated_leads`` among those (``leaders``: ``leaders_frame(evals)``), and at the
+    ``with_planner`` configurations a planner shares with it, its own success minus the
+    best planner's: the range of the means (``gap_min``, ``gap_max``) and at how many the
+    95% Welch CI lies below 0 (``below_planner``) or above 0 (``above_planner``)."""
+    scores = seed_scores(evals)
+    planners = {key: _ranked(cfg)[0][1] for key, cfg in _by_config(scores[scores["execution"] == PLANNER])}
+    rows = []
+    for mode in execution_order(leaders["execution"]):
+        part = leaders[leaders["execution"] == mode]
+        contested = part[part["runner_up"] != ""]
+        shared = set(zip(contested["n_robots"].astype(int), contested["loss_p"].astype(float), strict=True))
+        mine = scores[scores["execution"] == mode]
+        for method in sorted(mine["method"].unique(), key=lambda m: (label_order(method_label(m)), m)):
+            runs = dict(_by_config(mine[mine["method"] == method]))
+            led = contested[contested["leader"] == method]
+            gaps = np.array([_diff(g["success_rate"].to_numpy(), planners[key])
+                             for key, g in runs.items() if key in planners]).reshape(-1, 3)
+            rows.append({"execution": mode, "method": method, "configurations": len(runs),
+                         "contested": len(shared & runs.keys()), "leads": len(led),
+                         "separated_leads": int((led["margin_lo"] > 0).sum()), "with_planner": len(gaps),
+                         "gap_min": gaps[:, 0].min() if len(gaps) else np.nan,
+                         "gap_max": gaps[:, 0].max() if len(gaps) else np.nan,
+                         "below_planner": int((gaps[:, 2] < 0).sum()), "above_planner": int((gaps[:, 1] > 0).sum())})
+    return pd.DataFrame(rows, columns=PER_METHOD_COLUMNS)
+
+
+def per_method_markdown(summary: pd.DataFrame) -> str:
+    """``per_method_frame`` as one markdown table (leaders.md's first section; the README's
+    full-grid block is a copy of it)."""
+    lines = ["| mode | method | leads | by a separated margin | success − best planner, pp | CI below / above 0 |",
+             "|---|---|---|---|---|---|"]
+    for _, r in summary.iterrows():
+        leads = f"{r['leads']} of {r['contested']}" if r["contested"] else "— (alone)"
+        separated = str(r["separated_leads"]) if r["contested"] else "—"
+        if r["with_planner"]:
+            gap = _span(_pp(r["gap_min"]), _pp(r["gap_max"]))
+            below = f"{r['below_planner']} / {r['above_planner']} of {r['with_planner']}"
+        else:
+            gap = below = "—"
+        lines.append(f"| {r['execution']} | {method_label(r['method'])} | {leads} | {separated} | {gap} | {below} |")
+    return "\n".join(lines) + "\n"
+
+
+def _by_config(scores: pd.DataFrame) -> list[tuple[tuple[int, float], pd.DataFrame]]:
+    """``scores`` split per configuration, keyed (N, p) as plain Python numbers."""
+    return [((int(n), float(p)), g) for (n, p), g in scores.groupby(["n_robots", "loss_p"])]
+
+
 def _diff(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
     """mean(a) - mean(b) with its 95% Welch t CI over seeds, cut at [-1, 1] (a difference
     of two rates; ``cut_interval``)."""
@@ -77,6 +133,11 @@ def _diff(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
 
 def _pp(v: float) -> str:
     return f"{100 * v:+.1f}"
+
+
+def _span(lo: str, hi: str) -> str:
+    """``lo`` where both ends print alike, else ``lo to hi``."""
+    return lo if lo == hi else f"{lo} to {hi}"
 
 
 def _cell(r: pd.Series, full: bool) -> str:
@@ -134,19 +195,21 @@ def _planner_line(part: pd.DataFrame) -> str:
     labels = ", ".join(sorted({method_label(m) for m in have["planner"]}))
     below, above = int((have["gap_hi"] < 0).sum()), int((have["gap_lo"] > 0).sum())
 
-    def span(values: pd.Series, fmt) -> str:  # "a" or "a to b"
-        lo, hi = fmt(values.min()), fmt(values.max())
-        return lo if lo == hi else f"{lo} to {hi}"
-
+    rates, gaps = have["planner_success"], have["gap_to_planner"]
     return (f"the leading learned method's success minus the best planner's ({labels}: "
-            f"{span(have['planner_success'], lambda v: f'{100 * v:.1f}%')}) is "
-            f"{span(have['gap_to_planner'], _pp)} pp; its CI lies below 0 at {below} and above 0 at {above} "
+            f"{_span(f'{100 * rates.min():.1f}%', f'{100 * rates.max():.1f}%')}) is "
+            f"{_span(_pp(gaps.min()), _pp(gaps.max()))} pp; its CI lies below 0 at {below} and above 0 at {above} "
             f"of the {_n(len(have), 'configuration')} with a planner.")
 
 
-def leaders_markdown(frame: pd.DataFrame) -> str:
-    """The page ``leaders.md``: per learned execution mode, the N x p matrix of leaders, how
-    many configurations each method leads, and the distance to the planners."""
+PER_METHOD_HEADING = "## Per method"  # leaders.md's section the README's full-grid block copies
+
+
+def leaders_markdown(frame: pd.DataFrame, summary: pd.DataFrame) -> str:
+    """The page ``leaders.md``: per learned method and mode, its leads and its distance to the
+    planners (``summary``: ``per_method_frame``); then per learned execution mode, the N x p
+    matrix of leaders, how many configurations each method leads, and the leader's distance
+    to the planners."""
     lines = ["# Who leads where", "",
              "Per configuration (team size N, loss probability p) and learned execution mode: the learned method "
              "with the highest mean success over seeds, then the runner-up, and the leader's margin in percentage "
@@ -157,6 +220,11 @@ def leaders_markdown(frame: pd.DataFrame) -> str:
              "listed apart, as a reference (PIBT plans with full information).", ""]
     if frame.empty:
         return "\n".join(lines + ["No learned method was evaluated yet.", ""])
+    lines += [PER_METHOD_HEADING, "",
+              "Per learned method and mode: how many of the configurations it shares with another learned method "
+              "it leads (and by a margin whose CI excludes 0), and at the configurations it shares with a planner, "
+              "its own success minus the best planner's (the range of the means, and at how many the 95% Welch CI "
+              "lies below or above 0).", "", per_method_markdown(summary)]
     display = leaders_display(frame, full=True)
     ps = [c for c in display.columns if c.startswith("p = ")]
     for mode in execution_order(frame["execution"]):

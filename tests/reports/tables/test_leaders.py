@@ -7,7 +7,14 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from reports.tables.leaders import COLUMNS, leaders_display, leaders_frame, leaders_markdown
+from reports.tables.leaders import (
+    COLUMNS,
+    PER_METHOD_COLUMNS,
+    leaders_display,
+    leaders_frame,
+    leaders_markdown,
+    per_method_frame,
+)
 
 
 def _evals(rows: list[tuple[str, int, float, str, int, float]]) -> pd.DataFrame:
@@ -49,7 +56,7 @@ def test_leaders__one_learned_method_has_no_runner_up_and_each_mode_is_its_own_r
     assert f.loc[(4, "sample"), "leader"] == "b"  # in sample mode b beats a
     assert f.loc[(8, "argmax"), "leader"] == "a" and f.loc[(8, "argmax"), "planner"] == ""
     assert len(f) == 3  # no row for (8, sample): nothing ran there
-    page = leaders_markdown(leaders_frame(ev))
+    page = _page(ev)
     assert "2 configurations have one learned method. Against the planners: no planner ran at these" in page
 
 
@@ -58,7 +65,7 @@ def test_leaders__a_margin_is_cut_at_plus_minus_one_and_an_unseparated_lead_is_w
     ev = _evals(_seeds("a", 4, 0.2, "argmax", wide) + _seeds("b", 4, 0.2, "argmax", (0.3, 0.3, 0.3)))
     row = leaders_frame(ev).iloc[0]
     assert row["leader"] == "a" and row["margin_lo"] == -1.0 and row["margin_hi"] == 1.0
-    page = leaders_markdown(leaders_frame(ev))
+    page = _page(ev)
     assert "a 35.0% ≈ b 30.0% (+5.0 pp [-100.0, +100.0])" in page
     assert "a leads 1 of 1 configuration with two or more learned methods (0 by a margin whose CI excludes 0)" in page
 
@@ -78,7 +85,7 @@ def test_leaders__an_empty_run_has_an_empty_page() -> None:
     assert leaders_frame(empty).empty and leaders_display(leaders_frame(empty)).empty
     assert list(leaders_frame(empty).columns) == COLUMNS  # leaders.csv has its header even so
     intro = PAGE.split("\n")[:4]  # title, blank, what the page says, blank
-    assert leaders_markdown(leaders_frame(empty)) == "\n".join([*intro, "No learned method was evaluated yet.", ""])
+    assert _page(empty) == "\n".join([*intro, "No learned method was evaluated yet.", ""])
 
 
 # Every case on one page: separated and unseparated leads, a tie broken by name, a lone
@@ -92,7 +99,9 @@ PAGE_EVALS = (_seeds("b", 4, 0.2, "argmax", B) + _seeds("a", 4, 0.2, "argmax", A
               + _seeds("c", 8, 0.2, "sample", A) + _seeds("a", 8, 0.2, "sample", B)
               + _seeds("c", 8, 0.6, "sample", A) + _seeds("a", 8, 0.6, "sample", B))
 # Worked out by hand: margins 0.6 +- t(4) sqrt(2 x 0.01 / 3) = +-0.227, 0.3 +- 0.227; gaps to
-# the planner -0.1 and +0.4 +- t(2) 0.1 / sqrt(3) = +-0.248; the ties at 1.0 have no variance.
+# the planner -0.1, +0.4, -0.7 (b in argmax, a in sample) and -0.4 +- t(2) 0.1 / sqrt(3) =
+# +-0.248; the ties at 1.0 have no variance. Per method, b's argmax gap at N = 8 is +0.0
+# (below at neither), a's at N = 4, p = 0.6 is above.
 PAGE = "\n".join((
     '# Who leads where',
     '',
@@ -103,6 +112,21 @@ PAGE = "\n".join((
     'the number of configurations; where no method is better, ">" appears at under 5% of them, '
     'simulated): this describes the run, the calibrated verdicts are in claims.md. Planners are '
     'listed apart, as a reference (PIBT plans with full information).',
+    '',
+    '## Per method',
+    '',
+    'Per learned method and mode: how many of the configurations it shares with another learned '
+    "method it leads (and by a margin whose CI excludes 0), and at the configurations it shares with a "
+    "planner, its own success minus the best planner's (the range of the means, and at how many the "
+    '95% Welch CI lies below or above 0).',
+    '',
+    '| mode | method | leads | by a separated margin | success − best planner, pp | CI below / above 0 |',
+    '|---|---|---|---|---|---|',
+    '| argmax | a | 2 of 2 | 1 | -10.0 to +40.0 | 0 / 1 of 3 |',
+    '| argmax | b | 0 of 2 | 0 | -70.0 to +0.0 | 1 / 0 of 2 |',
+    '| sample | a | 0 of 3 | 0 | -70.0 | 2 / 0 of 2 |',
+    '| sample | b | 1 of 1 | 1 | -40.0 | 1 / 0 of 1 |',
+    '| sample | c | 2 of 2 | 2 | -10.0 | 0 / 0 of 1 |',
     '',
     '## argmax',
     '',
@@ -132,8 +156,27 @@ PAGE = "\n".join((
 ))
 
 
+def _page(ev: pd.DataFrame) -> str:
+    f = leaders_frame(ev)
+    return leaders_markdown(f, per_method_frame(ev, f))
+
+
 def test_leaders__the_page_word_for_word() -> None:
-    assert leaders_markdown(leaders_frame(_evals(PAGE_EVALS))) == PAGE
+    assert _page(_evals(PAGE_EVALS)) == PAGE
+
+
+def test_leaders__per_method_counts_a_lone_method_and_one_without_a_planner_apart() -> None:
+    ev = _evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("b", 8, 0.2, "argmax", B)
+                + _seeds("c", 8, 0.2, "argmax", C) + _seeds("pibt", 4, 0.2, "planner", ONE))
+    f = per_method_frame(ev, leaders_frame(ev))
+    assert list(f.columns) == PER_METHOD_COLUMNS
+    assert f.set_index("method")[["configurations", "contested", "leads", "with_planner"]].to_dict("index") == {
+        "a": dict(configurations=1, contested=0, leads=0, with_planner=1),
+        "b": dict(configurations=1, contested=1, leads=0, with_planner=0),
+        "c": dict(configurations=1, contested=1, leads=1, with_planner=0)}
+    page = _page(ev)
+    assert "| argmax | a | — (alone) | — | -10.0 | 0 / 0 of 1 |" in page
+    assert "| argmax | b | 0 of 1 | 0 | — | — |" in page
 
 
 def test_leaders__rows_by_configuration_and_modes_in_report_order() -> None:
@@ -154,7 +197,7 @@ def test_leaders__ties_go_to_the_method_listed_first_and_so_do_equal_counts() ->
                 + _seeds("pibt", 4, 0.2, "planner", ONE) + _seeds("astar", 8, 0.2, "planner", ONE))
     f = leaders_frame(ev)
     assert list(f["leader"]) == ["hierarchical", "decentralized"]  # the paper's method is listed first
-    page = leaders_markdown(f)
+    page = leaders_markdown(f, per_method_frame(ev, f))
     assert page.index("Hierarchical (ours) leads 1 of 2") < page.index("Decentralized leads 1 of 2")
     assert "the best planner's (PIBT, astar: 100.0%)" in page  # every planner named once
 
