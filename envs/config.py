@@ -1,11 +1,15 @@
 """Validated environment configuration (pydantic): defaults live here, callers override."""
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from envs.errors import BenchError
+
+# A probability: the one range of the loss rate p, wherever a configuration takes one (the
+# environment, a grid's cell, a study's fixed settings).
+Probability = Annotated[float, Field(ge=0.0, le=1.0)]
 
 
 class RewardWeights(BaseModel):
@@ -51,7 +55,7 @@ class EnvConfig(BaseModel):
     on_goal: Literal["remove", "stay"] = Field(
         "remove", description="completed robots leave the floor, or stay as obstacles and Wait"
     )
-    loss_p: float = Field(0.2, ge=0.0, le=1.0, description="mean inter-group message loss p")
+    loss_p: Probability = Field(0.2, description="mean inter-group message loss p")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field(
         "bernoulli", description="i.i.d. loss per link and step, or bursty two-state loss"
     )

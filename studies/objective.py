@@ -32,7 +32,7 @@ from algorithms.base import Method
 from algorithms.registry import method_class
 from bench.design.cells import Cell
 from bench.design.limits import limit, with_reasons
-from envs.config import EnvConfig, format_validation_error
+from envs.config import EnvConfig, Probability, format_validation_error
 from envs.errors import BenchError
 from studies.storage import Direction
 
@@ -51,7 +51,7 @@ class TrialSettings(BaseModel):
 
     method: str = Field("hierarchical", description="registered method name or module:Class")
     n_robots: int = Field(8, ge=1, le=limit("n_robots"), description="team size N")
-    loss_p: float = Field(0.2, ge=0.0, le=1.0, description="inter-group message loss p")
+    loss_p: Probability = Field(0.2, description="inter-group message loss p")
     layout: str = Field("tiny", description="layout preset or map path")
     groups: int = Field(4, ge=1, le=limit("groups"), description="number of groups Z")
     horizon: int = Field(48, ge=1, le=limit("horizon"), description="episode length T")

@@ -21,7 +21,7 @@ from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import method_class, method_target
 from bench.design.limits import limit, with_reasons
-from envs.config import EnvConfig, bursty_loss_error
+from envs.config import EnvConfig, Probability, bursty_loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
@@ -44,7 +44,7 @@ class Cell(BaseModel):
     # or 2 (a number is a number, a flag is a flag); an int is still accepted for a float.
     method: str = Field(description="registered method name or module:Class (algorithms/registry.py)")
     n_robots: int = Field(ge=1, le=limit("n_robots"), strict=True, description="team size N")
-    loss_p: float = Field(ge=0.0, le=1.0, strict=True, description="inter-group message loss probability p")
+    loss_p: Probability = Field(strict=True, description="inter-group message loss probability p")
     seed: int = Field(0, ge=0, lt=2**31, strict=True, description="root of every random stream of the cell")
     groups: int = Field(4, ge=1, le=limit("groups"), strict=True, description="number of fixed groups Z")
     ref_size: int = Field(8, ge=1, le=limit("ref_size"), strict=True, description="abstract references per group |R_z|")
