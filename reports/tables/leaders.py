@@ -86,7 +86,7 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
     for mode in execution_order(leaders["execution"]):
         part = leaders[leaders["execution"] == mode]
         contested = part[part["runner_up"] != ""]
-        shared = set(zip(contested["n_robots"].astype(int), contested["loss_p"].astype(float), strict=True))
+        shared = set(contested.set_index(["n_robots", "loss_p"]).index)  # (N, p) with another learned method
         mine = scores[scores["execution"] == mode]
         for method in sorted(mine["method"].unique(), key=lambda m: (label_order(method_label(m)), m)):
             runs = dict(_by_config(mine[mine["method"] == method]))
@@ -135,6 +135,10 @@ def _pp(v: float) -> str:
     return f"{100 * v:+.1f}"
 
 
+def _percent(v: float) -> str:
+    return f"{100 * v:.1f}%"
+
+
 def _span(lo: str, hi: str) -> str:
     """``lo`` where both ends print alike, else ``lo to hi``."""
     return lo if lo == hi else f"{lo} to {hi}"
@@ -144,7 +148,7 @@ def _cell(r: pd.Series, full: bool) -> str:
     """``Leader 84.3% > Runner-up 48.5% (+35.8 pp [+6.1, +65.5])``, or without the rates and
     the interval (``full=False``: the index page's narrow cells); ``Leader 61.4% (only
     learned method)``."""
-    rate = (lambda v: f" {100 * v:.1f}%") if full else (lambda v: "")
+    rate = (lambda v: f" {_percent(v)}") if full else (lambda v: "")
     head = f"{method_label(r['leader'])}{rate(r['leader_success'])}"
     if not r["runner_up"]:
         return f"{head} (only learned method)"
@@ -197,7 +201,7 @@ def _planner_line(part: pd.DataFrame) -> str:
 
     rates, gaps = have["planner_success"], have["gap_to_planner"]
     return (f"the leading learned method's success minus the best planner's ({labels}: "
-            f"{_span(f'{100 * rates.min():.1f}%', f'{100 * rates.max():.1f}%')}) is "
+            f"{_span(_percent(rates.min()), _percent(rates.max()))}) is "
             f"{_span(_pp(gaps.min()), _pp(gaps.max()))} pp; its CI lies below 0 at {below} and above 0 at {above} "
             f"of the {_n(len(have), 'configuration')} with a planner.")
 

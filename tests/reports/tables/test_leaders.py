@@ -84,6 +84,7 @@ def test_leaders__an_empty_run_has_an_empty_page() -> None:
     empty = _evals([])
     assert leaders_frame(empty).empty and leaders_display(leaders_frame(empty)).empty
     assert list(leaders_frame(empty).columns) == COLUMNS  # leaders.csv has its header even so
+    assert list(per_method_frame(empty, leaders_frame(empty)).columns) == PER_METHOD_COLUMNS
     intro = PAGE.split("\n")[:4]  # title, blank, what the page says, blank
     assert _page(empty) == "\n".join([*intro, "No learned method was evaluated yet.", ""])
 
@@ -197,6 +198,7 @@ def test_leaders__ties_go_to_the_method_listed_first_and_so_do_equal_counts() ->
                 + _seeds("pibt", 4, 0.2, "planner", ONE) + _seeds("astar", 8, 0.2, "planner", ONE))
     f = leaders_frame(ev)
     assert list(f["leader"]) == ["hierarchical", "decentralized"]  # the paper's method is listed first
+    assert list(per_method_frame(ev, f)["method"]) == ["hierarchical", "decentralized"]  # legend order, not A-Z
     page = leaders_markdown(f, per_method_frame(ev, f))
     assert page.index("Hierarchical (ours) leads 1 of 2") < page.index("Decentralized leads 1 of 2")
     assert "the best planner's (PIBT, astar: 100.0%)" in page  # every planner named once
