@@ -31,7 +31,7 @@ from reports.stats import cut_interval, t_test
 from reports.tables.leaderboard import PLANNER, seed_scores
 
 PER_METHOD_COLUMNS = ["execution", "method", "configurations", "contested", "leads", "separated_leads",
-                   "with_planner", "gap_min", "gap_max", "below_planner", "above_planner"]
+                      "with_planner", "gap_min", "gap_max", "below_planner", "above_planner"]
 COLUMNS = ["n_robots", "loss_p", "execution", "methods", "leader", "leader_success", "runner_up",
            "runner_up_success", "margin", "margin_lo", "margin_hi", "planner", "planner_success",
            "gap_to_planner", "gap_lo", "gap_hi"]
@@ -102,12 +102,12 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
     return pd.DataFrame(rows, columns=PER_METHOD_COLUMNS)
 
 
-def per_method_markdown(summary: pd.DataFrame) -> str:
+def per_method_markdown(per_method: pd.DataFrame) -> str:
     """``per_method_frame`` as one markdown table (leaders.md's first section; the README's
     full-grid block is a copy of it)."""
     lines = ["| mode | method | leads | by a separated margin | success − best planner, pp | CI below / above 0 |",
              "|---|---|---|---|---|---|"]
-    for _, r in summary.iterrows():
+    for _, r in per_method.iterrows():
         leads = f"{r['leads']} of {r['contested']}" if r["contested"] else "— (alone)"
         separated = str(r["separated_leads"]) if r["contested"] else "—"
         if r["with_planner"]:
@@ -209,9 +209,9 @@ def _planner_line(part: pd.DataFrame) -> str:
 PER_METHOD_HEADING = "## Per method"  # leaders.md's section the README's full-grid block copies
 
 
-def leaders_markdown(frame: pd.DataFrame, summary: pd.DataFrame) -> str:
+def leaders_markdown(frame: pd.DataFrame, per_method: pd.DataFrame) -> str:
     """The page ``leaders.md``: per learned method and mode, its leads and its distance to the
-    planners (``summary``: ``per_method_frame``); then per learned execution mode, the N x p
+    planners (``per_method``: ``per_method_frame``); then per learned execution mode, the N x p
     matrix of leaders, how many configurations each method leads, and the leader's distance
     to the planners."""
     lines = ["# Who leads where", "",
@@ -228,7 +228,7 @@ def leaders_markdown(frame: pd.DataFrame, summary: pd.DataFrame) -> str:
               "Per learned method and mode: how many of the configurations it shares with another learned method "
               "it leads (and by a margin whose CI excludes 0), and at the configurations it shares with a planner, "
               "its own success minus the best planner's (the range of the means, and at how many the 95% Welch CI "
-              "lies below or above 0).", "", per_method_markdown(summary)]
+              "lies below or above 0).", "", per_method_markdown(per_method)]
     display = leaders_display(frame, full=True)
     ps = [c for c in display.columns if c.startswith("p = ")]
     for mode in execution_order(frame["execution"]):
