@@ -10,8 +10,9 @@ the unit, as the rest of the leaderboard:
   and the best planner at that configuration (kept out of the race: PIBT plans with full
   information, a ceiling rather than a rival) with the leader's gap to it, also with a
   Welch CI;
-* ``leaders_markdown`` / ``leaders_display``: one N x p matrix per mode, and how many
-  configurations each method leads;
+* ``leaders_markdown`` / ``leaders_display``: one N x p matrix per mode, how many
+  configurations each method leads, and where another method than the one leading most
+  leads (where the ordering changes with N or p);
 * ``per_method_frame`` / ``per_method_markdown``: per learned execution mode and learned method,
   how many configurations it leads and how far it stays from the best planner at each
   configuration it shares with one (its own gap, leader or not).
@@ -152,9 +153,8 @@ def _cell(r: pd.Series, full: bool) -> str:
     head = f"{method_label(r['leader'])}{rate(r['leader_success'])}"
     if not r["runner_up"]:
         return f"{head} (only learned method)"
-    separated = np.isfinite(r["margin_lo"]) and r["margin_lo"] > 0
     ci = f" [{_pp(r['margin_lo'])}, {_pp(r['margin_hi'])}]" if full and np.isfinite(r["margin_lo"]) else ""
-    return (f"{head} {'>' if separated else '≈'} {method_label(r['runner_up'])}{rate(r['runner_up_success'])} "
+    return (f"{head} {_mark(r['margin_lo'])} {method_label(r['runner_up'])}{rate(r['runner_up_success'])} "
             f"({_pp(r['margin'])} pp{ci})")
 
 
@@ -182,13 +182,36 @@ def _counts(part: pd.DataFrame) -> str:
     margin whose CI excludes 0); ...; 3 configurations have one learned method``."""
     contested = part[part["runner_up"] != ""]
     out = []
-    for m, g in sorted(contested.groupby("leader"), key=lambda t: (-len(t[1]), label_order(method_label(t[0])))):
+    for m, g in _by_leads(contested):
         out.append(f"{method_label(m)} leads {len(g)} of {_n(len(contested), 'configuration')} with two or more "
                    f"learned methods ({int((g['margin_lo'] > 0).sum())} by a margin whose CI excludes 0)")
     if len(contested) < len(part):
         alone = len(part) - len(contested)
         out.append(f"{_n(alone, 'configuration')} {'has' if alone == 1 else 'have'} one learned method")
     return "; ".join(out)
+
+
+def _by_leads(contested: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
+    """The contested configurations per leader, the method leading most first (ties in legend order)."""
+    return sorted(contested.groupby("leader"), key=lambda t: (-len(t[1]), label_order(method_label(t[0]))))
+
+
+def _elsewhere(part: pd.DataFrame) -> str:
+    """`` Where another method than Decentralized leads: N = 60, p = 0.6 (IC3Net ≈); ...``: where
+    the ordering changes with N or p, as the configurations whose leader is not the method
+    leading most; empty where one method leads every contested configuration."""
+    contested = part[part["runner_up"] != ""]
+    if contested["leader"].nunique() < 2:
+        return ""
+    top = _by_leads(contested)[0][0]
+    places = "; ".join(f"N = {r.n_robots}, p = {fmt_p(r.loss_p)} ({method_label(r.leader)} {_mark(r.margin_lo)})"
+                       for r in contested[contested["leader"] != top].itertuples())
+    return f" Where another method than {method_label(top)} leads: {places}."
+
+
+def _mark(margin_lo: float) -> str:
+    """">" where the margin's CI excludes 0, else "≈"."""
+    return ">" if np.isfinite(margin_lo) and margin_lo > 0 else "≈"
 
 
 def _planner_line(part: pd.DataFrame) -> str:
@@ -236,5 +259,5 @@ def leaders_markdown(frame: pd.DataFrame, per_method: pd.DataFrame) -> str:
         rows = display[display["execution"] == mode]
         lines += [f"## {mode}", "", "| N | " + " | ".join(ps) + " |", "|---|" + "---|" * len(ps)]
         lines += [f"| {r['N']} | " + " | ".join(r[p] or "—" for p in ps) + " |" for _, r in rows.iterrows()]
-        lines += ["", f"{_counts(part)}. Against the planners: {_planner_line(part)}", ""]
+        lines += ["", f"{_counts(part)}.{_elsewhere(part)} Against the planners: {_planner_line(part)}", ""]
     return "\n".join(lines)

@@ -150,7 +150,8 @@ PAGE = "\n".join((
     '',
     'c leads 2 of 3 configurations with two or more learned methods (2 by a margin whose CI excludes '
     '0); b leads 1 of 3 configurations with two or more learned methods (1 by a margin whose CI '
-    "excludes 0). Against the planners: the leading learned method's success minus the best planner's"
+    "excludes 0). Where another method than c leads: N = 4, p = 0.2 (b >). Against the planners: the "
+    "leading learned method's success minus the best planner's"
     ' (PIBT: 100.0%) is -40.0 to -10.0 pp; its CI lies below 0 at 1 and above 0 at 0 of the 2 '
     'configurations with a planner.',
     '',
@@ -202,6 +203,21 @@ def test_leaders__ties_go_to_the_method_listed_first_and_so_do_equal_counts() ->
     page = leaders_markdown(f, per_method_frame(ev, f))
     assert page.index("Hierarchical (ours) leads 1 of 2") < page.index("Decentralized leads 1 of 2")
     assert "the best planner's (PIBT, astar: 100.0%)" in page  # every planner named once
+    assert "Where another method than Hierarchical (ours) leads: N = 8, p = 0.2 (Decentralized >)." in page
+
+
+def test_leaders__the_configurations_where_another_method_than_the_most_leading_one_leads() -> None:
+    ev = _evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("b", 4, 0.2, "argmax", B)
+                + _seeds("a", 8, 0.2, "argmax", A) + _seeds("b", 8, 0.2, "argmax", B)
+                + _seeds("b", 8, 0.6, "argmax", (0.0, 1.0, 0.05)) + _seeds("a", 8, 0.6, "argmax", (0.3, 0.3, 0.3))
+                + _seeds("b", 20, 0.2, "argmax", A) + _seeds("a", 20, 0.2, "argmax", B)
+                + _seeds("a", 20, 0.6, "argmax", A) + _seeds("b", 20, 0.6, "argmax", B)
+                + _seeds("b", 4, 0.6, "argmax", A))  # b alone: not a change of leader
+    page = _page(ev)
+    assert (" Where another method than a leads: N = 8, p = 0.6 (b ≈); N = 20, p = 0.2 (b >). "
+            "Against the planners") in page
+    one = _page(_evals(_seeds("a", 4, 0.2, "argmax", A) + _seeds("b", 4, 0.2, "argmax", B)))
+    assert "Where another" not in one  # one leader everywhere: nothing to add
 
 
 @pytest.mark.parametrize("sds", [(0.1, 0.1), (0.1, 0.3), (0.1, 0.3, 0.1)])
