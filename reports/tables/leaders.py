@@ -86,7 +86,7 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
     rows = []
     for mode in execution_order(leaders["execution"]):
         part = leaders[leaders["execution"] == mode]
-        contested = part[part["runner_up"] != ""]
+        contested = _contested(part)
         shared = set(contested.set_index(["n_robots", "loss_p"]).index)  # (N, p) with another learned method
         mine = scores[scores["execution"] == mode]
         for method in sorted(mine["method"].unique(), key=lambda m: (label_order(method_label(m)), m)):
@@ -96,7 +96,7 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
                              for key, g in runs.items() if key in planners]).reshape(-1, 3)
             rows.append({"execution": mode, "method": method, "configurations": len(runs),
                          "contested": len(shared & runs.keys()), "leads": len(led),
-                         "separated_leads": int((led["margin_lo"] > 0).sum()), "with_planner": len(gaps),
+                         "separated_leads": _separated(led), "with_planner": len(gaps),
                          "gap_min": gaps[:, 0].min() if len(gaps) else np.nan,
                          "gap_max": gaps[:, 0].max() if len(gaps) else np.nan,
                          "below_planner": int((gaps[:, 2] < 0).sum()), "above_planner": int((gaps[:, 1] > 0).sum())})
@@ -180,11 +180,11 @@ def _n(k: int, noun: str) -> str:
 def _counts(part: pd.DataFrame) -> str:
     """``Decentralized leads 7 of 15 configurations with two or more learned methods (5 by a
     margin whose CI excludes 0); ...; 3 configurations have one learned method``."""
-    contested = part[part["runner_up"] != ""]
+    contested = _contested(part)
     out = []
     for m, g in _by_leads(contested):
         out.append(f"{method_label(m)} leads {len(g)} of {_n(len(contested), 'configuration')} with two or more "
-                   f"learned methods ({int((g['margin_lo'] > 0).sum())} by a margin whose CI excludes 0)")
+                   f"learned methods ({_separated(g)} by a margin whose CI excludes 0)")
     if len(contested) < len(part):
         alone = len(part) - len(contested)
         out.append(f"{_n(alone, 'configuration')} {'has' if alone == 1 else 'have'} one learned method")
@@ -200,7 +200,7 @@ def _elsewhere(part: pd.DataFrame) -> str:
     """`` Where another method than Decentralized leads: N = 60, p = 0.6 (IC3Net ≈); ...``: where
     the ordering changes with N or p, as the configurations whose leader is not the method
     leading most; empty where one method leads every contested configuration."""
-    contested = part[part["runner_up"] != ""]
+    contested = _contested(part)
     if contested["leader"].nunique() < 2:
         return ""
     top = _by_leads(contested)[0][0]
@@ -209,9 +209,19 @@ def _elsewhere(part: pd.DataFrame) -> str:
     return f" Where another method than {method_label(top)} leads: {places}."
 
 
+def _contested(part: pd.DataFrame) -> pd.DataFrame:
+    """The rows (configurations) of ``part`` with two or more learned methods."""
+    return part[part["runner_up"] != ""]
+
+
+def _separated(rows: pd.DataFrame) -> int:
+    """How many of ``rows`` lead by a margin whose CI excludes 0."""
+    return int((rows["margin_lo"] > 0).sum())
+
+
 def _mark(margin_lo: float) -> str:
-    """">" where the margin's CI excludes 0, else "≈"."""
-    return ">" if np.isfinite(margin_lo) and margin_lo > 0 else "≈"
+    """">" where the margin's CI excludes 0, else "≈" (NaN, one learned method: "≈")."""
+    return ">" if margin_lo > 0 else "≈"
 
 
 def _planner_line(part: pd.DataFrame) -> str:
