@@ -56,7 +56,13 @@ from reports.tables.leaderboard import (
     safety_frame,
     success_figure,
 )
-from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown, per_method_frame
+from reports.tables.leaders import (
+    leaders_display,
+    leaders_frame,
+    leaders_markdown,
+    per_method_display,
+    per_method_frame,
+)
 from reports.tables.progress import progress_markdown
 from reports.tables.success_table import success_markdown
 from reports.tables.summary import (
@@ -183,7 +189,8 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "leaderboard_improvement.csv", poi.to_csv(index=False))
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
     leaders = leaders_frame(evals)
-    write_text(out / "leaders.md", leaders_markdown(leaders, per_method_frame(evals, leaders)))
+    per_method = per_method_frame(evals, leaders)
+    write_text(out / "leaders.md", leaders_markdown(leaders, per_method))
     write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]
@@ -195,7 +202,11 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
         files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
         captions.append(built.caption)
     return Entry("Leaderboard: every method of the run", tuple(files),
-                 tables=(("Success rate per configuration and execution mode: mean over seeds [95% CI over seeds] "
+                 tables=(("Per learned method and mode: how many of the configurations it shares with another "
+                          "learned method it leads (by a margin whose 95% Welch CI over seeds excludes 0), and its "
+                          "success minus the best planner's where one ran (range of the means; at how many the CI "
+                          "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
+                         ("Success rate per configuration and execution mode: mean over seeds [95% CI over seeds] "
                           "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
                           "columns of every method: leaderboard.md.", leaderboard_display(board)),
                          ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "

@@ -103,11 +103,12 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
     return pd.DataFrame(rows, columns=PER_METHOD_COLUMNS)
 
 
-def per_method_markdown(per_method: pd.DataFrame) -> str:
-    """``per_method_frame`` as one markdown table (leaders.md's first section; the README's
-    full-grid block is a copy of it)."""
-    lines = ["| mode | method | leads | by a separated margin | success − best planner, pp | CI below / above 0 |",
-             "|---|---|---|---|---|---|"]
+def per_method_display(per_method: pd.DataFrame) -> pd.DataFrame:
+    """``per_method_frame`` as readers see it, one string per cell (the index page's table;
+    ``per_method_markdown`` writes the same cells): leads "k of n" among the configurations
+    shared with another learned method ("— (alone)" where there are none), and the gap to
+    the best planner as the range of the means and "below / above of n"."""
+    rows = []
     for _, r in per_method.iterrows():
         leads = f"{r['leads']} of {r['contested']}" if r["contested"] else "— (alone)"
         separated = str(r["separated_leads"]) if r["contested"] else "—"
@@ -116,7 +117,17 @@ def per_method_markdown(per_method: pd.DataFrame) -> str:
             below = f"{r['below_planner']} / {r['above_planner']} of {r['with_planner']}"
         else:
             gap = below = "—"
-        lines.append(f"| {r['execution']} | {method_label(r['method'])} | {leads} | {separated} | {gap} | {below} |")
+        rows.append((r["execution"], method_label(r["method"]), leads, separated, gap, below))
+    return pd.DataFrame(rows, columns=["mode", "method", "leads", "by a separated margin",
+                                       "success − best planner, pp", "CI below / above 0"])
+
+
+def per_method_markdown(per_method: pd.DataFrame) -> str:
+    """``per_method_display`` as one markdown table (leaders.md's first section; the README's
+    full-grid block is a copy of it)."""
+    shown = per_method_display(per_method)
+    lines = ["| " + " | ".join(shown.columns) + " |", "|" + "---|" * len(shown.columns)]
+    lines += ["| " + " | ".join(row) + " |" for row in shown.itertuples(index=False)]
     return "\n".join(lines) + "\n"
 
 

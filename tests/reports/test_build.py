@@ -3,6 +3,9 @@ store with failed/pending/missing cells, a smoke-sized store, and user errors.
 Runtime: about 10 s (each build renders three figures to PNG and PDF)."""
 from __future__ import annotations
 
+import html
+import re
+
 import pandas as pd
 import pytest
 from PIL import Image
@@ -66,6 +69,21 @@ def test_build_report__index_links_everything_with_the_manifest(paper_run):
     assert "Every cell of the store is done." in md
     assert md.count("**not enough seeds**") == 10  # 2 seeds per configuration: every statistical claim
     assert "**supported**" not in md
+
+
+def test_build_report__index_page_shows_each_learned_methods_leads_as_in_leaders_md(paper_run):
+    """Issue 33: how each learned method compares, on the page a user opens first, cell for
+    cell as in leaders.md's "Per method" table."""
+    _, out = paper_run
+    page, leaders = (out / "index.html").read_text(), (out / "leaders.md").read_text()
+    rows = [ln for ln in leaders.split("## Per method", 1)[1].split("\n## ", 1)[0].splitlines()
+            if ln.startswith("| argmax |")]
+    assert len(rows) == 3  # the synthetic run's three learned methods, argmax only
+    table = page[page.index("<caption>Per learned method and mode"):]
+    table = table[:table.index("</table>")]
+    shown = [html.unescape(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", table)]
+    assert shown == [c.strip() for row in rows for c in row.strip().strip("|").split("|")]
+    assert page.index("Per learned method and mode") < page.index("Who leads where")
 
 
 def test_build_report__two_seeds_never_print_supported(paper_run):
