@@ -12,6 +12,7 @@ from PIL import Image
 
 from envs.errors import BenchError
 from reports.build import build_report
+from reports.tables.leaders import PER_METHOD_HEADING
 from tests.reports.synthetic import frames, smoke_specs, write_store
 
 EXPECTED = [
@@ -76,7 +77,7 @@ def test_build_report__index_page_shows_each_learned_methods_leads_as_in_leaders
     cell as in leaders.md's "Per method" table."""
     _, out = paper_run
     page, leaders = (out / "index.html").read_text(), (out / "leaders.md").read_text()
-    rows = [ln for ln in leaders.split("## Per method", 1)[1].split("\n## ", 1)[0].splitlines()
+    rows = [ln for ln in leaders.split(PER_METHOD_HEADING, 1)[1].split("\n## ", 1)[0].splitlines()
             if ln.startswith("| argmax |")]
     assert len(rows) == 3  # the synthetic run's three learned methods, argmax only
     table = page[page.index("<caption>Per learned method and mode"):]
