@@ -4,7 +4,7 @@
   own generator (``python -m typer bench.cli utils docs``), so it cannot drift from
   ``bench --help``.
 * ``changelog.md``: the repository's ``CHANGELOG.md``, as it is.
-* ``reproduction/<run>/report/...``: the committed reports' figures and tables, at the paths
+* ``reproduction/<run>/report/...``: every committed report's figures and tables, at the paths
   the README and ``docs/reproduction.md`` link them by, so those links resolve in the site
   (``mkdocs build --strict`` fails on a link to a missing file).
 """
@@ -17,7 +17,9 @@ from pathlib import Path
 from mkdocs.structure.files import File, Files
 
 ROOT = Path(__file__).resolve().parents[1]
-REPORTS = ("reproduction/paper/report", "reproduction/ablation/report")
+# Every committed report (paper, ablation, and the full grid once it is reported); a page that
+# links a report missing here still fails the strict build.
+REPORTS = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "reproduction").glob("*/report") if p.is_dir())
 
 
 def cli_reference() -> str:
