@@ -7,12 +7,14 @@ run whose settings or scenarios differ is refused naming the first mismatch.
 """
 from __future__ import annotations
 
+from itertools import permutations
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from rliable import metrics as rly_metrics
+from scipy import stats
 
 from bench.design.cells import Cell
 from bench.design.grids import Grid
@@ -24,6 +26,7 @@ from reports.tables.leaderboard import (
     _poi,
     _profile,
     _stratified_band,
+    _stratified_ci,
     aggregate_frame,
     leaderboard_frame,
     safety_frame,
@@ -150,3 +153,137 @@ def test_against__a_configuration_the_reference_lacks_is_refused(runs, tmp_path:
     only4 = _store(tmp_path, "only4", [c for c in _cells("pibt") if c.n_robots == 4])
     with pytest.raises(BenchError, match="no done cell at N=6 p=0.2"):
         merge_against(load_store(runs["new"]), only4)
+
+
+# --- the exact frames the report pages and the README's headline numbers are built from ---
+BOARD_COLUMNS = ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success", "success_lo",
+                 "success_hi", "rank"]
+
+
+def test_leaderboard__columns_order_and_the_t_interval_over_seeds_cut_to_a_rate() -> None:
+    ev = _evals([("decentralized", 4, 0.2, "sample", s, v) for s, v in enumerate((0.4, 0.5, 0.6))]
+                + [("hierarchical", 4, 0.2, "sample", s, v) for s, v in enumerate((0.1, 0.2, 0.3))]
+                + [("hierarchical", 4, 0.2, "argmax", s, v) for s, v in enumerate((0.0, 0.3, 0.0))]
+                + [("decentralized", 4, 0.2, "argmax", 0, 0.6)]
+                + [("pibt", 4, 0.2, "planner", 0, 1.0)]
+                + [("hierarchical", 2, 0.6, "argmax", 0, 0.4)])
+    board = leaderboard_frame(ev)
+    assert list(board.columns) == BOARD_COLUMNS and board["rank"].dtype == np.int64
+    # N, then p, then argmax < sample < planner, then the paper's method before the baselines
+    assert list(zip(board["n_robots"], board["execution"], board["method"], strict=True)) == [
+        (2, "argmax", "hierarchical"), (4, "argmax", "hierarchical"), (4, "argmax", "decentralized"),
+        (4, "sample", "hierarchical"), (4, "sample", "decentralized"), (4, "planner", "pibt")]
+    assert board["label"].tolist()[-3:] == ["Hierarchical (ours)", "Decentralized", "PIBT"]
+    row = board.set_index(["n_robots", "execution", "method"]).loc[(4, "sample", "decentralized")]
+    half = stats.t.ppf(0.975, 2) * 0.1 / np.sqrt(3)  # sd of (0.4, 0.5, 0.6) is 0.1
+    assert (row["success"], row["success_lo"], row["success_hi"]) == pytest.approx((0.5, 0.5 - half, 0.5 + half))
+    argmax = board.set_index(["n_robots", "execution", "method"]).loc[(4, "argmax", "hierarchical")]
+    assert argmax["success_lo"] == 0.0 and argmax["success_hi"] < 1.0  # cut at 0: a rate
+    one = board.iloc[0]
+    assert one["seeds"] == 1 and np.isnan(one["success_lo"]) and np.isnan(one["success_hi"])
+
+
+def test_leaderboard__ties_share_the_best_rank_and_a_planner_ranks_against_the_first_learned_mode() -> None:
+    ev = _evals([("a", 4, 0.2, "argmax", 0, 0.5), ("b", 4, 0.2, "argmax", 0, 0.5), ("c", 4, 0.2, "argmax", 0, 0.1),
+                 ("a", 4, 0.2, "sample", 0, 0.9), ("b", 4, 0.2, "sample", 0, 0.8), ("c", 4, 0.2, "sample", 0, 0.7),
+                 ("p", 4, 0.2, "planner", 0, 0.3)])
+    rank = leaderboard_frame(ev).set_index(["execution", "method"])["rank"]
+    assert (rank[("argmax", "a")], rank[("argmax", "b")], rank[("planner", "p")], rank[("argmax", "c")]) == (1, 1, 3, 4)
+    assert [rank[("sample", m)] for m in "abc"] == [1, 2, 3]  # the planner (rank 4 here) has its argmax rank
+    three = leaderboard_frame(_evals([(m, 4, 0.2, "argmax", 0, 0.5) for m in "abc"]
+                                     + [("d", 4, 0.2, "argmax", 0, 0.1)]))
+    assert three["rank"].tolist() == [1, 1, 1, 4]  # "min": not the average rank 2
+    unscored = leaderboard_frame(_evals([("a", 4, 0.2, "argmax", 0, np.nan), ("b", 4, 0.2, "argmax", 0, 0.2)]))
+    assert dict(zip(unscored["method"], unscored["rank"], strict=True)) == {"a": 0, "b": 1}  # no value: unranked
+    only = leaderboard_frame(_evals([("p", 4, 0.2, "planner", 0, 0.3), ("q", 4, 0.2, "planner", 0, 0.6)]))
+    assert dict(zip(only["method"], only["rank"], strict=True)) == {"q": 1, "p": 2}
+    empty = leaderboard_frame(_evals([]).reindex(columns=["method", "n_robots", "loss_p", "execution", "seed",
+                                                          "success_rate", "episode"]))
+    assert list(empty.columns) == BOARD_COLUMNS and empty.empty and empty["rank"].dtype == np.int64
+
+
+def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_with_stratified_cis() -> None:
+    seeds = range(3)
+    ev = _evals([("decentralized", n, 0.2, "argmax", s, 0.8 + 0.05 * s) for n in (4, 6) for s in seeds]
+                + [("hierarchical", n, 0.2, "argmax", s, 0.1 + 0.05 * s) for n in (4, 6) for s in seeds]
+                + [("ic3net", n, 0.2, "argmax", s, 0.4 + 0.1 * s) for n in (4, 6, 8) for s in seeds]
+                + [("hierarchical", n, 0.2, "sample", s, 0.95) for n in (4, 6) for s in seeds]
+                + [("decentralized", n, 0.2, "sample", s, 0.05) for n in (4, 6) for s in seeds]
+                + [("ic3net", n, 0.2, "sample", s, 0.5) for n in (4, 6) for s in seeds])
+    iqm, poi = aggregate_frame(ev)
+    assert list(iqm.columns) == ["execution", "method", "label", "configurations", "seeds", "iqm", "iqm_lo", "iqm_hi"]
+    assert list(poi.columns) == ["execution", "method", "over", "label", "over_label", "configurations", "poi",
+                                 "poi_lo", "poi_hi"]
+    # the paper's method first, then the baselines in their legend order; argmax before sample
+    assert list(zip(iqm["execution"], iqm["method"], strict=True)) == [
+        (e, m) for e in ("argmax", "sample") for m in ("hierarchical", "decentralized", "ic3net")]
+    a = iqm.set_index(["execution", "method"])
+    assert (a["configurations"] == 2).all() and (a["seeds"] == 3).all()  # N = 8: ic3net only
+    mat = np.array([[0.8, 0.8], [0.85, 0.85], [0.9, 0.9]])
+    assert a.loc[("argmax", "decentralized"), "iqm"] == pytest.approx(rly_metrics.aggregate_iqm(mat))
+    assert a.loc[("argmax", "decentralized"), "iqm_lo"] <= 0.85 <= a.loc[("argmax", "decentralized"), "iqm_hi"]
+    assert a.loc[("sample", "hierarchical"), "iqm"] == pytest.approx(0.95)  # each mode its own matrix
+    assert a.loc[("sample", "hierarchical"), ["iqm_lo", "iqm_hi"]].tolist() == pytest.approx([0.95, 0.95])
+    assert len(poi) == 2 * 6  # every ordered pair of 3 methods, per mode
+    p = poi.set_index(["execution", "method", "over"])
+    for e in ("argmax", "sample"):
+        for x, y in permutations(("hierarchical", "decentralized", "ic3net"), 2):
+            assert p.loc[(e, x, y), "poi"] + p.loc[(e, y, x), "poi"] == pytest.approx(1.0)
+    # every seed of decentralized above every seed of hierarchical: 1 with no room to move
+    assert p.loc[("argmax", "decentralized", "hierarchical"), ["poi", "poi_lo", "poi_hi"]].tolist() == [1.0, 1.0, 1.0]
+    assert p.loc[("argmax", "hierarchical", "decentralized"), "over_label"] == "Decentralized"
+    # the bootstrap is seeded: the same frames twice
+    again = aggregate_frame(ev)
+    pd.testing.assert_frame_equal(iqm, again[0])
+    pd.testing.assert_frame_equal(poi, again[1])
+
+
+def test_score_matrices__each_mode_alone_and_a_method_without_common_seeds_left_out_not_the_rest() -> None:
+    ev = _evals([("a", 4, 0.2, "argmax", s, 0.1) for s in range(2)]
+                + [("a", 4, 0.2, "sample", s, 0.9) for s in range(2)]
+                + [("b", 4, 0.2, "argmax", 0, 0.2), ("b", 6, 0.2, "argmax", 1, 0.2)]
+                + [("c", n, 0.2, "argmax", s, 0.3) for n in (4, 6) for s in range(2)]
+                + [("a", 6, 0.2, "argmax", s, 0.1) for s in range(2)])
+    mats, cfgs, used = score_matrices(ev, "argmax")
+    assert cfgs == [(4, 0.2), (6, 0.2)]  # the last method (c) covers both, b and a too
+    assert set(mats) == {"a", "c"} and used == {"a": 2, "c": 2}  # b: no seed at both N
+    assert (mats["a"] == 0.1).all()  # argmax rows only, not sample's 0.9
+    one_short = _evals([(m, n, 0.2, "argmax", 0, 0.5) for m in "ab" for n in (4, 6)]
+                       + [("c", 4, 0.2, "argmax", 0, 0.5)])
+    assert score_matrices(one_short, "argmax")[1] == [(4, 0.2)]  # c's own configurations, not the others'
+    disjoint = _evals([("a", 4, 0.2, "argmax", 0, 0.5), ("b", 6, 0.2, "argmax", 0, 0.5)])
+    assert score_matrices(disjoint, "argmax") == ({}, [], {})
+
+
+def test_safety_frame__columns_and_rows_sorted_whatever_order_the_rows_came_in() -> None:
+    def row(method: str, n: int, seed: int) -> dict[str, object]:
+        return dict(method=method, n_robots=n, loss_p=0.2, execution="argmax", seed=seed, episode=0,
+                    safety_filter=False, collision_rate=0.1, correction_rate=0.0, fallback_rate=np.nan,
+                    mean_candidates=np.nan, payload_scalars_per_step=1.0)
+    out = safety_frame(pd.DataFrame([row("pibt", 6, 0), row("decentralized", 6, 1), row("decentralized", 4, 0)]))
+    assert list(out.columns) == ["method", "label", "n_robots", "loss_p", "execution", "seeds", "collision_rate",
+                                 "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step"]
+    assert list(zip(out["method"], out["n_robots"], strict=True)) == [("decentralized", 4), ("decentralized", 6),
+                                                                      ("pibt", 6)]
+    assert out["label"].tolist() == ["Decentralized", "Decentralized", "PIBT"]
+
+
+def test_stratified_band__two_seeds_are_enough_seeded_and_nan_on_both_sides_below() -> None:
+    cols = [np.array([0.1, 0.5]), np.array([0.2, 0.9])]
+    lo, hi = _stratified_band(cols, _iqm)
+    assert np.isfinite(lo) and np.isfinite(hi) and lo < hi
+    # the published protocol, so the committed reports rebuild byte for byte: 2,000 percentile
+    # resamples at 95%, seeded with 0
+    varied = [np.array([0.11, 0.52, 0.37, 0.94, 0.23, 0.68]), np.array([0.05, 0.81, 0.44, 0.29, 0.99, 0.6])]
+    ref = stats.bootstrap(varied, _iqm, n_resamples=2000, confidence_level=0.95, method="percentile",
+                          vectorized=True, random_state=np.random.default_rng(0)).confidence_interval
+    assert _stratified_band(varied, _iqm) == (ref.low, ref.high) and _stratified_ci(varied, _iqm) == (ref.low, ref.high)
+    lo, hi = _stratified_band([np.array([0.1, 0.5]), np.array([0.3])], _iqm)
+    assert np.isnan(lo) and np.isnan(hi)
+
+
+def test_iqm__batched_columns_give_each_batch_rows_own_iqm() -> None:
+    x = np.array([[0.1, 0.9, 0.3, 0.4], [0.5, 0.5, 0.6, 0.0]])  # 2 batch rows x 4 seeds
+    y = np.array([[0.2, 0.2, 0.8, 0.7], [0.1, 0.3, 0.3, 0.9]])
+    out = _iqm(x, y)
+    assert out == pytest.approx([rly_metrics.aggregate_iqm(np.stack([x[i], y[i]], axis=1)) for i in range(2)])
