@@ -11,7 +11,9 @@ import pandas as pd
 import pytest
 
 from algorithms.hierarchical.safety_filter import lemma1_count
+from bench.design.paper import PAPER_TABLE1
 from reports.claims.catalog import all_claims
+from reports.claims.claim_power import power_below
 from reports.claims.claims import (
     Check,
     claim_above_ic3net,
@@ -25,6 +27,7 @@ from reports.claims.claims import (
     final_means,
     mode_pairs,
     per_cell,
+    seed_means,
     with_execution,
 )
 from reports.claims.page import (
@@ -33,6 +36,12 @@ from reports.claims.page import (
     claims_markdown,
     claims_summary,
     claims_table_markdown,
+)
+from reports.claims.table1_claims import (
+    claim_collisions_printed,
+    claim_mean_candidates,
+    claim_normal_search,
+    claim_searches_grow,
 )
 from reports.claims.verdicts import (
     BAND_PCT,
@@ -785,3 +794,67 @@ def test_check_convergence__uses_its_tolerance_and_the_modules_final_fraction(mo
     import reports.claims.verdicts as verdicts
     monkeypatch.setattr(verdicts, "FINAL_FRAC", 0.4)
     assert "(windows of 20 episodes)" in verdicts.check_convergence(curves)[2]
+
+
+# --------------------------------------------- Table I's statements beyond "no collisions"
+def _table1_evals(ns=(40, 60, 80), p: float = 0.2, seeds: int = 3) -> pd.DataFrame:
+    """The hierarchical method with its filter on, in two modes: collisions well below Table I's
+    print bound, candidates near and growing like the paper's, fallbacks well below 5%."""
+    rng = np.random.default_rng(3)
+    parts = []
+    for n in ns:
+        for mode in ("argmax", "sample"):
+            e = 10
+            parts.append(_ev("hierarchical", np.full((seeds, e), 0.5), n=n, p=p, mode=mode,
+                             collision_rate=rng.uniform(0, 2e-6, (seeds, e)),
+                             mean_candidates=PAPER_TABLE1.get(n, (0, 0, 20.0))[2] + rng.normal(0, 0.2, (seeds, e)),
+                             fallback_rate=rng.uniform(0.001, 0.003, (seeds, e))))
+            parts[-1]["cell_id"] += str(p)
+    return pd.concat(parts, ignore_index=True)
+
+
+@pytest.mark.parametrize("claim_of, quantity", [(claim_collisions_printed, "collision rate"),
+                                                (claim_mean_candidates, "mean candidates"),
+                                                (claim_normal_search, "fallback rate")])
+def test_table1_claims__each_check_names_its_quantity_and_contradicts_at_the_claims_bonferroni_level(
+        claim_of, quantity) -> None:
+    claim = claim_of(_table1_evals(), configs=[(40, 0.2), (60, 0.2), (80, 0.2)])
+    assert [(k.config, k.execution) for k in claim.checks] == [
+        (f"N = {n}, p = 0.2", m) for n in (40, 60, 80) for m in ("argmax", "sample")]
+    assert all(quantity in k.numbers and f"{TEST_ALPHA / 6:.2g} (Bonferroni)" in k.test for k in claim.checks)
+    assert claim.verdict == SUPPORTED
+
+
+def test_table1_claims__power_at_the_truth_each_claim_assumes() -> None:
+    # a rate of 0 for the print bound, half the bound for the fallbacks, the paper's value for
+    # the candidates: each check's power is that of its own seeds at that truth
+    ev = _table1_evals(ns=(40,))
+    # fallback seed means 1%, 2%, 3%: a power below 1, so the truth it is computed at shows
+    spread = ev.assign(fallback_rate=ev["seed"].map({0: 0.01, 1: 0.02, 2: 0.03}))
+    rows = with_execution(spread)
+    for claim, column, bound, truth, words in (
+            (claim_collisions_printed(ev, configs=[(40, 0.2)]), "collision_rate", 0.00005, 0.0, "a true rate of 0"),
+            (claim_normal_search(spread, configs=[(40, 0.2)]), "fallback_rate", 0.05, 0.025, "a true rate of 2.5%")):
+        for k in claim.checks:
+            m = seed_means(rows[rows["execution"] == k.execution], column)
+            assert k.power == pytest.approx(power_below(m, bound, truth, words).power) and words in k.power_text
+    candidates = claim_mean_candidates(ev, configs=[(40, 0.2)])
+    assert all(np.isfinite(k.power) and "the paper's 3.79" in k.power_text for k in candidates.checks)
+    unprinted = claim_mean_candidates(_table1_evals(ns=(20,)), configs=[(20, 0.2)])
+    assert [(k.config, k.verdict, k.numbers) for k in unprinted.checks] == [
+        ("N = 20, p = 0.2", NOT_ENOUGH, "no value in the paper's Table I")]
+
+
+def test_searches_grow__one_check_per_mode_over_the_team_sizes_at_the_configurations_loss() -> None:
+    ev = pd.concat([_table1_evals(), _table1_evals(p=0.4).assign(mean_candidates=lambda d: 100 - d["mean_candidates"])],
+                   ignore_index=True)
+    claim = claim_searches_grow(ev, configs=[(40, 0.2), (60, 0.2), (80, 0.2)])
+    assert [(k.config, k.execution) for k in claim.checks] == [("N = 40..80, p = 0.2", "argmax"),
+                                                               ("N = 40..80, p = 0.2", "sample")]
+    assert all("mean candidates" in k.numbers and f"{TEST_ALPHA / 2:.2g} (Bonferroni)" in k.test
+               for k in claim.checks)
+    assert claim.verdict == SUPPORTED
+    falling = claim_searches_grow(ev, configs=[(40, 0.4), (60, 0.4), (80, 0.4)])  # p = 0.4's rows: decreasing
+    assert {k.config for k in falling.checks} == {"N = 40..80, p = 0.4"} and falling.verdict == CONTRADICTED
+    none = claim_searches_grow(ev, configs=[])
+    assert [(k.config, k.verdict) for k in none.checks] == [("-", NOT_ENOUGH)]

@@ -109,3 +109,24 @@ def test_claims_page_adds_the_runs_methods_and_keeps_the_papers_page() -> None:
     assert "Methods of this run" not in claims_markdown(paper)
     frame = claims_frame(paper + mine)
     assert (frame[frame["claim"] == "above_baselines_mine"]["scope"] == "run").all()
+
+
+def test_each_check_reads_both_methods_at_its_own_loss_rate_and_names_its_quantity() -> None:
+    # mine above the baseline at p = 0.2, below it at p = 0.6: pooled over p, both would agree
+    ev = pd.concat([_evals({"mine": 0.8, "decentralized": 0.4}, configs=((20, 0.2),)),
+                    _evals({"mine": 0.2, "decentralized": 0.7}, configs=((20, 0.6),), seed=1)], ignore_index=True)
+    claim = claim_above_baselines(ev, "mine", ["decentralized"])
+    got = {(k.config, k.execution): k.verdict for k in claim.checks}
+    assert got == {("vs Decentralized, N = 20, p = 0.2", m): SUPPORTED for m in LEARNED} | {
+        ("vs Decentralized, N = 20, p = 0.6", m): CONTRADICTED for m in LEARNED}
+    assert all("mean success" in k.numbers for k in claim.checks)
+    # each side's own seeds at that p: 5 vs 5, not the baseline's 10 over both loss rates
+    assert all("(5 vs 5 seeds)" in k.test for k in claim.checks)
+    assert claim.criterion.startswith("Per seed, the mean success rate over the evaluation episodes; Welch t")
+
+
+def test_a_learned_method_with_one_mode_is_checked_in_the_mode_both_share_only() -> None:
+    ev = _evals({"mine": 0.8, "decentralized": 0.4})
+    ev = ev[(ev["method"] != "mine") | (ev["execution"] == "argmax")]  # mine evaluated in argmax only
+    claim = claim_above_baselines(ev, "mine", ["decentralized"])
+    assert [k.execution for k in claim.checks] == ["argmax"]  # not argmax against each baseline mode
