@@ -38,6 +38,8 @@ from reports.claims.page import (
     claims_table_markdown,
 )
 from reports.claims.table1_claims import (
+    FALLBACK_BOUND,
+    PRINT_BOUND,
     claim_collisions_printed,
     claim_mean_candidates,
     claim_normal_search,
@@ -801,10 +803,9 @@ def _table1_evals(ns=(40, 60, 80), p: float = 0.2, seeds: int = 3) -> pd.DataFra
     """The hierarchical method with its filter on, in two modes: collisions well below Table I's
     print bound, candidates near and growing like the paper's, fallbacks well below 5%."""
     rng = np.random.default_rng(3)
-    parts = []
+    parts, e = [], 10
     for n in ns:
         for mode in ("argmax", "sample"):
-            e = 10
             parts.append(_ev("hierarchical", np.full((seeds, e), 0.5), n=n, p=p, mode=mode,
                              collision_rate=rng.uniform(0, 2e-6, (seeds, e)),
                              mean_candidates=PAPER_TABLE1.get(n, (0, 0, 20.0))[2] + rng.normal(0, 0.2, (seeds, e)),
@@ -833,8 +834,9 @@ def test_table1_claims__power_at_the_truth_each_claim_assumes() -> None:
     spread = ev.assign(fallback_rate=ev["seed"].map({0: 0.01, 1: 0.02, 2: 0.03}))
     rows = with_execution(spread)
     for claim, column, bound, truth, words in (
-            (claim_collisions_printed(ev, configs=[(40, 0.2)]), "collision_rate", 0.00005, 0.0, "a true rate of 0"),
-            (claim_normal_search(spread, configs=[(40, 0.2)]), "fallback_rate", 0.05, 0.025, "a true rate of 2.5%")):
+            (claim_collisions_printed(ev, configs=[(40, 0.2)]), "collision_rate", PRINT_BOUND, 0.0, "a true rate of 0"),
+            (claim_normal_search(spread, configs=[(40, 0.2)]), "fallback_rate", FALLBACK_BOUND, FALLBACK_BOUND / 2,
+             "a true rate of 2.5%")):
         for k in claim.checks:
             m = seed_means(rows[rows["execution"] == k.execution], column)
             assert k.power == pytest.approx(power_below(m, bound, truth, words).power) and words in k.power_text
