@@ -194,7 +194,7 @@ def grids(
     from bench.design.grids import BUILTIN, get_grid
 
     rates = None
-    source = f"{costs.LABEL} on reproduction/paper"
+    source = f"{costs.LABEL} on {costs.RATES_RUN}"
     if rates_from is not None:
         if not (rates_from / "cells.parquet").is_file():
             raise BenchError(f"--rates-from {str(rates_from)!r}: no results store there (cells.parquet not found)")

@@ -5,8 +5,12 @@ rows' ``wall_s``, each an iteration's seconds divided by its episodes) and its e
 seconds (the cell's ``wall_s`` minus those). Dividing the agent-steps ``costs`` charges the
 cell (``cell_agent_steps``: episodes x horizon x N, an upper bound) by these seconds gives
 *effective* rates, so that ``costs.cell_seconds`` of a cell at an observed rate is the
-seconds such a cell took. ``observed_rates`` takes the median per (method, N); ``bench
-grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
+seconds such a cell took. A cell trained in a seed stack (``bench run --stack-seeds``)
+took its share of the stack's time; its training rate is scaled back to one seed by the
+stack's gain (``costs.stack_gain``), so that estimates apply the gain once.
+``observed_rates`` takes the median per (method, N), over the cells the run trained itself
+where it has any (cells copied in from another run may have run stacked or not);
+``bench grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
 (``bench/design/cost_rates.json``, ``rates_file``) are the committed reproduction's.
 
 Wall time: a cell's rate includes whatever else the machine was doing (the other worker,
@@ -28,32 +32,44 @@ from bench.store.run_store import RunStore
 from envs.errors import BenchError
 
 
-def observed_costs(run_dir: Path | str) -> pd.DataFrame:
-    """One row per done cell of the run: ``method``, ``n_robots``, ``train_s``, ``eval_s``
-    and the effective ``train_rate`` / ``eval_rate`` (agent-steps per second; NaN where the
-    cell had no such phase, e.g. a planner's training)."""
+def observed_costs(run_dir: Path | str, stack_seeds: int = 1, copied: Iterable[str] = ()) -> pd.DataFrame:
+    """One row per done cell of the run: ``method``, ``n_robots``, ``train_s``, ``eval_s``,
+    the one-seed ``train_rate`` and the ``eval_rate`` (agent-steps per second; NaN where
+    the cell had no such phase, e.g. a planner's training), ``stack`` (the seed stack the
+    run trained it in with ``bench run --stack-seeds stack_seeds``) and ``trained_here``
+    (False for the ``copied`` cell ids, which another run trained, taken as unstacked)."""
     store = RunStore(run_dir)
     cells = store.read_cells()
     if cells is None:
         raise BenchError(f"no results store at {str(run_dir)!r}: cells.parquet not found")
-    return costs_of(cells, store.read_train())
+    return costs_of(cells, store.read_train(), stack_seeds, copied)
 
 
-def costs_of(cells: pd.DataFrame, train: pd.DataFrame) -> pd.DataFrame:
+def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
+             copied: Iterable[str] = ()) -> pd.DataFrame:
     """``observed_costs`` of a run's ``cells.parquet`` rows and training rows."""
-    done = cells[cells["status"] == "done"]
-    train_s = train[train["cell_id"].isin(done["cell_id"])].groupby("cell_id")["wall_s"].sum()
+    skip = set(copied)
+    every = [Cell.model_validate_json(j) for j in cells["config_json"]]
+    own = [i for i, cid in enumerate(cells["cell_id"]) if cid not in skip]
+    stacks = dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds),
+                      strict=True))
+    done = cells["status"] == "done"
+    train_s = train[train["cell_id"].isin(cells.loc[done, "cell_id"])].groupby("cell_id")["wall_s"].sum()
     rows = []
-    for r in done.itertuples(index=False):
-        cell = Cell.model_validate_json(r.config_json)
+    for r, cell in zip(cells.itertuples(index=False), every, strict=True):
+        if r.status != "done":
+            continue
         train_steps, eval_steps = costs.cell_agent_steps(cell)
+        stack = stacks.get(r.cell_id, 1)
         t = float(train_s.get(r.cell_id, 0.0))
         e = float(r.wall_s) - t
+        one_seed_t = t * costs.stack_gain(cell.method, cell.n_robots, stack)
         rows.append(dict(cell_id=r.cell_id, method=cell.method, n_robots=cell.n_robots, train_s=t, eval_s=e,
-                         train_rate=train_steps / t if train_steps and t > 0 else np.nan,
-                         eval_rate=eval_steps / e if eval_steps and e > 0 else np.nan))
+                         train_rate=train_steps / one_seed_t if train_steps and t > 0 else np.nan,
+                         eval_rate=eval_steps / e if eval_steps and e > 0 else np.nan,
+                         stack=stack, trained_here=r.cell_id not in skip))
     return pd.DataFrame(rows, columns=["cell_id", "method", "n_robots", "train_s", "eval_s",
-                                       "train_rate", "eval_rate"])
+                                       "train_rate", "eval_rate", "stack", "trained_here"])
 
 
 def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates | None = None,
@@ -83,9 +99,13 @@ def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates
 
 def observed_rates(observed: pd.DataFrame) -> Rates:
     """Median effective rate per method, phase and N, in the layout of
-    ``costs.AGENT_STEPS_PER_S`` (only the (method, phase, N) the run has)."""
+    ``costs.AGENT_STEPS_PER_S`` (only the (method, phase, N) the run has), over the cells
+    the run trained itself where it trained any at that (method, N), else over those
+    copied in (a frame without ``trained_here``: all its cells)."""
     out: Rates = {}
     for (method, n), g in observed.groupby(["method", "n_robots"]):
+        if "trained_here" in g and g["trained_here"].any():
+            g = g[g["trained_here"]]
         for phase in ("train", "eval"):
             vals = g[f"{phase}_rate"].dropna()
             if len(vals):
@@ -104,9 +124,11 @@ def two_digits(x: float) -> float:
     return round(x, 1 - int(math.floor(math.log10(abs(x))))) if x else 0.0
 
 
-def rates_file(observed: pd.DataFrame, run: str) -> dict:
-    """The content of ``bench/design/cost_rates.json`` for a run's observed costs."""
+def rates_file(observed: pd.DataFrame, run: str, stack_seeds: int = 1, copied_from: str | None = None) -> dict:
+    """The content of ``bench/design/cost_rates.json`` for a run's observed costs (observed
+    with ``stack_seeds`` and the cells of the run ``copied_from`` as copied, recorded so the
+    file can be rebuilt)."""
     rates = observed_rates(observed)
-    return {"run": run, "done_cells": int(len(observed)),
+    return {"run": run, "stack_seeds": stack_seeds, "copied_from": copied_from, "done_cells": int(len(observed)),
             "rates": {m: {ph: {str(n): two_digits(r) for n, r in sorted(pts.items())}
                           for ph, pts in sorted(phases.items())} for m, phases in sorted(rates.items())}}

@@ -25,11 +25,13 @@ Rates = dict[str, dict[str, dict[int, float]]]
 # Effective agent-steps (robots x environment steps, the upper bound above) per second
 # of one worker at the observed N, for training and evaluation; other N interpolate
 # piecewise linearly (clamped). OBSERVED on the committed reproduction's done cells
-# (reproduction/paper: the paper's budgets, 1-2 workers on the 2-core x86_64 VM, wall
-# time, on the commits its manifest lists): the median per (method, N) of
-# bench/design/cost_calibration.py's rates, 2 significant digits, in cost_rates.json, which
-# `python scripts/calibrate_costs.py reproduction/paper --write` rebuilds whenever the
-# reproduction's state is committed (a test keeps the two equal). Their spread is this
+# (reproduction/full since 2026-12-06: the paper's budgets, 1-2 workers on the 2-core x86_64
+# VM, wall time, on the commits its manifest lists; the cells it trained itself, seed-stacked
+# by 3 and scaled back to one seed by stack_gain, and the cells it copied from
+# reproduction/paper where it trained none at that method and N): the median per (method, N)
+# of bench/design/cost_calibration.py's rates, 2 significant digits, in cost_rates.json,
+# which `python scripts/calibrate_costs.py reproduction/full --stack-seeds 3 --exclude-run
+# reproduction/paper --write` rebuilds (a test keeps the two equal). Their spread is this
 # box's (0.5-2x between cells of one configuration run at different times), so an
 # estimate is good to about a factor of 2; `bench grids --rates-from RUN` estimates with
 # your own run's. Methods the reproduction has not finished a cell of fall back to
@@ -65,6 +67,7 @@ def read_rates_file(path: Path = RATES_FILE) -> Rates:
 
 
 AGENT_STEPS_PER_S: Rates = merge_rates(FALLBACK_RATES, read_rates_file())
+RATES_RUN: str = json.loads(RATES_FILE.read_text())["run"]  # the run they were observed on
 MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 

@@ -201,7 +201,8 @@ def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -
     assert rows["paper"].split("│")[2].strip() == "84"  # 28 configurations x 3 seeds (default)
     assert [rows["paper"].split("│")[k].strip() for k in (6, 7)] == ["28", "3"]
     assert rows["full"].split("│")[2].strip() == "216"
-    assert f"{costs.LABEL} on reproduction/paper" in stdout  # where the rates come from, in the title
+    assert f"{costs.LABEL} on {costs.RATES_RUN}" in stdout  # where the rates come from, in the title
+    assert costs.RATES_RUN == json.loads(costs.RATES_FILE.read_text())["run"] != ""
     hours = float(rows["paper"].split("│")[8])
     assert hours == pytest.approx(costs.grid_cell_hours(get_grid("paper").cells), rel=1e-2)
     code, stdout, _ = _cli(capsys, "grids", "--seeds", "5")

@@ -112,7 +112,9 @@ def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None
                                           (pending, "running", 9.0))])
     train = pd.DataFrame(dict(cell_id=[learned.cell_id] * 3 + [pending.cell_id], wall_s=[40.0, 50.0, 10.0, 5.0]))
     out = cost_calibration.costs_of(cells, train)
-    assert list(out.columns) == ["cell_id", "method", "n_robots", "train_s", "eval_s", "train_rate", "eval_rate"]
+    assert list(out.columns) == ["cell_id", "method", "n_robots", "train_s", "eval_s", "train_rate", "eval_rate",
+                                 "stack", "trained_here"]
+    assert list(out["stack"]) == [1, 1] and list(out["trained_here"]) == [True, True]
     assert list(out["cell_id"]) == [learned.cell_id, planner.cell_id]
     assert list(out["method"]) == ["decentralized", "pibt"]
     assert list(out["n_robots"]) == [learned.n_robots, planner.n_robots]
@@ -120,6 +122,46 @@ def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None
     (lt, le), (_, pe) = costs.cell_agent_steps(learned), costs.cell_agent_steps(planner)
     assert out["train_rate"][0] == pytest.approx(lt / 100.0) and np.isnan(out["train_rate"][1])
     assert list(out["eval_rate"]) == pytest.approx([le / 0.5, pe / 0.25])
+
+
+def test_observed_costs__a_stacked_cells_training_rate_is_scaled_back_to_one_seed() -> None:
+    """Three hierarchical seeds the run trained in one stack (``--stack-seeds 3``) and a
+    copied-in decentralized cell: each stacked cell's training took its share of the stack,
+    so its one-seed rate is its effective rate divided by the stack's gain; a copied cell
+    counts as unstacked and not trained here; without stacking nothing is scaled."""
+    from bench.design import cost_calibration
+
+    grid = get_grid("paper").cells
+    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    d = next(c for c in grid if c.method == "decentralized")
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=200.0, config_json=c.canonical_json())
+                          for c in (*h, d)])
+    train = pd.DataFrame(dict(cell_id=[c.cell_id for c in (*h, d)], wall_s=[100.0] * 4))
+    out = cost_calibration.costs_of(cells, train, stack_seeds=3, copied=[d.cell_id])
+    gain = costs.stack_gain("hierarchical", 40, 3)
+    assert gain > 1.2
+    steps = costs.cell_agent_steps(h[0])[0]
+    assert list(out["stack"]) == [3, 3, 3, 1] and list(out["trained_here"]) == [True, True, True, False]
+    assert list(out["train_rate"][:3]) == pytest.approx([steps / (100.0 * gain)] * 3)
+    assert out["train_rate"][3] == pytest.approx(costs.cell_agent_steps(d)[0] / 100.0)
+    assert list(out["eval_s"]) == [100.0] * 4
+    plain = cost_calibration.costs_of(cells, train)
+    assert list(plain["train_rate"][:3]) == pytest.approx([steps / 100.0] * 3)
+    # An estimate at the stack the run formed gives back the stacked cell's training time.
+    rates = {"hierarchical": {"train": {40: float(out["train_rate"][0])}, "eval": {40: 1e12}}}
+    assert costs.cell_seconds(h[0], rates, 3) == pytest.approx(100.0, rel=1e-6)
+
+
+def test_observed_rates__prefer_the_cells_the_run_trained_itself() -> None:
+    """At a (method, N) where the run trained cells itself, copied-in cells do not count;
+    where it trained none, they do."""
+    obs = pd.DataFrame([
+        dict(method="a", n_robots=20, train_rate=1.0, eval_rate=1.0, trained_here=True),
+        dict(method="a", n_robots=20, train_rate=100.0, eval_rate=100.0, trained_here=False),
+        dict(method="a", n_robots=20, train_rate=100.0, eval_rate=100.0, trained_here=False),
+        dict(method="a", n_robots=40, train_rate=5.0, eval_rate=7.0, trained_here=False),
+    ])
+    assert observed_rates(obs) == {"a": {"train": {20: 1.0, 40: 5.0}, "eval": {20: 1.0, 40: 7.0}}}
 
 
 def test_observed_costs__a_phase_with_no_time_has_no_rate_and_no_cells_give_no_rows() -> None:
@@ -152,8 +194,11 @@ def test_builtin_rates__are_the_committed_reproductions(reproduction: pd.DataFra
     when that run's state is committed."""
     builtin = json.loads(costs.RATES_FILE.read_text())
     assert builtin["run"] in ("reproduction/paper", "reproduction/full")
-    source = observed_costs(REPRODUCTION.parent.parent / builtin["run"])
-    assert builtin == rates_file(source, builtin["run"])
+    root = REPRODUCTION.parent.parent
+    copied = () if builtin["copied_from"] is None else \
+        pd.read_parquet(root / builtin["copied_from"] / "cells.parquet")["cell_id"]
+    source = observed_costs(root / builtin["run"], builtin["stack_seeds"], copied)
+    assert builtin == rates_file(source, builtin["run"], builtin["stack_seeds"], builtin["copied_from"])
     for method, phases in observed_rates(source).items():
         for phase, points in phases.items():
             for n, r in points.items():
@@ -169,7 +214,7 @@ def test_rates_file__observed_rates_keyed_by_n_in_numeric_order() -> None:
     obs = pd.DataFrame([dict(cell_id="x", method="a", n_robots=n, train_s=1.0, eval_s=1.0,
                              train_rate=1234.0 * n, eval_rate=np.nan) for n in (100, 20, 40)])
     out = rates_file(obs, "runs/x")
-    assert out == {"run": "runs/x", "done_cells": 3,
+    assert out == {"run": "runs/x", "stack_seeds": 1, "copied_from": None, "done_cells": 3,
                    "rates": {"a": {"train": {"20": 25_000.0, "40": 49_000.0, "100": 120_000.0}}}}
     assert list(out["rates"]["a"]["train"]) == ["20", "40", "100"]
 

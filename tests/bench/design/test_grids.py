@@ -124,7 +124,9 @@ def test_grid_file__mistakes_are_one_line_errors_naming_the_key(tmp_path: Path, 
 def test_cost_rate__builtin_points_are_met_exactly_and_clamped_outside() -> None:
     pts = costs.AGENT_STEPS_PER_S["ic3net"]["train"]
     lo, hi = min(pts), max(pts)
-    assert costs.rate("ic3net", "train", (lo + hi) // 2) == pytest.approx((pts[lo] + pts[hi]) / 2)
+    a, b = sorted(pts)[:2]  # adjacent built-in sizes: linear between them
+    assert costs.rate("ic3net", "train", (a + b) / 2) == pytest.approx((pts[a] + pts[b]) / 2)
+    assert all(costs.rate("ic3net", "train", n) == r for n, r in pts.items())
     assert costs.rate("ic3net", "train", lo) == pts[lo]
     assert costs.rate("ic3net", "train", 8) == pts[lo]
     assert costs.rate("ic3net", "train", 400) == pts[hi]
