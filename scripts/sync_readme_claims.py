@@ -7,11 +7,10 @@ Replaces the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``:
 * in ``docs/reproduction.md``: ``claims_table`` with ``<run>/report/claims_table.md``,
   ``progress`` with ``<run>/report/progress.md`` and ``success`` with
   ``<run>/report/success_by_mode.md`` (all written by ``bench report``), verbatim;
-* in ``README.md``: ``headline`` with the header and the rows of ``success_by_mode.md`` at
-  the configurations of ``HEADLINE``, ``verdicts`` with the count of each verdict per
-  claim in ``claims_table.md``, and, once the full grid has a report, ``full_leaders`` with
-  the rows of the "Per method" table of ``reproduction/full/report/leaders.md`` in the
-  modes of ``FULL_MODES``.
+* in ``README.md``: ``verdicts`` with the count of each verdict per claim in
+  ``claims_table.md``, and, once the full grid has a report, ``full_leaders`` with the rows
+  of the "Per method" table of ``reproduction/full/report/leaders.md`` in the modes of
+  ``FULL_MODES``.
 
 So no verdict, success rate or status on either page is typed by hand; ``tests/reproduction``
 checks that both pages agree with the committed report.
@@ -27,7 +26,6 @@ BLOCKS = {"claims_table": "claims_table.md", "progress": "progress.md",  # page 
           "success": "success_by_mode.md"}
 PAGE = "docs/reproduction.md"  # where BLOCKS go, verbatim
 README = "README.md"
-HEADLINE = ("| 40 | 0.2 |", "| 100 | 0.2 |")  # success_by_mode.md rows (N, p) the README shows
 FULL = ROOT / "reproduction" / "full"  # the full grid, whose leaders.md gives the README's full_leaders
 FULL_MODES = ("| argmax |", "| sample |")  # its per-method rows the README shows
 
@@ -42,12 +40,6 @@ def readme_block(text: str, name: str = "claims_table") -> str:
     if begin not in text or end not in text:
         raise ValueError(f"no {begin} ... {end} block")
     return text.split(begin, 1)[1].split(end, 1)[0].strip("\n") + "\n"
-
-
-def headline(success: str) -> str:
-    """The success table's two header lines and its rows at the HEADLINE configurations."""
-    lines = success.splitlines()
-    return "\n".join(lines[:2] + [ln for ln in lines[2:] if ln.startswith(HEADLINE)]) + "\n"
 
 
 def verdicts(claims_table: str) -> str:
@@ -82,7 +74,7 @@ def expected_blocks(run: Path, full: Path = FULL) -> dict[str, dict[str, str]]:
     """page (relative to the repository) -> marker name -> the text its block must hold
     (``full_leaders`` only once ``full`` has a report)."""
     report = {name: (run / "report" / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
-    readme = {"headline": headline(report["success"]), "verdicts": verdicts(report["claims_table"])}
+    readme = {"verdicts": verdicts(report["claims_table"])}
     if (full / "report" / "leaders.md").is_file():
         readme["full_leaders"] = per_method((full / "report" / "leaders.md").read_text(encoding="utf-8"))
     return {PAGE: report, README: readme}
@@ -98,7 +90,7 @@ def main() -> int:
             begin, end = markers(name)
             head, rest = text.split(begin, 1)
             text = f"{head}{begin}\n{table}{end}{rest.split(end, 1)[1]}"
-            print(f"{page}: {name} from {run / 'report'}")
+            print(f"{page}: {name} from {(FULL if name == 'full_leaders' else run) / 'report'}")
         path.write_text(text, encoding="utf-8")
     return 0
 

@@ -26,7 +26,7 @@ def test_readme__fits_a_newcomers_five_minutes():
     for heading in ("## Quick start", "## Headline result", "## Running the paper and full grids",
                     "## Bring your own method", "## Citing", "## Documentation"):
         assert heading in README, heading
-    assert "reproduction/paper/report/fig1_training.png" in README
+    assert "reproduction/full/report/success_vs_n.png" in README  # the top figure, decisions/0143
 
 
 def test_readme__nothing_dated_and_no_internal_issue_numbers():

@@ -137,7 +137,7 @@ def test_committed_report__is_what_the_current_code_rebuilds(name, tmp_path, mon
 
 def test_readme__claims_table_is_the_committed_reports() -> None:
     """docs/reproduction.md shows the committed report's claims table, success table and
-    status table verbatim, and the README its headline rows and verdict counts
+    status table verbatim, and the README the verdict counts
     (``scripts/sync_readme_claims.py`` writes them), and once the full grid is reported its
     per-method leads, so no verdict, success rate or account of what is done can drift from
     the report."""
@@ -148,7 +148,7 @@ def test_readme__claims_table_is_the_committed_reports() -> None:
     spec.loader.exec_module(sync)  # type: ignore[union-attr]
     pages = sync.expected_blocks(ROOT / "paper")
     full = {"full_leaders"} if (ROOT / "full" / "report").is_dir() else set()
-    assert set(pages[sync.PAGE]) == set(sync.BLOCKS) and set(pages[sync.README]) == {"headline", "verdicts", *full}
+    assert set(pages[sync.PAGE]) == set(sync.BLOCKS) and set(pages[sync.README]) == {"verdicts", *full}
     for page, blocks in pages.items():
         text = (ROOT.parent / page).read_text(encoding="utf-8")
         for name, table in blocks.items():
