@@ -95,6 +95,14 @@ def test_observed_costs__split_each_cell_into_its_training_rows_and_the_rest(rep
     assert row.train_s + row.eval_s == pytest.approx(walls[row.cell_id])
     assert row.train_s == pytest.approx(store.train.loc[store.train.cell_id == row.cell_id, "wall_s"].sum())
     assert (reproduction.loc[reproduction.method != "pibt", ["train_s", "eval_s"]] > 0).all().all()
+    assert (reproduction["stack"] == 1).all() and reproduction["trained_here"].all()  # by default: no stacks
+
+
+def test_observed_costs__a_folder_without_a_store_is_named(tmp_path: Path) -> None:
+    from envs.errors import BenchError
+
+    with pytest.raises(BenchError, match=f"no results store at '{tmp_path}': cells.parquet not found"):
+        observed_costs(tmp_path)
 
 
 def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None:
@@ -108,8 +116,8 @@ def test_observed_costs__seconds_and_effective_rates_of_each_done_cell() -> None
     planner = next(c for c in grid if c.method == "pibt")
     pending = next(c for c in grid if c.method == "ic3net")
     cells = pd.DataFrame([dict(cell_id=c.cell_id, status=s, wall_s=w, config_json=c.canonical_json())
-                          for c, s, w in ((learned, "done", 100.5), (planner, "done", 0.25),
-                                          (pending, "running", 9.0))])
+                          for c, s, w in ((pending, "running", 9.0), (learned, "done", 100.5),
+                                          (planner, "done", 0.25))])
     train = pd.DataFrame(dict(cell_id=[learned.cell_id] * 3 + [pending.cell_id], wall_s=[40.0, 50.0, 10.0, 5.0]))
     out = cost_calibration.costs_of(cells, train)
     assert list(out.columns) == ["cell_id", "method", "n_robots", "train_s", "eval_s", "train_rate", "eval_rate",
@@ -263,3 +271,25 @@ def test_estimate_vs_realized__per_method_with_the_runs_stacks_and_without_exclu
     assert unstacked.loc["hierarchical", "estimated_h"] == pytest.approx(
         (costs.cell_seconds(h[0]) + costs.cell_seconds(h[1])) / 3600)
     assert unstacked.loc["decentralized", "cells"] == 2
+
+
+def test_estimate_vs_realized__given_rates_unstacked_by_default_and_no_ratio_for_a_free_estimate() -> None:
+    """The rates passed are the ones charged, the default is no stacking, a method
+    estimated at 0 s has no ratio (not inf), the rows are numbered 0..k, and a run with
+    no done cell gives the total row alone."""
+    grid = get_grid("paper").cells
+    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    p = next(c for c in grid if c.method == "pibt")
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=60.0, config_json=c.canonical_json())
+                          for c in (*h, p)])
+    rates = {"hierarchical": {"train": {40: 1_000.0}, "eval": {40: 2_000.0}},
+             "pibt": {"train": {20: float("inf")}, "eval": {20: float("inf")}}}
+    out = estimate_vs_realized(cells, rates=rates)
+    assert list(out.index) == [0, 1, 2] and list(out["method"]) == ["hierarchical", "pibt", "all"]
+    train, ev = costs.cell_agent_steps(h[0])
+    assert out["estimated_h"][0] == pytest.approx(3 * (train / 1_000.0 + ev / 2_000.0) / 3600)
+    assert out["estimated_h"][1] == 0.0 and np.isnan(out["ratio"][1])
+    assert out["ratio"][0] == pytest.approx(out["realized_h"][0] / out["estimated_h"][0])
+    none_done = estimate_vs_realized(cells.assign(status="pending"))
+    assert list(none_done["method"]) == ["all"] and list(none_done["cells"]) == [0]
+    assert list(none_done.index) == [0] and np.isnan(none_done["ratio"][0])
