@@ -181,6 +181,9 @@ def grids(
     rates_from: Path | None = typer.Option(None, "--rates-from", help="Estimate with the rates a run directory's "
                                            "done cells observed (your machine), where it has them; the "
                                            "built-in rates elsewhere."),
+    rates_stack_seeds: int = typer.Option(1, "--rates-stack-seeds", min=1, help="The --stack-seeds the "
+                                          "--rates-from run was made with: its seed-stacked cells' training "
+                                          "rates are scaled back to one seed."),
 ) -> None:
     """List the grids with their cell counts (configurations x seeds) and cost (worker-hours,
     every seed and every evaluation mode counted; rates observed on the committed
@@ -195,14 +198,17 @@ def grids(
 
     rates = None
     source = f"{costs.LABEL} on {costs.RATES_RUN}"
+    if rates_from is None and rates_stack_seeds > 1:
+        raise BenchError("--rates-stack-seeds: it describes the --rates-from run, and none is given")
     if rates_from is not None:
         if not (rates_from / "cells.parquet").is_file():
             raise BenchError(f"--rates-from {str(rates_from)!r}: no results store there (cells.parquet not found)")
-        observed = observed_costs(rates_from)
+        observed = observed_costs(rates_from, rates_stack_seeds)
         if observed.empty:
             raise BenchError(f"--rates-from {str(rates_from)!r}: the run has no done cell to take rates from")
         rates = merged_rates(observed_rates(observed))
-        source = f"rates of the {len(observed)} done cells of {rates_from}, built-in elsewhere"
+        stacked_run = f" (made with --stack-seeds {rates_stack_seeds})" if rates_stack_seeds > 1 else ""
+        source = f"rates of the {len(observed)} done cells of {rates_from}{stacked_run}, built-in elsewhere"
     stacked = f", --stack-seeds {stack_seeds}" if stack_seeds > 1 else ""
     table = Table(title=f"grids (cost: (episodes + eval episodes x modes) x horizon x N / agent-steps per s, "
                         f"{source}{stacked}; summed over cells = configurations x seeds)")

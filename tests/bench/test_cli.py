@@ -224,6 +224,29 @@ def test_grids__stack_seeds_and_a_runs_observed_rates(capsys: pytest.CaptureFixt
     assert float(rows["paper"].split("│")[8]) == pytest.approx(expected, rel=1e-2)
 
 
+def test_grids__rates_stack_seeds_scales_a_stacked_runs_rates_back_to_one_seed(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The full grid ran with --stack-seeds 3: read that way, its hierarchical training rates
+    are the one-seed ones the estimate then stacks once; without the option they are not."""
+    from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates
+
+    run = Path(__file__).resolve().parents[2] / "reproduction" / "full"
+    if not (run / "cells.parquet").is_file():
+        pytest.skip("no committed full grid in this checkout")
+    code, stdout, err = _cli(capsys, "grids", "--stack-seeds", "3", "--rates-from", str(run),
+                             "--rates-stack-seeds", "3")
+    assert code == 0, err
+    assert "(made with --stack-seeds 3)" in " ".join(stdout.split())
+    rows = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
+    one_seed = merged_rates(observed_rates(observed_costs(run, 3)))
+    as_observed = merged_rates(observed_rates(observed_costs(run)))
+    assert one_seed["hierarchical"]["train"][100] < as_observed["hierarchical"]["train"][100]
+    expected = costs.grid_cell_hours(get_grid("full").cells, one_seed, 3)
+    assert float(rows["full"].split("│")[8]) == pytest.approx(expected, rel=1e-2)
+    code, _, err = _cli(capsys, "grids", "--rates-stack-seeds", "3")
+    assert code == 2 and "--rates-stack-seeds" in err and "--rates-from" in err
+
+
 def test_grids__rates_from_a_folder_without_done_cells_is_a_clear_error(
         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, _, err = _cli(capsys, "grids", "--rates-from", str(tmp_path))
