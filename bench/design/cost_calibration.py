@@ -50,9 +50,7 @@ def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
     """``observed_costs`` of a run's ``cells.parquet`` rows and training rows."""
     skip = set(copied)
     every = [Cell.model_validate_json(j) for j in cells["config_json"]]
-    own = [i for i, cid in enumerate(cells["cell_id"]) if cid not in skip]
-    stacks = dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds),
-                      strict=True))
+    stacks = run_stacks(cells, every, stack_seeds, skip)
     done = cells["status"] == "done"
     train_s = train[train["cell_id"].isin(cells.loc[done, "cell_id"])].groupby("cell_id")["wall_s"].sum()
     rows = []
@@ -72,6 +70,16 @@ def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
                                        "train_rate", "eval_rate", "stack", "trained_here"])
 
 
+def run_stacks(cells: pd.DataFrame, every: list[Cell], stack_seeds: int,
+               copied: set[str] | None = None) -> dict[str, int]:
+    """cell id -> the size of the seed stack ``bench run --stack-seeds stack_seeds`` trains it
+    in, formed over the run's cells (``every``: their parsed configs) but the ``copied`` ones,
+    which another run trained and are left out."""
+    own = [i for i, cid in enumerate(cells["cell_id"]) if not copied or cid not in copied]
+    return dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds),
+                    strict=True))
+
+
 def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates | None = None,
                          exclude: Iterable[str] = ()) -> pd.DataFrame:
     """Per method, over the done cells of a run's ``cells.parquet`` rows but ``exclude``
@@ -81,7 +89,7 @@ def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates
     they took (the sum of their ``wall_s``: a stacked cell's is its share of the stack),
     and realized / estimate; a last row ``all`` sums them."""
     every = [Cell.model_validate_json(j) for j in cells["config_json"]]
-    stacks = dict(zip(cells["cell_id"], costs.stack_sizes(every, stack_seeds), strict=True))
+    stacks = run_stacks(cells, every, stack_seeds)
     skip = set(exclude)
     rows = []
     for r, cell in zip(cells.itertuples(index=False), every, strict=True):

@@ -59,15 +59,20 @@ def merge_rates(base: Rates, observed: Rates) -> Rates:
     return out
 
 
+def rates_of(content: dict) -> Rates:
+    """The ``rates`` of a cost_rates.json's content, N keys as ints."""
+    return {m: {ph: {int(n): float(r) for n, r in pts.items()} for ph, pts in phases.items()}
+            for m, phases in content["rates"].items()}
+
+
 def read_rates_file(path: Path = RATES_FILE) -> Rates:
     """The ``rates`` of a cost_rates.json, N keys as ints."""
-    raw = json.loads(path.read_text())["rates"]
-    return {m: {ph: {int(n): float(r) for n, r in pts.items()} for ph, pts in phases.items()}
-            for m, phases in raw.items()}
+    return rates_of(json.loads(path.read_text()))
 
 
-AGENT_STEPS_PER_S: Rates = merge_rates(FALLBACK_RATES, read_rates_file())
-RATES_RUN: str = json.loads(RATES_FILE.read_text())["run"]  # the run they were observed on
+_BUILTIN = json.loads(RATES_FILE.read_text())
+AGENT_STEPS_PER_S: Rates = merge_rates(FALLBACK_RATES, rates_of(_BUILTIN))
+RATES_RUN: str = _BUILTIN["run"]  # the run they were observed on
 MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 

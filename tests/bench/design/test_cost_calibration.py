@@ -23,6 +23,11 @@ from bench.design.grids import get_grid
 REPRODUCTION = Path(__file__).resolve().parents[3] / "reproduction" / "paper"
 
 
+def _hierarchical_seeds(grid: list) -> list:
+    """The three seeds of the hierarchical method at N = 40, p = 0.2: one stack of 3."""
+    return [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+
+
 def test_observed_rates__median_per_method_phase_and_n_skipping_missing_phases() -> None:
     obs = pd.DataFrame([
         dict(method="a", n_robots=20, train_rate=1.0, eval_rate=10.0),
@@ -140,7 +145,7 @@ def test_observed_costs__a_stacked_cells_training_rate_is_scaled_back_to_one_see
     from bench.design import cost_calibration
 
     grid = get_grid("paper").cells
-    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    h = _hierarchical_seeds(grid)
     d = next(c for c in grid if c.method == "decentralized")
     cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=200.0, config_json=c.canonical_json())
                           for c in (*h, d)])
@@ -251,7 +256,7 @@ def test_estimate_vs_realized__per_method_with_the_runs_stacks_and_without_exclu
     pending), one done decentralized cell, one copied-in cell left out: estimates at the
     stack size the run formed, realized = the cells' wall_s, ratios, and a total row."""
     grid = get_grid("paper").cells
-    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    h = _hierarchical_seeds(grid)
     d0, d1 = [c for c in grid if c.method == "decentralized"][:2]
     cells = pd.DataFrame([dict(cell_id=c.cell_id, status=s, wall_s=w, config_json=c.canonical_json())
                           for c, s, w in ((h[0], "done", 3600.0), (h[1], "done", 7200.0), (h[2], "pending", 0.0),
@@ -278,7 +283,7 @@ def test_estimate_vs_realized__given_rates_unstacked_by_default_and_no_ratio_for
     estimated at 0 s has no ratio (not inf), the rows are numbered 0..k, and a run with
     no done cell gives the total row alone."""
     grid = get_grid("paper").cells
-    h = [c for c in grid if c.method == "hierarchical" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    h = _hierarchical_seeds(grid)
     p = next(c for c in grid if c.method == "pibt")
     cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=60.0, config_json=c.canonical_json())
                           for c in (*h, p)])
