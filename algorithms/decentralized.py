@@ -56,7 +56,6 @@ from algorithms.common.trainer import (
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from envs.actions import DELTAS, N_ACTIONS
-from envs.channel import LossProcess
 from envs.observations import PatchExtractor
 
 
@@ -160,7 +159,7 @@ class DecentralizedMethod(Method):
     def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> DecentralizedState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
-        loss = LossProcess.from_config((b, n, n), env, batch.rng)
+        loss = batch.open_channel("robots")
         buffer = None
         if choice.training:
             buffer = RolloutBuffer(env.horizon, b, {

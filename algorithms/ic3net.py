@@ -83,7 +83,7 @@ from algorithms.common.trainer import (
 )
 from algorithms.common.value_norm import ValueNorm
 from envs.actions import N_ACTIONS
-from envs.channel import LossProcess
+from envs.channel import Channel
 from envs.observations import PatchExtractor
 
 
@@ -203,7 +203,7 @@ class IC3NetPolicy(nn.Module):
 @dataclass
 class IC3NetState:
     patch: PatchExtractor
-    loss: LossProcess
+    loss: Channel
     buffer: RolloutBuffer | None
     hc: tuple[torch.Tensor, torch.Tensor]
     gate: np.ndarray  # (B, N) bool, talk at the next step (sampled at this one)
@@ -248,7 +248,7 @@ class IC3NetMethod(Method):
     def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> IC3NetState:
         core, env, p = batch.core, self.env, self.params
         b, n = core.pos.shape
-        loss = LossProcess.from_config((b, n, n), env, batch.rng)
+        loss = batch.open_channel("robots")
         buffer = None
         if choice.training:
             buffer = RolloutBuffer(env.horizon, b, {

@@ -7,6 +7,12 @@
   the paper). Loss affects only links between different groups (Assumption 3).
 * Payload (Sec. III-A): C_hier = sum over directed links of the scalars sent
   (= N (Z-1) d_m on the complete graph), C_dec = N (N-1) d_m.
+
+The environment owns the channel (SPEC 2 "Communication"): ``open_channel`` is the one
+place a channel is built, between groups (the paper's hierarchy) or between robots (the
+all-to-all baselines), for the PettingZoo adapter and for every method alike
+(``EpisodeBatch.open_channel``); methods read what it delivered. Nothing outside
+``envs/`` constructs a ``LossProcess`` or a ``Channel`` (tests/envs/test_channel_owner.py).
 """
 from __future__ import annotations
 
@@ -91,21 +97,54 @@ class LossProcess:
         return ~self.bad
 
 
-class GroupChannel:
-    """Inter-group links of B episodes: ``step()`` gives A_t shaped (B, Z, Z) as [b, z', z]."""
+LEVELS = ("groups", "robots")  # the endpoints of a channel's links
 
-    def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator) -> None:
-        z = config.groups
-        self.adjacency = comm_graph(z, config.comm_graph)  # (Z, Z)
-        self.groups = group_assignment(config.n_robots, z)
-        self.group_sizes = np.bincount(self.groups, minlength=z)  # (Z,)
-        self.process = LossProcess.from_config((batch, z, z), config, rng)
-        self.d_m = config.d_m
+
+class Channel:
+    """Directed links of B episodes between endpoints (groups or robots): ``step()`` gives
+    A_t shaped (B, K, K) as [b, sender, receiver], K = Z groups or N robots.
+
+    ``level="groups"``: the paper's inter-group links on ``comm_graph``; ``"robots"``:
+    every ordered pair of distinct robots (the all-to-all baselines). The loss process is
+    drawn over the whole (B, K, K) array, diagonal included, so the stream of draws is
+    the same whatever the graph.
+    """
+
+    def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator,
+                 level: str = "groups") -> None:
         n = config.n_robots
+        if level == "groups":
+            k = config.groups
+            self.adjacency = comm_graph(k, config.comm_graph)  # (Z, Z)
+        elif level == "robots":
+            k = n
+            self.adjacency = ~np.eye(n, dtype=bool)
+        else:
+            raise ValueError(f"unknown channel level {level!r}; use one of {', '.join(LEVELS)}")
+        self.level = level
+        self.groups = group_assignment(n, config.groups)
+        self.group_sizes = np.bincount(self.groups, minlength=config.groups)  # (Z,)
+        self.process = LossProcess.from_config((batch, k, k), config, rng)
+        self.d_m = config.d_m
         # Scalars transmitted per step: every sender group's robots on each outgoing link.
-        self.payload_hier = int((self.adjacency.sum(axis=1) * self.group_sizes).sum() * self.d_m)
+        group_adj = self.adjacency if level == "groups" else comm_graph(config.groups, config.comm_graph)
+        self.payload_hier = int((group_adj.sum(axis=1) * self.group_sizes).sum() * self.d_m)
         self.payload_dec = n * (n - 1) * self.d_m
 
     def step(self) -> np.ndarray:
-        """(B, Z, Z) bool availability; False on non-edges and the diagonal."""
+        """(B, K, K) bool availability; False on non-edges and the diagonal."""
         return self.process.step() & self.adjacency[None]
+
+
+class GroupChannel(Channel):
+    """The inter-group channel (``Channel`` with ``level="groups"``)."""
+
+    def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator) -> None:
+        super().__init__(config, batch, rng, "groups")
+
+
+def open_channel(config: EnvConfig, batch: int, rng: np.random.Generator,
+                 level: str = "groups") -> Channel:
+    """The environment's channel of ``batch`` episodes at ``level``, its draws from ``rng``
+    (every random number of the channel comes from it, in step order)."""
+    return GroupChannel(config, batch, rng) if level == "groups" else Channel(config, batch, rng, level)

@@ -2,9 +2,9 @@
 
 A thin adapter: dynamics, collisions and rewards are ``WarehouseCore``'s; observations are
 ``envs.observations.robot_features`` (local patch showing only same-group robots); the
-lossy channel is ``GroupChannel``. All randomness (scenario sampling, message loss) comes
-from the env's own ``np.random.Generator``: ``reset(seed=s)`` re-seeds it with
-``np.random.default_rng(s)``, draws the scenario exactly as
+lossy channel is the environment's inter-group ``Channel`` (``envs.channel.open_channel``).
+All randomness (scenario sampling, message loss) comes from the env's own
+``np.random.Generator``: ``reset(seed=s)`` re-seeds it with ``np.random.default_rng(s)``, draws the scenario exactly as
 ``sample_scenarios(layout, N, 1, rng)`` would, then spawns the channel's generator.
 
 Agents ``robot_0 .. robot_{N-1}``; ``Discrete(5)`` actions (Up, Down, Left, Right, Wait);
@@ -37,7 +37,7 @@ from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
 from envs.actions import N_ACTIONS, WAIT
-from envs.channel import GroupChannel, group_assignment
+from envs.channel import Channel, group_assignment, open_channel
 from envs.config import EnvConfig
 from envs.core import StepResult, WarehouseCore
 from envs.errors import BenchError
@@ -133,7 +133,7 @@ class WarehouseParallelEnv(ParallelEnv):
         self.state_space = spaces.Box(0.0, 1.0, (5 * n + 1,), dtype=np.float32)
 
         self._rng: np.random.Generator | None = None
-        self.channel: GroupChannel | None = None
+        self.channel: Channel | None = None
         self.links = np.zeros((z, z), dtype=bool)  # A_t[z', z] of the current step
         self._last: StepResult | None = None
         self.frames: list[np.ndarray] = []
@@ -163,7 +163,7 @@ class WarehouseParallelEnv(ParallelEnv):
         else:
             starts, goals = sample_scenarios(self.layout, n, 1, self._rng)
         self.core.reset(starts, goals)
-        self.channel = GroupChannel(self.config, 1, self._rng.spawn(1)[0])
+        self.channel = open_channel(self.config, 1, self._rng.spawn(1)[0])
         self.links = self.channel.step()[0]  # A_0
         self._last = None
         # Every robot starts in ``agents``, even one placed on its goal (done at t = 0).
@@ -312,7 +312,7 @@ class WarehouseParallelEnv(ParallelEnv):
                   collision=None if self._last is None else self._last.collision[0])
         return args, kw
 
-    def _live_channel(self) -> GroupChannel:
+    def _live_channel(self) -> Channel:
         """The channel of the current episode (set by ``reset``)."""
         if self.channel is None:
             raise BenchError("call reset() first")

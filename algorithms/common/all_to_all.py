@@ -2,8 +2,8 @@
 
 Every robot j transmits M_t^j = (p_t^j, U_{t-1}^j) (eq:message with each robot its own
 group: d_m = 2 position + 1 control scalars) to every other robot at every step; the
-directed link j -> i delivers it with probability 1 - p (``LossProcess`` over (B, N, N)
-links ``[b, sender, receiver]``). Each receiver keeps the **last received** message of
+directed link j -> i delivers it with probability 1 - p (the environment's robot-level
+``Channel`` over (B, N, N) links ``[b, sender, receiver]``). Each receiver keeps the **last received** message of
 every sender; at reset every robot knows every start position (the task assignment is
 broadcast before the episode) with control Wait, so with p = 1 a receiver only ever holds
 those initial messages. A completed robot that leaves the floor (``on_goal="remove"``)
@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from envs.actions import WAIT
-from envs.channel import LossProcess
+from envs.channel import Channel, LossProcess
 from envs.core import WarehouseCore
 
 OFF_FLOOR = 5  # control code of a robot that completed and left the floor
@@ -40,7 +40,7 @@ class AllToAllBoard:
     of the plain formulas (tests/algorithms/common/test_all_to_all_fast.py).
     """
 
-    def __init__(self, core: WarehouseCore, loss: LossProcess, radius: int) -> None:
+    def __init__(self, core: WarehouseCore, loss: Channel | LossProcess, radius: int) -> None:
         b, n = core.pos.shape
         self.core, self.loss, self.radius = core, loss, radius
         self.n = n

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from envs.channel import Channel, open_channel
 from envs.config import EnvConfig
 from envs.core import StepResult, WarehouseCore
 from envs.layouts import Layout, load_layout
@@ -33,8 +34,9 @@ def batch_rng(seed: int, stream: int, index: int) -> np.random.Generator:
 class EpisodeBatch:
     """B episodes on one layout: the core plus the generator that drew its scenarios.
 
-    Methods draw their own loss processes from ``rng`` right after construction, in a fixed
-    order, so the whole batch is a pure function of (config, rng seed).
+    The environment owns the channel: a method opens it with ``open_channel`` right after
+    construction, in a fixed order, and its draws come from ``rng``, so the whole batch is a
+    pure function of (config, rng seed).
     """
 
     def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator,
@@ -45,6 +47,11 @@ class EpisodeBatch:
         starts, goals = sample_scenarios(self.core.layout, config.n_robots, batch, rng)
         self.starts, self.goals = np.asarray(starts), np.asarray(goals)  # (B, N) free-cell indices
         self.core.reset(starts, goals)
+
+    def open_channel(self, level: str = "groups") -> Channel:
+        """The environment's lossy channel of these B episodes, between groups or robots
+        (``envs.channel.open_channel``), drawing from this batch's generator."""
+        return open_channel(self.config, self.core.batch, self.rng, level)
 
     def scenario_hashes(self) -> list[str]:
         """Per episode, 16 hex digits of SHA-256 over its starts and goals (the ``scenario``

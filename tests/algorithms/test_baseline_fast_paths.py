@@ -178,8 +178,8 @@ def test_ic3net__buffer_rows_equal_the_plain_inputs() -> None:
             core, t, buf = batch.core, state.buffer.t, state.buffer
             collided, gate = state.collided.copy(), state.gate.copy()
             twin = np.random.Generator(np.random.PCG64())
-            twin.bit_generator.state = state.loss.rng.bit_generator.state
-            delivered = twin.random(state.loss.shape) >= state.loss.p  # this step's draw
+            twin.bit_generator.state = state.loss.process.rng.bit_generator.state
+            delivered = twin.random(state.loss.process.shape) >= state.loss.process.p  # this step's draw
             dec = m.decide(batch, state, choice)
             talk = gate & ~core.done
             links = talk[:, :, None] & talk[:, None, :] & delivered & ~np.eye(10, dtype=bool)
