@@ -61,7 +61,7 @@ from algorithms.hierarchical.predictor import (
 from algorithms.hierarchical.safety_filter import SafetyFilter
 from algorithms.hierarchical.training import Learner, policy_update, predictor_update
 from envs.actions import N_ACTIONS, WAIT
-from envs.channel import GroupChannel
+from envs.channel import Channel
 from envs.config import EnvConfig
 from envs.observations import PatchExtractor, feature_size, robot_features
 
@@ -86,7 +86,7 @@ class Received:
 class Controller:
     """Per-batch controller state (one per ``run``)."""
 
-    channel: GroupChannel
+    channel: Channel
     patch: PatchExtractor
     pred: PredictorState | None = None
     buffer: RolloutBuffer | None = None
@@ -183,7 +183,7 @@ class HierarchicalMethod(Method):
     def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> Controller:
         p = self.params
         core = batch.core
-        ctrl = Controller(GroupChannel(self.env, core.batch, batch.rng), PatchExtractor(core, p.obs_radius))
+        ctrl = Controller(batch.open_channel("groups"), PatchExtractor(core, p.obs_radius))
         if choice.mode.greedy and p.resample_on_fallback:  # derived from the batch seed, no draw from its rng
             seq = batch.rng.bit_generator.seed_seq
             assert isinstance(seq, np.random.SeedSequence)  # EpisodeBatch seeds every rng from one
