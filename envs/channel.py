@@ -97,6 +97,56 @@ class LossProcess:
         return ~self.bad
 
 
+class DelayLine:
+    """Message delay on a set of directed links, shaped ``link_shape`` (beyond the paper).
+
+    Every link carries one message per step; the message of step t that the loss process
+    delivers arrives at step t + d, with d = ``mean`` for ``model="fixed"`` or d drawn per
+    message from a geometric law on {0, 1, ...} with that mean for ``"geometric"``, cut to
+    ``bound``. A lost message never arrives. A receiver keeps the freshest message it got on
+    each link: ``sent_at`` is its send step (-1: none yet), so its age at step t is
+    t - ``sent_at``; an older message arriving after a newer one is dropped. The delays
+    are drawn from their own generator, so the loss pattern is that of delay 0.
+    """
+
+    def __init__(self, link_shape: tuple[int, ...], mean: float, model: str, bound: int,
+                 rng: np.random.Generator | None) -> None:
+        if model not in ("fixed", "geometric"):
+            raise ValueError(f"unknown delay model {model!r}")
+        if model == "geometric" and rng is None:
+            raise ValueError("a geometric delay needs a generator")
+        self.shape, self.mean, self.model, self.bound, self.rng = link_shape, float(mean), model, int(bound), rng
+        self.slots = self.bound + 1  # arrivals are at most ``bound`` steps ahead
+        self.pending = np.full((self.slots, *link_shape), -1, dtype=np.int64)  # send step by arrival slot
+        self.sent_at = np.full(link_shape, -1, dtype=np.int64)
+        self.t = 0  # steps so far: the send step of the next message
+        self._links = np.indices(link_shape).reshape(len(link_shape), -1)
+
+    def delays(self) -> np.ndarray:
+        """This step's delay of every link's message, shaped ``link_shape``."""
+        if self.model == "fixed":
+            return np.full(self.shape, int(self.mean), dtype=np.int64)
+        assert self.rng is not None
+        d = self.rng.geometric(1.0 / (1.0 + self.mean), size=self.shape) - 1  # support {0, 1, ...}
+        return np.minimum(d, self.bound)
+
+    def step(self, delivered: np.ndarray) -> np.ndarray:
+        """Send this step's messages (``delivered``: not lost); returns where a message
+        fresher than the one held arrived this step (``sent_at`` is then its send step)."""
+        t, d = self.t, self.delays()
+        arrival = (t + d) % self.slots
+        ok = delivered.reshape(-1)
+        # t is the newest send step: it overwrites any older message due the same step.
+        self.pending[(arrival.reshape(-1)[ok], *self._links[:, ok])] = t
+        now = t % self.slots
+        arrived = self.pending[now].copy()
+        self.pending[now] = -1
+        newer = arrived > self.sent_at
+        np.copyto(self.sent_at, arrived, where=newer)
+        self.t += 1
+        return newer
+
+
 LEVELS = ("groups", "robots")  # the endpoints of a channel's links
 
 
@@ -108,6 +158,13 @@ class Channel:
     every ordered pair of distinct robots (the all-to-all baselines). The loss process is
     drawn over the whole (B, K, K) array, diagonal included, so the stream of draws is
     the same whatever the graph.
+
+    With a delay (``config.delay > 0``, ``DelayLine``) ``step()`` still gives the
+    messages of this step that arrive this step (a delayed message is not available when
+    it is sent, like a lost one); ``arrived`` marks where a fresher message than the one
+    held came in, ``sent_at`` its send step (the age of what a receiver holds at step t
+    is t - ``sent_at``). Without a delay ``arrived`` is ``step()``'s result and
+    ``sent_at`` None (no extra work).
     """
 
     def __init__(self, config: EnvConfig, batch: int, rng: np.random.Generator,
@@ -125,6 +182,11 @@ class Channel:
         self.groups = group_assignment(n, config.groups)
         self.group_sizes = np.bincount(self.groups, minlength=config.groups)  # (Z,)
         self.process = LossProcess.from_config((batch, k, k), config, rng)
+        self.delay: DelayLine | None = None
+        if config.delay > 0:  # its own generator: the loss draws stay those of delay 0
+            own = rng.spawn(1)[0] if config.delay_model == "geometric" else None
+            self.delay = DelayLine((batch, k, k), config.delay, config.delay_model, config.delay_max, own)
+        self.arrived = np.zeros((batch, k, k), dtype=bool)
         self.d_m = config.d_m
         # Scalars transmitted per step: every sender group's robots on each outgoing link.
         group_adj = self.adjacency if level == "groups" else comm_graph(config.groups, config.comm_graph)
@@ -132,8 +194,20 @@ class Channel:
         self.payload_dec = n * (n - 1) * self.d_m
 
     def step(self) -> np.ndarray:
-        """(B, K, K) bool availability; False on non-edges and the diagonal."""
-        return self.process.step() & self.adjacency[None]
+        """(B, K, K) bool availability of this step's messages now; False on non-edges and
+        the diagonal."""
+        delivered = self.process.step() & self.adjacency[None]
+        if self.delay is None:
+            self.arrived = delivered
+            return delivered
+        self.arrived = self.delay.step(delivered)
+        return self.arrived & (self.delay.sent_at == self.delay.t - 1)
+
+    @property
+    def sent_at(self) -> np.ndarray | None:
+        """(B, K, K) send step of the freshest message held on each link (-1: none), or
+        None without a delay (the held message of a link is then its last delivered one)."""
+        return None if self.delay is None else self.delay.sent_at
 
 
 class GroupChannel(Channel):

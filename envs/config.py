@@ -41,6 +41,18 @@ def bursty_loss_error(loss_p: float, burst_length: float) -> str | None:
             f"would exceed 1); use bursts of at least {loss_p / (1.0 - loss_p):.4g} steps or a smaller loss")
 
 
+def delay_error(delay: float, model: str, bound: int) -> str | None:
+    """Why (delay, delay_model, delay_max) is no delay process, or None when it is one: a
+    fixed delay is a whole number of steps within the bound; a geometric mean is below it."""
+    if model == "fixed" and delay != int(delay):
+        return f"delay={delay:g}: a fixed delay is a whole number of steps (or use delay_model='geometric')"
+    if model == "fixed" and delay > bound:
+        return f"delay={delay:g} exceeds delay_max={bound}"
+    if model == "geometric" and delay > 0 and delay >= bound:
+        return f"delay={delay:g}: a geometric mean delay must be below delay_max={bound}"
+    return None
+
+
 class EnvConfig(BaseModel):
     """Everything that defines a warehouse episode distribution and its channel."""
 
@@ -61,6 +73,15 @@ class EnvConfig(BaseModel):
     )
     burst_length: float = Field(
         4.0, ge=1.0, description="mean length of a loss burst (gilbert_elliott only), steps"
+    )
+    delay: float = Field(
+        0.0, ge=0.0, description="mean message delay, steps (0: a delivered message arrives the step it is sent)"
+    )
+    delay_model: Literal["fixed", "geometric"] = Field(
+        "fixed", description="every message delayed by exactly `delay` steps, or a geometric draw per message"
+    )
+    delay_max: int = Field(
+        16, ge=0, description="bound on a message's delay, steps (geometric draws above it are cut to it)"
     )
     comm_graph: Literal["complete", "ring"] = Field(
         "complete", description="directed inter-group graph G: all pairs, or z-1 -> z <- z+1"
@@ -86,6 +107,9 @@ class EnvConfig(BaseModel):
             why = bursty_loss_error(self.loss_p, self.burst_length)
             if why is not None:
                 raise ValueError(f"loss_p={self.loss_p:g} with burst_length={self.burst_length:g}: {why}")
+        why = delay_error(self.delay, self.delay_model, self.delay_max)
+        if why is not None:
+            raise ValueError(why)
         return self
 
     @classmethod

@@ -8,7 +8,9 @@ every sender; at reset every robot knows every start position (the task assignme
 broadcast before the episode) with control Wait, so with p = 1 a receiver only ever holds
 those initial messages. A completed robot that leaves the floor (``on_goal="remove"``)
 keeps transmitting with the control code ``OFF_FLOOR``; receivers drop it from their map
-once that message arrives. Payload: N (N - 1) d_m scalars per step, every step.
+once that message arrives. Payload: N (N - 1) d_m scalars per step, every step. With a
+delayed channel (``EnvConfig.delay``) a receiver holds the freshest message that has
+arrived on each link, and ``age`` is the time since it was sent (transit included).
 
 ``features`` turns a receiver's view into a permutation-invariant encoding that works for
 any N: egocentric maps of the same window as the shelf patch (sum-pooling of one-hot
@@ -77,6 +79,12 @@ class AllToAllBoard:
         self._key_center = np.stack([here.reshape(-1), ahead.reshape(-1)], axis=1).astype(np.int32)  # (F*6, 2)
         self._window_ext = np.full(3 * span, -1, dtype=np.int16 if self.side ** 2 < 2 ** 15 else np.int32)
         self._window_ext[: 2 * span - 1] = self._window
+        # A delayed channel: the messages of the last ``slots`` steps, by send step mod slots.
+        self._delay = loss.delay if isinstance(loss, Channel) else None
+        if self._delay is not None:
+            slots = self._delay.slots
+            self._sent_pos = np.zeros((slots, b, n), dtype=self.pos.dtype)
+            self._sent_ctl = np.zeros((slots, b, n), dtype=np.int8)
 
     def messages(self) -> tuple[np.ndarray, np.ndarray]:
         """This step's true messages: (B, N) cells and (B, N) controls U_{t-1} (or OFF_FLOOR)."""
@@ -88,6 +96,8 @@ class AllToAllBoard:
 
     def receive(self) -> np.ndarray:
         """Transmit this step's messages; returns the (B, N_send, N_recv) delivery mask A_t."""
+        if self._delay is not None:
+            return self._receive_delayed()
         pos, ctl = self.messages()
         delivered = self.loss.step() | self.eye[None]  # a robot always knows its own state
         got = np.ascontiguousarray(delivered.transpose(0, 2, 1))  # (B, N_recv, N_send)
@@ -100,6 +110,32 @@ class AllToAllBoard:
         self.age += 1
         self.age *= np.logical_not(got).astype(np.int32)
         return delivered
+
+    def _receive_delayed(self) -> np.ndarray:
+        """``receive`` over a delayed channel: each receiver takes the freshest message
+        that arrived on each link (sent ``age`` steps ago, d steps in transit) from the
+        log of what was sent; returns where one arrived (the diagonal always)."""
+        line, loss = self._delay, self.loss
+        assert line is not None and isinstance(loss, Channel)
+        t, slots = line.t, line.slots
+        pos, ctl = self.messages()
+        self._sent_pos[t % slots] = pos
+        self._sent_ctl[t % slots] = ctl.astype(np.int8)
+        loss.step()
+        got = loss.arrived.transpose(0, 2, 1)  # (B, N_recv, N_send)
+        sent = line.sent_at.transpose(0, 2, 1)
+        b, n = pos.shape
+        when = np.where(got, sent, t) % slots
+        rows = np.arange(b)[:, None, None]
+        senders = np.arange(n)[None, None, :]
+        np.copyto(self.pos, self._sent_pos[when, rows, senders], where=got)
+        np.copyto(self.ctl, self._sent_ctl[when, rows, senders], where=got)
+        self.age[...] = t - sent  # t + 1 for the start broadcast (sent_at -1)
+        own = self.eye[None]  # a robot always knows its own state
+        np.copyto(self.pos, pos[:, None, :].astype(self.pos.dtype), where=own)
+        np.copyto(self.ctl, ctl[:, None, :].astype(np.int8), where=own)
+        self.age[:, self.eye] = 0
+        return loss.arrived | own
 
     @property
     def payload(self) -> int:

@@ -21,7 +21,7 @@ from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.registry import method_class, method_target
 from bench.design.limits import limit, with_reasons
-from envs.config import EnvConfig, Probability, bursty_loss_error
+from envs.config import EnvConfig, Probability, bursty_loss_error, delay_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
@@ -30,6 +30,10 @@ from envs.scenarios import main_region
 # grow with T x N x batch, so T = 10**12 would fail at run time with MemoryError instead.
 # Every count has such a bound, with its reason (bench/design/limits.py).
 MAX_HORIZON = limit("horizon")
+
+# Fields added after the first committed stores: left out of the canonical JSON while at
+# their default, so every cell that does not set them keeps its id (docs/decisions/0256).
+LATER_FIELDS = ("delay", "delay_model")
 
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
@@ -66,6 +70,9 @@ class Cell(BaseModel):
                     "argmax and sample are always evaluated)")
     on_goal: Literal["remove", "stay"] = Field("remove", description="robots at their goal leave / stay")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field("bernoulli", description="loss process")
+    delay: float = Field(0.0, ge=0.0, strict=True,
+                         description="mean message delay in steps (0: none; beyond the paper)")
+    delay_model: Literal["fixed", "geometric"] = Field("fixed", description="fixed delay or geometric per message")
     params: dict[str, Any] = Field(default_factory=dict, description="method hyperparameter overrides")
 
     @model_validator(mode="before")
@@ -103,6 +110,9 @@ class Cell(BaseModel):
     def _check(self) -> Cell:
         if self.groups > self.n_robots:
             raise ValueError(f"groups: {self.groups} groups exceed n_robots={self.n_robots}")
+        why = delay_error(self.delay, self.delay_model, EnvConfig.model_fields["delay_max"].default)
+        if why is not None:
+            raise ValueError(f"delay: {why}")
         if self.loss_model == "gilbert_elliott":  # the environment's burst length
             why = bursty_loss_error(self.loss_p, EnvConfig.model_fields["burst_length"].default)
             if why is not None:
@@ -146,7 +156,11 @@ class Cell(BaseModel):
 
     # ----------------------------------------------------------------- identity
     def canonical_json(self) -> str:
-        return json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        data = self.model_dump(mode="json")
+        for name in LATER_FIELDS:
+            if data[name] == type(self).model_fields[name].default:
+                del data[name]
+        return json.dumps(data, sort_keys=True, separators=(",", ":"))
 
     @cached_property
     def cell_id(self) -> str:
@@ -160,6 +174,7 @@ class Cell(BaseModel):
         return EnvConfig.make(
             n_robots=self.n_robots, layout=self.layout, groups=self.groups, horizon=self.horizon,
             on_goal=self.on_goal, loss_p=self.loss_p, loss_model=self.loss_model,
+            delay=self.delay, delay_model=self.delay_model,
         )
 
     def method_params(self) -> MethodParams:
