@@ -20,7 +20,8 @@ from envs.core import StepResult, WarehouseCore
 from envs.layouts import Layout, load_layout
 from envs.scenarios import sample_scenarios
 
-__all__ = ["EVAL_METRICS", "EVAL_STREAM", "TRAIN_STREAM", "Decision", "EpisodeBatch", "EpisodeStats", "batch_rng"]
+__all__ = ["EVAL_METRICS", "EVAL_STREAM", "MAPF_METRICS", "TRAIN_STREAM", "Decision", "EpisodeBatch", "EpisodeStats",
+           "batch_rng"]
 
 # The random streams of ``batch_rng``: training episodes, evaluation episodes.
 TRAIN_STREAM, EVAL_STREAM = 0, 1
@@ -89,6 +90,11 @@ EVAL_METRICS = (
     "payload_dec_per_step", "steps",
 )
 
+# The metrics MAPF researchers read, as POGEMA defines them (docs/decisions/0259): CSR, sum of
+# costs and makespan of one-shot episodes, throughput of lifelong ones (NaN where they do not
+# apply). Added after the first committed stores: an older eval file reads them as NaN.
+MAPF_METRICS = ("csr", "sum_of_costs", "makespan", "throughput")
+
 
 @dataclass
 class EpisodeStats:
@@ -97,6 +103,7 @@ class EpisodeStats:
     batch: int
     n_robots: int
     d_m: int = 3
+    lifelong: bool = False
     sums: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -104,6 +111,8 @@ class EpisodeStats:
                 "sq_err", "pred_n", "payload", "steps")
         self.sums = {k: np.zeros(self.batch, dtype=np.float64) for k in keys}
         self.success = np.zeros(self.batch, dtype=np.float64)
+        self.goals = np.zeros(self.batch, dtype=np.float64)  # goals reached (throughput)
+        self.arrival = np.full((self.batch, self.n_robots), -1.0)  # steps to first arrival, -1: none yet
 
     def add(self, running: np.ndarray, res: StepResult, dec: Decision) -> None:
         """Record one step; ``running`` (B,) marks episodes that were running before it."""
@@ -114,6 +123,10 @@ class EpisodeStats:
         s["invalid"] += res.invalid.sum(axis=1)
         s["active"] += act.sum(axis=1)
         s["steps"] += run
+        reached = res.reached
+        self.goals += reached.sum(axis=1)
+        np.copyto(self.arrival, np.broadcast_to(s["steps"][:, None], reached.shape),
+                  where=reached & (self.arrival < 0))
         if dec.proposed is not None:
             s["corr"] += ((dec.proposed != dec.actions) & act).sum(axis=1)
         for key, val in (("cand", dec.candidates), ("calls", dec.filter_calls),
@@ -143,5 +156,21 @@ class EpisodeStats:
                 "payload_scalars_per_step": float(s["payload"][b] / steps[b]),
                 "payload_dec_per_step": float(self.n_robots * (self.n_robots - 1) * self.d_m),
                 "steps": int(s["steps"][b]),
+                **self._mapf(b, done[b]),
             })
         return rows
+
+    def _mapf(self, b: int, done: np.ndarray) -> dict[str, float]:
+        """``MAPF_METRICS`` of episode ``b`` (POGEMA's definitions, docs/decisions/0259):
+        a robot's cost is the number of steps until it first stood on its goal (0 if it
+        started there), the episode's length if it never did; sum of costs and makespan are
+        their sum and maximum, CSR is 1 when every robot arrived; throughput is goals
+        reached per step over the episode."""
+        nan = float("nan")
+        steps = self.sums["steps"][b]
+        if self.lifelong:
+            return {"csr": nan, "sum_of_costs": nan, "makespan": nan,
+                    "throughput": float(self.goals[b] / max(steps, 1.0))}
+        cost = np.where(done, np.maximum(self.arrival[b], 0.0), steps)
+        return {"csr": float(done.all()), "sum_of_costs": float(cost.sum()),
+                "makespan": float(cost.max()) if cost.size else 0.0, "throughput": nan}

@@ -33,6 +33,7 @@ from bench.store.integrity import CHECKSUMS_FILE, Checksums
 from bench.store.meta_schema import EvalMeta, Manifest, validated
 from bench.store.schema import (
     ADDED_CELL_COLUMNS,
+    ADDED_EVAL_COLUMNS,
     CELLS_SCHEMA,
     EVAL_SCHEMA,
     SCHEMA_VERSION,
@@ -75,6 +76,8 @@ def read_table(path: Path, expected: pa.Schema, added: Mapping[str, float] | Non
     except (OSError, pa.ArrowException) as exc:
         raise BenchError(f"corrupt Parquet file {str(path)!r}: {short_error(exc)}") from None
     _check_version(path, table.schema.metadata)
+    if added is None and expected.names == EVAL_SCHEMA.names:
+        added = ADDED_EVAL_COLUMNS  # every reader of eval files: a file older than a column
     for name, value in (added or {}).items():
         if name not in table.schema.names:
             table = table.append_column(expected.field(name), pa.array([value] * table.num_rows, pa.float64()))

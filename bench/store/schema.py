@@ -24,6 +24,9 @@ STATUSES = ("pending", "running", "done", "failed")  # a cell's status in cells.
 # Columns added to a version-2 table after its first files were written: a file without one
 # reads as this value (for superseded_wall_s: no discarded attempt recorded).
 ADDED_CELL_COLUMNS = {"superseded_wall_s": 0.0}
+# The same for eval tables: the MAPF metrics (algorithms/common/episodes.py MAPF_METRICS) read
+# as NaN from a file written before them, so older stores report as they did.
+ADDED_EVAL_COLUMNS = {"csr": math.nan, "sum_of_costs": math.nan, "makespan": math.nan, "throughput": math.nan}
 
 # One row per cell: its config, status and progress.
 CELLS_SCHEMA = pa.schema([
@@ -87,6 +90,7 @@ EVAL_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False),
      pa.field("execution", pa.string(), nullable=False), pa.field("scenario", pa.string())]
     + METRIC_FIELDS
+    + [pa.field(name, pa.float64()) for name in ADDED_EVAL_COLUMNS]
 )
 
 
