@@ -166,7 +166,7 @@ class Method(ABC):
         """Run every episode of ``batch`` to its end; returns (state, metric rows).
         ``observer`` (optional) receives a ``StepRecord`` after every step."""
         core = batch.core
-        stats = EpisodeStats(core.batch, core.n, self.env.d_m)
+        stats = EpisodeStats(core.batch, core.n, self.env.d_m, lifelong=core.lifelong)
         state = self.begin(batch, choice)
         while batch.running:
             running = ~core.ended

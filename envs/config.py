@@ -67,6 +67,9 @@ class EnvConfig(BaseModel):
     on_goal: Literal["remove", "stay"] = Field(
         "remove", description="completed robots leave the floor, or stay as obstacles and Wait"
     )
+    task: Literal["one-shot", "lifelong"] = Field(
+        "one-shot", description="one goal per robot (the paper), or a next goal on every arrival until the horizon"
+    )
     loss_p: Probability = Field(0.2, description="mean inter-group message loss p")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field(
         "bernoulli", description="i.i.d. loss per link and step, or bursty two-state loss"

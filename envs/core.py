@@ -19,6 +19,10 @@ State arrays are shaped (B, N); positions are free-cell indices of the layout. O
   it then leaves the floor; ``"stay"``: it remains as an obstacle and only Waits;
 * an episode terminates when every robot has completed, and is truncated at t = T
   (kept apart). Finished episodes are frozen: stepping them changes nothing, rewards 0.
+* ``task="lifelong"`` (beyond the paper): a robot never completes; each arrival earns
+  the goal bonus and the robot's next goal comes from the episode's ``TaskStream``
+  (envs/tasks.py) at once, so every robot works, and pays the time penalty, until the
+  horizon truncates the episode (``on_goal`` does not apply: nobody leaves the floor).
 """
 from __future__ import annotations
 
@@ -31,6 +35,7 @@ from envs.config import EnvConfig
 from envs.distances import distance_cache
 from envs.errors import BenchError
 from envs.layouts import Layout, load_layout
+from envs.tasks import TaskStream
 
 
 @dataclass
@@ -58,17 +63,22 @@ class WarehouseCore:
         self.layout = layout if layout is not None else load_layout(config.layout)
         self.n = config.n_robots
         self.horizon = config.horizon
-        self.remove = config.on_goal == "remove"
+        self.remove = config.on_goal == "remove" and config.task == "one-shot"
         w = config.reward
         self._q = (float(w.q_p), float(w.q_g), float(w.q_c), float(w.q_tau))
         self._next = np.ascontiguousarray(self.layout.next_cell.reshape(-1))  # (F*5,)
         self._invalid = ~self.layout.move_valid.reshape(-1)  # (F*5,) moves into a shelf
         self._dist = distance_cache(self.layout)
         self.batch = 0
+        self.lifelong = config.task == "lifelong"
+        self.tasks: TaskStream | None = None
 
     # ------------------------------------------------------------------ reset
-    def reset(self, starts: np.ndarray, goals: np.ndarray) -> None:
-        """Start B episodes from (B, N) start and goal cell indices."""
+    def reset(self, starts: np.ndarray, goals: np.ndarray, tasks: TaskStream | None = None) -> None:
+        """Start B episodes from (B, N) start and goal cell indices; ``tasks`` gives the
+        next goals of a lifelong episode (``task="lifelong"`` needs it, one-shot ignores it)."""
+        if self.lifelong and tasks is None:
+            raise BenchError("reset: a lifelong episode needs a task stream (envs.tasks.TaskStream)")
         starts = np.asarray(starts, dtype=np.int64)
         goals = np.asarray(goals, dtype=np.int64)
         if starts.ndim != 2 or starts.shape != goals.shape or starts.shape[1] != self.n:
@@ -89,16 +99,17 @@ class WarehouseCore:
             raise BenchError(f"reset: episode {e} has two robots starting on free cell {int(keys[e, k])}")
         self.batch = b
         self.pos = starts.copy()  # (B, N) cell index p_t
-        self.goal = goals.copy()  # (B, N) cell index g
-        self.goal_rc = self.layout.float_cells[self.goal]  # (B, N, 2) float32 (row, col) of g
         self.t = 0
+        self.tasks = tasks if self.lifelong else None
+        if self.tasks is not None:  # a robot placed on its goal gets its next one
+            goals = goals.copy()
+            on_goal = goals == starts
+            if on_goal.any():
+                goals[on_goal] = self.tasks.next_goals(on_goal, starts)
+        self._set_goals(goals.copy())
         self.done = self.pos == self.goal  # (B, N) task completed
         self.ended = np.zeros(b, dtype=bool)  # (B,) episode over
         self.prev_actions = np.full((b, n), WAIT, dtype=np.int64)  # U_{t-1}
-        uniq, inv = np.unique(self.goal, return_inverse=True)
-        self._fields = np.ascontiguousarray(self._dist.fields(uniq).reshape(-1))  # (U*F,)
-        self._goal_base = inv.reshape(b, n).astype(np.int64) * f  # (B, N)
-        self.dist = self._fields[self._goal_base + self.pos]  # (B, N) D(p_t, g)
         # Scratch grids for conflict detection, indexed by b*F + cell (+ B*N dummy slots).
         m = b * n
         self._base = (np.arange(b, dtype=np.int64) * f)[:, None]  # (B, 1)
@@ -106,6 +117,17 @@ class WarehouseCore:
         self._dummy = b * f + self._idx
         self._claim = np.zeros(b * f + m, dtype=np.int64)
         self._dest = np.full(b * f + m, -1, dtype=np.int64)  # next key by current key
+
+    def _set_goals(self, goals: np.ndarray) -> None:
+        """Goals g (B, N) and what depends on them: their (row, col), the distance fields of
+        the distinct goals and D(p_t, g)."""
+        b, n, f = goals.shape[0], self.n, self.layout.n_free
+        self.goal = goals
+        self.goal_rc = self.layout.float_cells[self.goal]  # (B, N, 2) float32 (row, col) of g
+        uniq, inv = np.unique(self.goal, return_inverse=True)
+        self._fields = np.ascontiguousarray(self._dist.fields(uniq).reshape(-1))  # (U*F,)
+        self._goal_base = inv.reshape(b, n).astype(np.int64) * f  # (B, N)
+        self.dist = self._fields[self._goal_base + self.pos]  # (B, N) D(p_t, g)
 
     @property
     def occupying(self) -> np.ndarray:
@@ -183,6 +205,12 @@ class WarehouseCore:
         self.pos, self.dist, self.done = new_pos, new_dist, done
         self.prev_actions = a
         self.t += 1
+        if self.tasks is not None:  # lifelong: nobody completes, arrivals get a next goal
+            self.done = done = self.done & False
+            if np.count_nonzero(reached):
+                goals = self.goal.copy()
+                goals[reached] = self.tasks.next_goals(reached, new_pos)
+                self._set_goals(goals)
         terminated = done.all(axis=1)
         if not all_running:
             terminated &= running

@@ -47,6 +47,7 @@ from envs.pz_inputs import action_vector, scenario_options
 from envs.render import render_ansi, render_rgb, show_in_terminal, write_gif
 from envs.scenarios import sample_scenarios, validate_scenario
 from envs.step_infos import StepInfos
+from envs.tasks import TaskStream
 
 RENDER_MODES = ("human", "rgb_array", "ansi")
 
@@ -162,8 +163,11 @@ class WarehouseParallelEnv(ParallelEnv):
             starts, goals = s[None], g[None]
         else:
             starts, goals = sample_scenarios(self.layout, n, 1, self._rng)
-        self.core.reset(starts, goals)
         self.channel = open_channel(self.config, 1, self._rng.spawn(1)[0])
+        tasks = None  # lifelong: the next goals, from a child of the env's generator
+        if self.core.lifelong:
+            tasks = TaskStream.seeded(self.layout, n, 1, self._rng.spawn(1)[0])
+        self.core.reset(starts, goals, tasks)
         self.links = self.channel.step()[0]  # A_0
         self._last = None
         # Every robot starts in ``agents``, even one placed on its goal (done at t = 0).

@@ -19,6 +19,7 @@ from envs.config import EnvConfig
 from envs.core import StepResult, WarehouseCore
 from envs.layouts import Layout, load_layout
 from envs.scenarios import sample_scenarios
+from envs.tasks import TaskStream
 
 __all__ = ["EVAL_METRICS", "EVAL_STREAM", "MAPF_METRICS", "TRAIN_STREAM", "Decision", "EpisodeBatch", "EpisodeStats",
            "batch_rng"]
@@ -47,7 +48,10 @@ class EpisodeBatch:
         self.core = WarehouseCore(config, layout if layout is not None else load_layout(config.layout))
         starts, goals = sample_scenarios(self.core.layout, config.n_robots, batch, rng)
         self.starts, self.goals = np.asarray(starts), np.asarray(goals)  # (B, N) free-cell indices
-        self.core.reset(starts, goals)
+        tasks = None  # lifelong: next goals from the batch's seed, no draw from rng
+        if config.task == "lifelong":
+            tasks = TaskStream.seeded(self.core.layout, config.n_robots, batch, rng)
+        self.core.reset(starts, goals, tasks)
 
     def open_channel(self, level: str = "groups") -> Channel:
         """The environment's lossy channel of these B episodes, between groups or robots

@@ -34,6 +34,7 @@ import torch
 from algorithms.common.episodes import EpisodeBatch
 from algorithms.common.execution import TRAIN, ExecutionMode, sample_categorical
 from algorithms.common.trainer import RolloutBuffer
+from envs.tasks import TaskStream
 
 
 class StackedRNG:
@@ -64,7 +65,9 @@ class StackedBatch(EpisodeBatch):
         self.starts = np.concatenate([p.starts for p in parts])
         self.goals = np.concatenate([p.goals for p in parts])
         self.core = type(first.core)(first.config, first.core.layout)
-        self.core.reset(self.starts, self.goals)
+        tasks = None if first.core.tasks is None else TaskStream.stack(  # lifelong: each part's stream
+            first.core.layout, first.core.n, [p.core.tasks for p in parts if p.core.tasks is not None])
+        self.core.reset(self.starts, self.goals, tasks)
 
     def bounds(self) -> list[tuple[int, int]]:
         """(first, end) episode rows of every part."""

@@ -33,7 +33,7 @@ MAX_HORIZON = limit("horizon")
 
 # Fields added after the first committed stores: left out of the canonical JSON while at
 # their default, so every cell that does not set them keeps its id (docs/decisions/0256).
-LATER_FIELDS = ("delay", "delay_model")
+LATER_FIELDS = ("delay", "delay_model", "task")
 
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
@@ -70,6 +70,8 @@ class Cell(BaseModel):
                     "argmax and sample are always evaluated)")
     on_goal: Literal["remove", "stay"] = Field("remove", description="robots at their goal leave / stay")
     loss_model: Literal["bernoulli", "gilbert_elliott"] = Field("bernoulli", description="loss process")
+    task: Literal["one-shot", "lifelong"] = Field(
+        "one-shot", description="one goal per robot (the paper) or lifelong tasks to the horizon")
     delay: float = Field(0.0, ge=0.0, strict=True,
                          description="mean message delay in steps (0: none; beyond the paper)")
     delay_model: Literal["fixed", "geometric"] = Field("fixed", description="fixed delay or geometric per message")
@@ -174,7 +176,7 @@ class Cell(BaseModel):
         return EnvConfig.make(
             n_robots=self.n_robots, layout=self.layout, groups=self.groups, horizon=self.horizon,
             on_goal=self.on_goal, loss_p=self.loss_p, loss_model=self.loss_model,
-            delay=self.delay, delay_model=self.delay_model,
+            delay=self.delay, delay_model=self.delay_model, task=self.task,
         )
 
     def method_params(self) -> MethodParams:

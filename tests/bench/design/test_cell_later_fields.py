@@ -17,13 +17,15 @@ def test_later_fields__absent_from_the_id_at_their_default():
     assert cell.cell_id == "72b0b05bf7c4"  # the id this config had before the fields existed
 
 
-@pytest.mark.parametrize("extra", [{"delay": 2}, {"delay": 1.5, "delay_model": "geometric"}])
+@pytest.mark.parametrize("extra", [{"delay": 2}, {"delay": 1.5, "delay_model": "geometric"},
+                                   {"task": "lifelong", "delay": 0}])
 def test_later_fields__set_one_and_the_id_changes(extra):
     plain = Cell.make(method="pibt", n_robots=8, loss_p=0.2)
     cell = Cell.make(method="pibt", n_robots=8, loss_p=0.2, **extra)
     assert cell.cell_id != plain.cell_id
     env = cell.to_env_config()
     assert env.delay == extra["delay"] and env.delay_model == extra.get("delay_model", "fixed")
+    assert env.task == extra.get("task", "one-shot")
 
 
 def test_delay__bad_values_are_one_clear_error():
