@@ -36,6 +36,7 @@ from torch.nn import functional as F
 from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
+from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
@@ -263,7 +264,18 @@ class DecentralizedMethod(Method):
             loss.backward()
             actor_total += float(-(weight_t[sl] * logp.detach()).sum())
             entropy_total += float(entropy.detach().sum())
+        probe = self.kl_probe(obs, act_mask)
         grad_norm = clip_and_step(self.actor_opt, p.max_grad_norm)
         return {"actor_loss": actor_total, "critic_loss": crit.loss,
                 "entropy": entropy_total / max(rows, 1), "grad_norm": grad_norm,
-                "return_mean": float((crit.returns * crit.mask).sum() / n)}
+                "return_mean": float((crit.returns * crit.mask).sum() / n),
+                **crit.diagnostics(), "diag_entropy": entropy_total / max(rows, 1),
+                "diag_grad_norm": grad_norm, "diag_kl": probe.kl(),
+                "diag_wait_share": wait_share(actions.numpy(), np.ones(rows, dtype=bool))}
+
+    def kl_probe(self, obs: np.ndarray, act_mask: np.ndarray) -> KLProbe:
+        """The actor's log-probabilities on a strided subset of the update's robot-steps,
+        for the KL across the step (diagnostics only)."""
+        idx = probe_rows(obs.shape[0])
+        o, m = torch.from_numpy(obs[idx]), torch.from_numpy(act_mask[idx])
+        return KLProbe(lambda: (torch.log_softmax(self.actor(o, m), dim=-1), None))

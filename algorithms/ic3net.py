@@ -62,6 +62,7 @@ from torch import nn
 
 from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
+from algorithms.common.diagnostics import KLProbe, value_diagnostics, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import (
@@ -74,6 +75,7 @@ from algorithms.common.robot_obs import (
 )
 from algorithms.common.trainer import (
     CentralCritic,
+    CriticStep,
     RolloutBuffer,
     clip_and_step,
     critic_shapes,
@@ -368,6 +370,7 @@ class IC3NetMethod(Method):
         n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
         out: dict[str, float] = {}
+        crit: CriticStep | None = None
         if self.critic is not None and self.critic_opt is not None:  # the shared trainer: team advantage of V(X_t)
             crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
             adv = crit.adv[..., None].expand_as(active)  # (T, B, N): every robot, the team's A_t
@@ -403,7 +406,9 @@ class IC3NetMethod(Method):
             totals["action_loss"] += float(action_loss.detach()) / n_steps
             totals["value_loss"] += float(value_loss.detach()) / n_steps
             totals["entropy"] += float(entropy.detach())
+        probe = self.kl_probe(data)
         grad_norm = clip_and_step(self.optimizer, p.max_grad_norm)
+        diag = self.value_diagnostics(buf, active, crit)
         gate_open = float(buf.data["gates"][:t_used][buf.data["active"][:t_used]].mean()) \
             if buf.data["active"][:t_used].any() else 0.0
         running = torch.from_numpy(buf.running[:t_used].astype(np.float32))
@@ -411,4 +416,30 @@ class IC3NetMethod(Method):
         return {"actor_loss": totals["action_loss"], **out,
                 "entropy": totals["entropy"] / n_active, "gate_open_rate": gate_open,
                 "grad_norm": grad_norm,
-                "return_mean": float((mc_returns(buf.rewards[:t_used]) * running).sum() / n_steps)}
+                "return_mean": float((mc_returns(buf.rewards[:t_used]) * running).sum() / n_steps),
+                **diag, "diag_entropy": totals["entropy"] / n_active, "diag_grad_norm": grad_norm,
+                "diag_kl": probe.kl(),
+                "diag_wait_share": wait_share(buf.data["actions"][:t_used], buf.data["active"][:t_used])}
+
+    def value_diagnostics(self, buf: RolloutBuffer, active: torch.Tensor, crit: CriticStep | None,
+                          ) -> dict[str, float]:
+        """The baseline's ``diag_*`` numbers: the central critic's step, or the per-robot
+        value head's values against the team return over alive robot-steps."""
+        if crit is not None:
+            return crit.diagnostics()
+        returns = mc_returns(buf.rewards[: buf.t])[..., None].expand_as(active)
+        return value_diagnostics(buf.tensor("values"), returns, active)
+
+    def kl_probe(self, data: dict[str, torch.Tensor]) -> KLProbe:
+        """The action log-probabilities of the first ``detach_gap`` steps of up to two
+        episodes, replayed from h = 0, for the KL across the step (diagnostics only)."""
+        gap, eps = min(self.params.detach_gap, int(data["obs"].shape[0])), slice(0, 2)
+
+        def log_probs() -> tuple[torch.Tensor, torch.Tensor]:
+            obs = data["obs"][:gap, eps]
+            links = data["links"][:gap, eps].to(torch.float32)
+            hc = self.policy.initial_state(obs.shape[1], obs.shape[2])
+            logits, _, _, _ = self.policy.replay(obs, data["mask"][:gap, eps], links, data["alive"][:gap, eps], hc)
+            return torch.log_softmax(logits, dim=-1), data["active"][:gap, eps]
+
+        return KLProbe(log_probs)
