@@ -65,6 +65,15 @@ from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.diagnostics import KLProbe, value_diagnostics, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
+from algorithms.common.ppo import (
+    MAPPO,
+    PPOBatch,
+    RobotCritic,
+    mappo_critic,
+    ppo_actor_update,
+    robot_rewards,
+    update_generator,
+)
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask_into,
@@ -228,15 +237,19 @@ class IC3NetMethod(Method):
         super().__init__(env, params, seed)
         p = self.params
         self.n_obs = local_view_size(p.patch_radius) + HISTORY_SIZE
-        self.central = p.baseline == "central"
+        self.mappo = p.protocol == MAPPO  # the protocol's own critic replaces ``baseline``
+        self.central = p.baseline == "central" or self.mappo
         self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes, p.action_path,
                                    p.patch_radius, value_head=not self.central)
+        lr = p.ppo_lr if self.mappo else p.lr
         if p.optimizer == "adam":
-            self.optimizer: torch.optim.Optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.lr)
+            self.optimizer: torch.optim.Optimizer = torch.optim.Adam(self.policy.parameters(), lr=lr)
         else:
-            self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
+            self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=lr,
                                                  alpha=p.rms_alpha, eps=p.rms_eps)
-        self.critic = CentralCritic(p.critic_hidden) if self.central else None
+        self.critic: CentralCritic | RobotCritic | None = None
+        if self.central:
+            self.critic = RobotCritic(p.critic_hidden) if self.mappo else CentralCritic(p.critic_hidden)
         self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
                            if self.critic is not None else None)
 
@@ -258,6 +271,7 @@ class IC3NetMethod(Method):
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
                 "actions": ((n,), np.int64), "gates": ((n,), np.int64),
                 **(critic_shapes(n) if self.central else {"values": ((n,), np.float32)}),
+                **({"robot_reward": ((n,), np.float32)} if self.mappo else {}),
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
@@ -329,6 +343,8 @@ class IC3NetMethod(Method):
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
         state.collided = result.collision
         if state.buffer is not None:
+            if self.mappo:
+                state.buffer.add(robot_reward=robot_rewards(result))
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- update
@@ -364,6 +380,8 @@ class IC3NetMethod(Method):
         with gradients, chunked over time (see module)."""
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
+        if isinstance(self.critic, RobotCritic):
+            return self.mappo_update(buf, self.critic)
         t_used = buf.t
         data = {k: buf.tensor(k) for k in buf.data}
         active = data["active"].float()  # (T, B, N) alive robots of running episodes
@@ -443,3 +461,45 @@ class IC3NetMethod(Method):
             return torch.log_softmax(logits, dim=-1), data["active"][:gap, eps]
 
         return KLProbe(log_probs)
+
+    def mappo_update(self, buf: RolloutBuffer, critic: RobotCritic) -> dict[str, float]:
+        """``protocol="mappo"``: GAE advantages of the per-robot critic, then the clipped
+        surrogate with whole episodes as samples (the LSTM is replayed from h = 0, detached
+        every ``detach_gap`` steps as in the paper update); one ratio per alive robot-step,
+        of its control and (learned gate) its gate."""
+        p = self.params
+        assert self.critic_opt is not None
+        crit = mappo_critic(critic, self.critic_opt, buf, p)
+        data = {k: buf.tensor(k) for k in ("obs", "mask", "links", "alive", "actions", "gates", "active")}
+        t_used, b, n = data["actions"].shape
+        learn_gate = p.gate == "learned" and p.communicate
+
+        def per_episode(x: torch.Tensor) -> torch.Tensor:  # (T, B', N) -> (B', T N)
+            return x.permute(1, 0, 2).reshape(x.shape[1], -1)
+
+        def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+            hc = self.policy.initial_state(len(ix), n)
+            lps, ents = [], []
+            for lo in range(0, t_used, p.detach_gap):
+                sl = slice(lo, min(lo + p.detach_gap, t_used))
+                logits, gate_logits, _, hc = self.policy.replay(
+                    data["obs"][sl, ix], data["mask"][sl, ix], data["links"][sl, ix].to(torch.float32),
+                    data["alive"][sl, ix], hc)
+                hc = (hc[0].detach(), hc[1].detach())
+                logp_all = torch.log_softmax(logits, dim=-1)
+                logp = logp_all.gather(-1, data["actions"][sl, ix][..., None]).squeeze(-1)
+                if learn_gate:
+                    logp_g = torch.log_softmax(gate_logits, dim=-1)
+                    logp = logp + logp_g.gather(-1, data["gates"][sl, ix][..., None]).squeeze(-1)
+                lps.append(logp)
+                ents.append(-(logp_all.exp() * logp_all).sum(-1))
+            w = data["active"][:, ix].to(torch.float32)
+            return per_episode(torch.cat(lps)), per_episode(torch.cat(ents)), per_episode(w)
+
+        out = ppo_actor_update(PPOBatch(b, log_probs, per_episode(crit.robot_adv)), self.optimizer, p.ppo_epochs,
+                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
+                               update_generator(self.seed, self.iterations))
+        active = buf.data["active"][:t_used]
+        return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
+                "gate_open_rate": float(buf.data["gates"][:t_used][active].mean()) if active.any() else 0.0,
+                "diag_wait_share": wait_share(buf.data["actions"][:t_used], active)}

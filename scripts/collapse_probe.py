@@ -25,7 +25,7 @@ from envs.config import EnvConfig
 
 SHOWN = ("team_return", "collision_rate", "success_rate", "critic_loss", "diag_entropy", "diag_entropy_ref",
          "diag_kl", "diag_grad_norm", "diag_adv_mean", "diag_adv_std", "diag_return_mean",
-         "diag_explained_variance", "diag_wait_share")
+         "diag_explained_variance", "diag_wait_share", "wall_s")
 
 
 def main() -> int:
