@@ -26,7 +26,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import torch
@@ -95,6 +95,18 @@ class LearnedParams(MethodParams):
     entropy_coef: float = Field(0.01, ge=0, description="entropy bonus per robot-step (0 = the paper's loss)")
     max_grad_norm: float = Field(10.0, gt=0, description="global gradient-norm clip of every optimizer step")
     normalize_advantage: bool = Field(True, description="divide the team advantage by its batch RMS")
+    # The training protocol (algorithms/common/ppo.py, docs/training-protocols.md); the ppo_*
+    # fields act only under protocol="mappo".
+    protocol: Literal["paper", "mappo"] = Field(
+        "paper", description="paper: the paper's trainer; mappo: GAE, clipped surrogate, value normalization")
+    ppo_epochs: int = Field(3, ge=1, description="mappo: epochs over each batch (actor and critic)")
+    ppo_minibatches: int = Field(2, ge=1, description="mappo: minibatches per epoch")
+    ppo_clip: float = Field(0.2, gt=0, description="mappo: clip range of the probability ratio")
+    ppo_lr: float = Field(5e-4, gt=0, description="mappo: Adam rate of the policy (lr is the paper's)")
+    gamma: float = Field(0.99, gt=0, le=1, description="mappo: discount of the GAE returns")
+    gae_lambda: float = Field(0.95, ge=0, le=1, description="mappo: GAE lambda")
+    credit: Literal["robot", "team"] = Field(
+        "robot", description="mappo: each robot's advantage from its own reward terms, or the team's")
 
 
 class Method(ABC):

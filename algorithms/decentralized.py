@@ -36,8 +36,18 @@ from torch.nn import functional as F
 from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.all_to_all import OFF_FLOOR, AllToAllBoard, map_feature_size
+from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
+from algorithms.common.ppo import (
+    MAPPO,
+    PPOBatch,
+    RobotCritic,
+    mappo_critic,
+    ppo_actor_update,
+    robot_rewards,
+    update_generator,
+)
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask_into,
@@ -146,8 +156,10 @@ class DecentralizedMethod(Method):
         self.n_obs = (local_view_size(p.patch_radius) + HISTORY_SIZE
                       + map_feature_size(p.patch_radius))
         self.actor = DecentralizedActor(self.n_obs, p.hidden, p.patch_radius, p.action_path)
-        self.critic = CentralCritic(p.critic_hidden)
-        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.lr)
+        self.mappo = p.protocol == MAPPO
+        self.critic: CentralCritic | RobotCritic = RobotCritic(p.critic_hidden) if self.mappo \
+            else CentralCritic(p.critic_hidden)
+        self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.ppo_lr if self.mappo else p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max) if p.safety_filter else None
 
@@ -165,6 +177,7 @@ class DecentralizedMethod(Method):
             buffer = RolloutBuffer(env.horizon, b, {
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "actions": ((n,), np.int64), "active": ((n,), bool), **critic_shapes(n),
+                **({"robot_reward": ((n,), np.float32)} if self.mappo else {}),
             })
         state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
                                    PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
@@ -227,13 +240,18 @@ class DecentralizedMethod(Method):
     def observe(self, batch: EpisodeBatch, state: DecentralizedState, result: Any) -> None:
         state.collided = result.collision
         if state.buffer is not None:
+            if self.mappo:
+                state.buffer.add(robot_reward=robot_rewards(result))
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- update
     def update(self, state: DecentralizedState) -> dict[str, float]:
-        """One actor and one critic Adam step from the finished batch (eq:losses)."""
+        """One actor and one critic Adam step from the finished batch (eq:losses); under
+        ``protocol="mappo"`` the clipped surrogate of algorithms/common/ppo.py."""
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
+        if isinstance(self.critic, RobotCritic):
+            return self.mappo_update(buf)
         crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
         adv, n = crit.adv, crit.n
 
@@ -262,7 +280,44 @@ class DecentralizedMethod(Method):
             loss.backward()
             actor_total += float(-(weight_t[sl] * logp.detach()).sum())
             entropy_total += float(entropy.detach().sum())
+        probe = self.kl_probe(obs, act_mask)
         grad_norm = clip_and_step(self.actor_opt, p.max_grad_norm)
         return {"actor_loss": actor_total, "critic_loss": crit.loss,
                 "entropy": entropy_total / max(rows, 1), "grad_norm": grad_norm,
-                "return_mean": float((crit.returns * crit.mask).sum() / n)}
+                "return_mean": float((crit.returns * crit.mask).sum() / n),
+                **crit.diagnostics(), "diag_entropy": entropy_total / max(rows, 1),
+                "diag_grad_norm": grad_norm, "diag_kl": probe.kl(),
+                "diag_wait_share": wait_share(actions.numpy(), np.ones(rows, dtype=bool))}
+
+    def kl_probe(self, obs: np.ndarray, act_mask: np.ndarray) -> KLProbe:
+        """The actor's log-probabilities on a strided subset of the update's robot-steps,
+        for the KL across the step (diagnostics only)."""
+        idx = probe_rows(obs.shape[0])
+        o, m = torch.from_numpy(obs[idx]), torch.from_numpy(act_mask[idx])
+        return KLProbe(lambda: (torch.log_softmax(self.actor(o, m), dim=-1), None))
+
+    def mappo_update(self, buf: RolloutBuffer) -> dict[str, float]:
+        """``protocol="mappo"``: the critic's GAE targets and advantages (per robot or team,
+        ``credit``), then the clipped surrogate over every active robot-step."""
+        p = self.params
+        assert isinstance(self.critic, RobotCritic)
+        crit = mappo_critic(self.critic, self.critic_opt, buf, p)
+        active = buf.data["active"][: buf.t]
+        sel = torch.from_numpy(np.flatnonzero(active))
+        obs = torch.from_numpy(buf.data["obs"][: buf.t].reshape(active.size, -1))
+        masks = torch.from_numpy(buf.data["mask"][: buf.t].reshape(active.size, -1))
+        actions = torch.from_numpy(buf.data["actions"][: buf.t].reshape(-1))
+        adv = crit.robot_adv.reshape(-1)[sel][:, None]
+
+        def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+            rows = sel[ix]
+            logp_all = torch.log_softmax(self.actor(obs[rows], masks[rows]), dim=-1)
+            logp = logp_all.gather(-1, actions[rows, None])
+            entropy = -(logp_all.exp() * logp_all).sum(-1, keepdim=True)
+            return logp, entropy, torch.ones_like(logp)
+
+        out = ppo_actor_update(PPOBatch(len(sel), log_probs, adv), self.actor_opt, p.ppo_epochs,
+                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
+                               update_generator(self.seed, self.iterations))
+        return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
+                "diag_wait_share": wait_share(buf.data["actions"][: buf.t], active)}

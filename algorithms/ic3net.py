@@ -62,8 +62,18 @@ from torch import nn
 
 from algorithms.base import BASELINE, LearnedParams, Method, masked_logits
 from algorithms.common.action_path import ActionPath, progress_index
+from algorithms.common.diagnostics import KLProbe, value_diagnostics, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
+from algorithms.common.ppo import (
+    MAPPO,
+    PPOBatch,
+    RobotCritic,
+    mappo_critic,
+    ppo_actor_update,
+    robot_rewards,
+    update_generator,
+)
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask_into,
@@ -74,6 +84,7 @@ from algorithms.common.robot_obs import (
 )
 from algorithms.common.trainer import (
     CentralCritic,
+    CriticStep,
     RolloutBuffer,
     clip_and_step,
     critic_shapes,
@@ -226,15 +237,19 @@ class IC3NetMethod(Method):
         super().__init__(env, params, seed)
         p = self.params
         self.n_obs = local_view_size(p.patch_radius) + HISTORY_SIZE
-        self.central = p.baseline == "central"
+        self.mappo = p.protocol == MAPPO  # the protocol's own critic replaces ``baseline``
+        self.central = p.baseline == "central" or self.mappo
         self.policy = IC3NetPolicy(self.n_obs, p.hidden, p.comm_passes, p.action_path,
                                    p.patch_radius, value_head=not self.central)
+        lr = p.ppo_lr if self.mappo else p.lr
         if p.optimizer == "adam":
-            self.optimizer: torch.optim.Optimizer = torch.optim.Adam(self.policy.parameters(), lr=p.lr)
+            self.optimizer: torch.optim.Optimizer = torch.optim.Adam(self.policy.parameters(), lr=lr)
         else:
-            self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=p.lr,
+            self.optimizer = torch.optim.RMSprop(self.policy.parameters(), lr=lr,
                                                  alpha=p.rms_alpha, eps=p.rms_eps)
-        self.critic = CentralCritic(p.critic_hidden) if self.central else None
+        self.critic: CentralCritic | RobotCritic | None = None
+        if self.central:
+            self.critic = RobotCritic(p.critic_hidden) if self.mappo else CentralCritic(p.critic_hidden)
         self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
                            if self.critic is not None else None)
 
@@ -256,6 +271,7 @@ class IC3NetMethod(Method):
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
                 "actions": ((n,), np.int64), "gates": ((n,), np.int64),
                 **(critic_shapes(n) if self.central else {"values": ((n,), np.float32)}),
+                **({"robot_reward": ((n,), np.float32)} if self.mappo else {}),
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
@@ -327,6 +343,8 @@ class IC3NetMethod(Method):
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
         state.collided = result.collision
         if state.buffer is not None:
+            if self.mappo:
+                state.buffer.add(robot_reward=robot_rewards(result))
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- update
@@ -362,12 +380,15 @@ class IC3NetMethod(Method):
         with gradients, chunked over time (see module)."""
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
+        if isinstance(self.critic, RobotCritic):
+            return self.mappo_update(buf, self.critic)
         t_used = buf.t
         data = {k: buf.tensor(k) for k in buf.data}
         active = data["active"].float()  # (T, B, N) alive robots of running episodes
         n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
         out: dict[str, float] = {}
+        crit: CriticStep | None = None
         if self.critic is not None and self.critic_opt is not None:  # the shared trainer: team advantage of V(X_t)
             crit = critic_update(self.critic, self.critic_opt, buf, p.normalize_advantage, p.max_grad_norm)
             adv = crit.adv[..., None].expand_as(active)  # (T, B, N): every robot, the team's A_t
@@ -403,7 +424,9 @@ class IC3NetMethod(Method):
             totals["action_loss"] += float(action_loss.detach()) / n_steps
             totals["value_loss"] += float(value_loss.detach()) / n_steps
             totals["entropy"] += float(entropy.detach())
+        probe = self.kl_probe(data)
         grad_norm = clip_and_step(self.optimizer, p.max_grad_norm)
+        diag = self.value_diagnostics(buf, active, crit)
         gate_open = float(buf.data["gates"][:t_used][buf.data["active"][:t_used]].mean()) \
             if buf.data["active"][:t_used].any() else 0.0
         running = torch.from_numpy(buf.running[:t_used].astype(np.float32))
@@ -411,4 +434,72 @@ class IC3NetMethod(Method):
         return {"actor_loss": totals["action_loss"], **out,
                 "entropy": totals["entropy"] / n_active, "gate_open_rate": gate_open,
                 "grad_norm": grad_norm,
-                "return_mean": float((mc_returns(buf.rewards[:t_used]) * running).sum() / n_steps)}
+                "return_mean": float((mc_returns(buf.rewards[:t_used]) * running).sum() / n_steps),
+                **diag, "diag_entropy": totals["entropy"] / n_active, "diag_grad_norm": grad_norm,
+                "diag_kl": probe.kl(),
+                "diag_wait_share": wait_share(buf.data["actions"][:t_used], buf.data["active"][:t_used])}
+
+    def value_diagnostics(self, buf: RolloutBuffer, active: torch.Tensor, crit: CriticStep | None,
+                          ) -> dict[str, float]:
+        """The baseline's ``diag_*`` numbers: the central critic's step, or the per-robot
+        value head's values against the team return over alive robot-steps."""
+        if crit is not None:
+            return crit.diagnostics()
+        returns = mc_returns(buf.rewards[: buf.t])[..., None].expand_as(active)
+        return value_diagnostics(buf.tensor("values"), returns, active)
+
+    def kl_probe(self, data: dict[str, torch.Tensor]) -> KLProbe:
+        """The action log-probabilities of the first ``detach_gap`` steps of up to two
+        episodes, replayed from h = 0, for the KL across the step (diagnostics only)."""
+        gap, eps = min(self.params.detach_gap, int(data["obs"].shape[0])), slice(0, 2)
+
+        def log_probs() -> tuple[torch.Tensor, torch.Tensor]:
+            obs = data["obs"][:gap, eps]
+            links = data["links"][:gap, eps].to(torch.float32)
+            hc = self.policy.initial_state(obs.shape[1], obs.shape[2])
+            logits, _, _, _ = self.policy.replay(obs, data["mask"][:gap, eps], links, data["alive"][:gap, eps], hc)
+            return torch.log_softmax(logits, dim=-1), data["active"][:gap, eps]
+
+        return KLProbe(log_probs)
+
+    def mappo_update(self, buf: RolloutBuffer, critic: RobotCritic) -> dict[str, float]:
+        """``protocol="mappo"``: GAE advantages of the per-robot critic, then the clipped
+        surrogate with whole episodes as samples (the LSTM is replayed from h = 0, detached
+        every ``detach_gap`` steps as in the paper update); one ratio per alive robot-step,
+        of its control and (learned gate) its gate."""
+        p = self.params
+        assert self.critic_opt is not None
+        crit = mappo_critic(critic, self.critic_opt, buf, p)
+        data = {k: buf.tensor(k) for k in ("obs", "mask", "links", "alive", "actions", "gates", "active")}
+        t_used, b, n = data["actions"].shape
+        learn_gate = p.gate == "learned" and p.communicate
+
+        def per_episode(x: torch.Tensor) -> torch.Tensor:  # (T, B', N) -> (B', T N)
+            return x.permute(1, 0, 2).reshape(x.shape[1], -1)
+
+        def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+            hc = self.policy.initial_state(len(ix), n)
+            lps, ents = [], []
+            for lo in range(0, t_used, p.detach_gap):
+                sl = slice(lo, min(lo + p.detach_gap, t_used))
+                logits, gate_logits, _, hc = self.policy.replay(
+                    data["obs"][sl, ix], data["mask"][sl, ix], data["links"][sl, ix].to(torch.float32),
+                    data["alive"][sl, ix], hc)
+                hc = (hc[0].detach(), hc[1].detach())
+                logp_all = torch.log_softmax(logits, dim=-1)
+                logp = logp_all.gather(-1, data["actions"][sl, ix][..., None]).squeeze(-1)
+                if learn_gate:
+                    logp_g = torch.log_softmax(gate_logits, dim=-1)
+                    logp = logp + logp_g.gather(-1, data["gates"][sl, ix][..., None]).squeeze(-1)
+                lps.append(logp)
+                ents.append(-(logp_all.exp() * logp_all).sum(-1))
+            w = data["active"][:, ix].to(torch.float32)
+            return per_episode(torch.cat(lps)), per_episode(torch.cat(ents)), per_episode(w)
+
+        out = ppo_actor_update(PPOBatch(b, log_probs, per_episode(crit.robot_adv)), self.optimizer, p.ppo_epochs,
+                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
+                               update_generator(self.seed, self.iterations))
+        active = buf.data["active"][:t_used]
+        return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
+                "gate_open_rate": float(buf.data["gates"][:t_used][active].mean()) if active.any() else 0.0,
+                "diag_wait_share": wait_share(buf.data["actions"][:t_used], active)}

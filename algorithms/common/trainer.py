@@ -24,6 +24,7 @@ import torch
 from numpy.typing import DTypeLike
 from torch import nn
 
+from algorithms.common.diagnostics import value_diagnostics
 from envs.core import WarehouseCore
 
 CRITIC_FEATURES = 6
@@ -193,6 +194,13 @@ class CriticStep:
     mask: torch.Tensor
     n: torch.Tensor
     loss: float
+    grad_norm: float = float("nan")  # the critic's gradient norm before clipping
+
+    def diagnostics(self) -> dict[str, float]:
+        """The ``diag_*`` numbers of the critic step (algorithms/common/diagnostics.py):
+        raw advantage and return moments, explained variance, gradient norm."""
+        return {**value_diagnostics(self.values, self.returns, self.mask),
+                "diag_critic_grad_norm": self.grad_norm}
 
 
 def critic_step(
@@ -213,8 +221,8 @@ def critic_step(
     loss = critic_loss(values, g, mask, n)
     optimizer.zero_grad()
     loss.backward()
-    clip_and_step(optimizer, max_grad_norm)
-    return CriticStep(values.detach(), adv, g, mask, n, float(loss.detach()))
+    grad_norm = clip_and_step(optimizer, max_grad_norm)
+    return CriticStep(values.detach(), adv, g, mask, n, float(loss.detach()), grad_norm)
 
 
 def critic_update(

@@ -63,6 +63,7 @@ from algorithms.hierarchical.training import Learner, policy_update, predictor_u
 from envs.actions import N_ACTIONS, WAIT
 from envs.channel import Channel
 from envs.config import EnvConfig
+from envs.errors import BenchError
 from envs.observations import PatchExtractor, feature_size, robot_features
 
 
@@ -110,6 +111,8 @@ class HierarchicalMethod(Method):
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:
         super().__init__(env, params, seed)
         p = self.params
+        if p.protocol != "paper":  # algorithms/common/ppo.py: not wired to the two levels yet
+            raise BenchError(f"hierarchical: protocol {p.protocol!r} is not available yet; use 'paper'")
         self.gs = group_structure(env)
         z = env.groups
         pz = 1 if p.share_params else z

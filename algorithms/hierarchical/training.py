@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -110,9 +111,36 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
         (actor - ref_coef * ent_r - p.entropy_coef * ent_u).backward()
         for key, val in (("actor_loss", actor), ("entropy_ref", ent_r), ("entropy_local", ent_u)):
             sums[key] += float(val.detach())
-    clip_and_step(learner.opt_policy, p.max_grad_norm)
+    probes = kl_probes(learner, d, tt, bb)
+    grad_norm = clip_and_step(learner.opt_policy, p.max_grad_norm)
     sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
-    return sums
+    ctl_run = d["controlled"][tt, bb]
+    return {**sums, **crit.diagnostics(), "diag_entropy": sums["entropy_local"],
+            "diag_entropy_ref": sums["entropy_ref"], "diag_grad_norm": grad_norm,
+            "diag_kl": probes[1].kl(), "diag_kl_ref": probes[0].kl(),
+            "diag_wait_share": wait_share(d["proposed"][tt, bb], ctl_run)}
+
+
+def kl_probes(learner: Learner, d: dict[str, np.ndarray], tt: np.ndarray, bb: np.ndarray,
+              ) -> tuple[KLProbe, KLProbe]:
+    """KL probes of the reference (over the group-steps where mu drew r) and of the local
+    policy (over the controlled robots) on a strided subset of the running steps, with the
+    stored references (diagnostics only; no draw)."""
+    k = probe_rows(len(tt), 16)
+    r_t, r_b = tt[k], bb[k]
+    ctl = d["controlled"][r_t, r_b]
+    ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))
+    mask = group_major(learner.gs, ctl, fill=False)
+    decided = mask.any(-1) & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))
+
+    def level(which: int, weight: torch.Tensor) -> KLProbe:
+        def log_probs() -> tuple[torch.Tensor, torch.Tensor]:
+            out = policy_forward(learner.reference, learner.local, learner.gs, d["own"][r_t, r_b],
+                                 d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
+            return out[which], weight
+        return KLProbe(log_probs)
+
+    return level(1, decided), level(2, mask)
 
 
 def group_advantage(learner: Learner, values: torch.Tensor, group_reward: np.ndarray,

@@ -33,11 +33,11 @@ from bench.store.integrity import CHECKSUMS_FILE, Checksums
 from bench.store.meta_schema import EvalMeta, Manifest, validated
 from bench.store.schema import (
     ADDED_CELL_COLUMNS,
-    ADDED_EVAL_COLUMNS,
     CELLS_SCHEMA,
     EVAL_SCHEMA,
     SCHEMA_VERSION,
     TRAIN_SCHEMA,
+    added_columns,
     file_version,
     rows_to_table,
 )
@@ -70,15 +70,14 @@ def write_table(path: Path, table: pa.Table, checksums: Checksums | None = None)
 
 def read_table(path: Path, expected: pa.Schema, added: Mapping[str, float] | None = None) -> pa.Table:
     """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError.
-    A column of ``added`` (name -> value) that the file lacks is filled with its value."""
+    A column of ``added`` (name -> value; default: the schema's ``added_columns``) that the
+    file lacks is filled with its value."""
     try:
         table = pq.read_table(path, page_checksum_verification=True)
     except (OSError, pa.ArrowException) as exc:
         raise BenchError(f"corrupt Parquet file {str(path)!r}: {short_error(exc)}") from None
     _check_version(path, table.schema.metadata)
-    if added is None and expected.names == EVAL_SCHEMA.names:
-        added = ADDED_EVAL_COLUMNS  # every reader of eval files: a file older than a column
-    for name, value in (added or {}).items():
+    for name, value in (added_columns(expected) if added is None else added).items():
         if name not in table.schema.names:
             table = table.append_column(expected.field(name), pa.array([value] * table.num_rows, pa.float64()))
     missing = [n for n in expected.names if n not in table.schema.names]

@@ -13,8 +13,11 @@ from typing import Any
 
 import pyarrow as pa
 
-__all__ = ["CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
-           "VERSION_KEY", "file_version", "rows_to_table", "with_version"]
+from algorithms.common.diagnostic_columns import DIAGNOSTIC_COLUMNS
+
+__all__ = ["ADDED_TRAIN_COLUMNS",
+           "CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
+           "VERSION_KEY", "added_columns", "file_version", "rows_to_table", "with_version"]
 
 SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
 VERSION_KEY = b"schema_version"  # the Parquet metadata key holding SCHEMA_VERSION
@@ -77,13 +80,27 @@ METRIC_FIELDS = [
 ]
 LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")  # the losses of a training row
 
-# One row per cell x training episode.
+# One row per cell x training episode; the per-update diagnostics (issue 54) come last:
+# a train file written before them reads them as NaN (ADDED_TRAIN_COLUMNS).
 TRAIN_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False)]
     + METRIC_FIELDS
     + [pa.field(c, pa.float64()) for c in LOSS_COLUMNS]
     + [pa.field("wall_s", pa.float64())]
+    + [pa.field(c, pa.float64()) for c in DIAGNOSTIC_COLUMNS]
 )
+ADDED_TRAIN_COLUMNS = {c: float("nan") for c in DIAGNOSTIC_COLUMNS}
+
+
+def added_columns(schema: pa.Schema) -> dict[str, float]:
+    """The columns of ``schema`` added after its first files were written (name -> the
+    value a file without one reads as)."""
+    if schema.equals(TRAIN_SCHEMA):
+        return ADDED_TRAIN_COLUMNS
+    if schema.names == EVAL_SCHEMA.names:  # every reader of eval files: a file older than a column
+        return ADDED_EVAL_COLUMNS
+    return ADDED_CELL_COLUMNS if schema.equals(CELLS_SCHEMA) else {}
+
 
 # One row per cell x evaluation episode x execution mode (algorithms/common/execution.py).
 EVAL_SCHEMA = pa.schema(

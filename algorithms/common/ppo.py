@@ -1,0 +1,218 @@
+"""The ``mappo`` training protocol: the field's standard actor-critic, open to every learned method.
+
+``protocol = "paper"`` (the default) is the paper's trainer (trainer.py), bit for bit.
+``protocol = "mappo"`` (MAPPO, Yu et al. 2022; CleanRL's ppo.py) trains the same policies
+on the same rollouts with (docs/decisions/0205..0210):
+
+* ``RobotCritic``: a centralized critic on the same global state X_t (and t / T) that
+  predicts, per robot, the value of that robot's own reward terms (progress, goal,
+  collision, time; the environment's ``StepResult`` reports them). The team reward is their
+  mean, so the team value is the mean of the robots' values: one critic serves per-robot
+  credit and team credit. It predicts ``ValueNorm``-normalized returns.
+* ``gae``: GAE(lambda) with discount ``gamma`` on per-robot (``credit="robot"``), per-group
+  (the hierarchical reference) or team rewards, terminal at the episode's end.
+* ``fit_critic``: ``ppo_epochs`` full-batch Adam steps on the normalized per-robot returns.
+* ``ppo_actor_update``: the clipped surrogate over ``ppo_epochs`` epochs of
+  ``ppo_minibatches`` shuffled minibatches, advantages normalized per minibatch (mean and
+  std), an entropy bonus, the global gradient-norm clip; the old log-probabilities are the
+  rollout policy's, recomputed once before the first step.
+
+A method (a plugin too, docs/training-protocols.md) supplies only what is its own: which
+rows it learns from and how to compute their log-probabilities (``PPOBatch``).
+May import: envs, algorithms.common (trainer, value_norm, diagnostics).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import torch
+from torch import nn
+
+from algorithms.common.diagnostics import value_diagnostics
+from algorithms.common.trainer import CRITIC_FEATURES, RolloutBuffer, clip_and_step
+from algorithms.common.value_norm import ValueNorm
+
+__all__ = ["MAPPO", "PAPER", "MAPPOCritic", "PPOBatch", "RobotCritic", "fit_critic", "gae", "mappo_critic",
+           "ppo_actor_update", "robot_rewards", "update_generator"]
+
+PAPER, MAPPO = "paper", "mappo"
+
+
+class MAPPOParams(Protocol):
+    """The ``LearnedParams`` fields the protocol reads (algorithms/base.py)."""
+
+    gamma: float
+    gae_lambda: float
+    credit: str
+    ppo_epochs: int
+    max_grad_norm: float
+
+
+def robot_rewards(result: object) -> np.ndarray:
+    """(B, N) float32 per-robot reward terms of a step; the team reward is their mean."""
+    r = result  # envs.core.StepResult
+    terms = r.progress + r.goal_bonus + r.collision_penalty + r.time_penalty  # type: ignore[attr-defined]
+    return np.asarray(terms, dtype=np.float32)
+
+
+class RobotCritic(nn.Module):
+    """V_i(X_t) for every robot i: DeepSets over the robots' global features, each robot's
+    embedding beside the mean embedding, t / T and the share of robots done."""
+
+    def __init__(self, hidden: int) -> None:
+        super().__init__()
+        self.phi = nn.Sequential(nn.Linear(CRITIC_FEATURES, hidden), nn.ReLU(),
+                                 nn.Linear(hidden, hidden), nn.ReLU())
+        self.head = nn.Sequential(nn.Linear(2 * hidden + 2, hidden), nn.ReLU(), nn.Linear(hidden, 1))
+        self.value_norm = ValueNorm()
+
+    def forward(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
+        """robots (..., N, 6), t_frac (...) -> normalized values (..., N)."""
+        e = self.phi(robots)
+        pooled = e.mean(dim=-2, keepdim=True).expand_as(e)
+        ctx = torch.stack([t_frac, robots[..., 5].mean(dim=-1)], dim=-1)[..., None, :]
+        x = torch.cat([e, pooled, ctx.expand(*e.shape[:-1], 2)], dim=-1)
+        return self.head(x).squeeze(-1)
+
+    def values(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
+        """Denormalized per-robot values (..., N), without gradient."""
+        with torch.no_grad():
+            return self.value_norm.denormalize(self(robots, t_frac))
+
+
+def gae(rewards: torch.Tensor, values: torch.Tensor, running: torch.Tensor, gamma: float, lam: float,
+        ) -> tuple[torch.Tensor, torch.Tensor]:
+    """GAE(lambda): rewards and values (T, B, K) (K robots, groups or 1), running (T, B) bool.
+
+    The value after the last running step of an episode is 0 (the paper's episodes end at
+    the horizon T, which the critic sees as t / T, or when every robot is done). Returns the
+    advantages and the value targets A + V, (T, B, K), zero after the episode ended."""
+    t_len = rewards.shape[0]
+    run = running.to(torch.float32)[..., None]
+    adv = torch.zeros_like(rewards)
+    last = torch.zeros_like(rewards[0])
+    for t in reversed(range(t_len)):
+        nxt = run[t + 1] if t + 1 < t_len else torch.zeros_like(run[0])
+        v_next = values[t + 1] * nxt if t + 1 < t_len else torch.zeros_like(values[0])
+        delta = rewards[t] + gamma * v_next - values[t]
+        last = (delta + gamma * lam * nxt * last) * run[t]
+        adv[t] = last
+    return adv, (adv + values) * run
+
+
+def fit_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, states: torch.Tensor, t_frac: torch.Tensor,
+               targets: torch.Tensor, running: torch.Tensor, epochs: int, max_grad_norm: float,
+               ) -> dict[str, float]:
+    """``epochs`` Adam steps of the critic on the per-robot value targets (T, B, N) over the
+    running steps, in ValueNorm units (the statistics are updated with these targets first).
+    Returns the last loss and gradient norm."""
+    mask = running.to(torch.float32)[..., None].expand_as(targets)
+    critic.value_norm.update(targets, mask)
+    norm_targets = critic.value_norm.normalize(targets)
+    n = mask.sum().clamp_min(1.0)
+    loss, grad_norm = torch.zeros(()), float("nan")
+    for _ in range(epochs):
+        loss = (((critic(states, t_frac) - norm_targets) ** 2) * mask).sum() / n
+        optimizer.zero_grad()
+        loss.backward()
+        grad_norm = clip_and_step(optimizer, max_grad_norm)
+    return {"critic_loss": float(loss.detach()), "diag_critic_grad_norm": grad_norm}
+
+
+def critic_diagnostics(values: torch.Tensor, targets: torch.Tensor, running: torch.Tensor) -> dict[str, float]:
+    """``diag_*`` of the critic on the team scale: mean over robots of values and targets."""
+    return value_diagnostics(values.mean(-1), targets.mean(-1), running.to(torch.float32))
+
+
+@dataclass
+class PPOBatch:
+    """What a method hands ``ppo_actor_update``: ``rows`` samples (robot-steps, group-steps,
+    episodes...), and ``log_probs(index)`` -> (log-probabilities (K, S), entropies (K, S),
+    weights (K, S)) of the index's samples under the current parameters, S ratios per sample
+    (1 for a robot's action; a method may give several, e.g. the reference and the robots of
+    a group-step), weights 1 where a ratio counts. ``advantages`` (rows, S) per ratio."""
+
+    rows: int
+    log_probs: Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor, torch.Tensor]]
+    advantages: torch.Tensor
+
+
+def update_generator(seed: int, iteration: int) -> torch.Generator:
+    """The minibatch shuffling stream of one update (no draw from the training streams)."""
+    return torch.Generator().manual_seed(int(np.random.SeedSequence([seed, 54, iteration]).generate_state(1)[0]))
+
+
+def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: int, minibatches: int,
+                     clip: float, entropy_coef: float, max_grad_norm: float, gen: torch.Generator,
+                     ) -> dict[str, float]:
+    """The clipped surrogate -min(rho A, clip(rho, 1 -+ eps) A) - c H over ``epochs`` x
+    ``minibatches`` Adam steps; A normalized per minibatch over the counted ratios.
+    Returns the mean actor loss, entropy, approximate KL (mean of (rho - 1) - log rho over
+    the last epoch), clip fraction and the last gradient norm."""
+    with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
+        old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
+    totals = {"actor_loss": 0.0, "entropy": 0.0}
+    kl_sum = clipped = counted = 0.0
+    grad_norm, steps = float("nan"), 0
+    for epoch in range(epochs):
+        perm = torch.randperm(batch.rows, generator=gen)
+        for ix in perm.chunk(max(1, minibatches)):
+            logp, ent, w = batch.log_probs(ix)
+            adv = batch.advantages[ix]
+            n = w.sum().clamp_min(1.0)
+            mean = (adv * w).sum() / n
+            std = torch.sqrt((((adv - mean) * w) ** 2).sum() / n).clamp_min(1e-6)
+            adv = (adv - mean) / std
+            log_ratio = logp - old[ix]
+            ratio = log_ratio.exp()
+            surrogate = torch.minimum(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)
+            loss = -(surrogate * w).sum() / n - entropy_coef * (ent * w).sum() / n
+            optimizer.zero_grad()
+            loss.backward()
+            grad_norm = clip_and_step(optimizer, max_grad_norm)
+            steps += 1
+            totals["actor_loss"] += float(loss.detach())
+            totals["entropy"] += float(((ent * w).sum() / n).detach())
+            if epoch == epochs - 1:
+                with torch.no_grad():
+                    kl_sum += float((((ratio - 1) - log_ratio) * w).sum())
+                    clipped += float((((ratio - 1).abs() > clip).float() * w).sum())
+                    counted += float(w.sum())
+    return {"actor_loss": totals["actor_loss"] / max(steps, 1), "diag_entropy": totals["entropy"] / max(steps, 1),
+            "diag_kl": kl_sum / max(counted, 1.0), "clip_fraction": clipped / max(counted, 1.0),
+            "diag_grad_norm": grad_norm}
+
+
+@dataclass
+class MAPPOCritic:
+    """What ``mappo_critic`` gives the actor update: advantages per robot (T, B, N) under
+    the method's ``credit`` (the team's advantage repeated for every robot with
+    ``credit="team"``), the per-robot values and GAE inputs, and the row values."""
+
+    robot_adv: torch.Tensor
+    values: torch.Tensor  # (T, B, N) denormalized, before the critic's steps
+    rewards: torch.Tensor  # (T, B, N) per-robot reward terms
+    running: torch.Tensor  # (T, B) bool
+    losses: dict[str, float]
+
+
+def mappo_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
+                 p: MAPPOParams) -> MAPPOCritic:
+    """The critic half of a ``mappo`` update on a rollout buffer holding ``critic``,
+    ``t_frac`` (``critic_inputs``) and ``robot_reward`` (T, B, N): values before the step,
+    GAE advantages and targets, then ``fit_critic``."""
+    states, t_frac = buf.tensor("critic"), buf.tensor("t_frac")
+    rewards = buf.tensor("robot_reward")
+    running = torch.from_numpy(buf.running[: buf.t])
+    values = critic.values(states, t_frac)
+    adv, targets = gae(rewards, values, running, p.gamma, p.gae_lambda)
+    if p.credit == "team":
+        team_adv, _ = gae(rewards.mean(-1, keepdim=True), values.mean(-1, keepdim=True), running,
+                          p.gamma, p.gae_lambda)
+        adv = team_adv.expand_as(adv)
+    losses = {**critic_diagnostics(values, targets, running),
+              **fit_critic(critic, optimizer, states, t_frac, targets, running, p.ppo_epochs, p.max_grad_norm)}
+    return MAPPOCritic(adv, values, rewards, running, losses)
