@@ -56,15 +56,17 @@ def neighbor_patches(patch: PatchExtractor, gs: GroupStructure, cells: np.ndarra
     rows = ((np.arange(b)[:, None] * z + np.arange(z)[None, :]) * size)[:, :, None, None]  # (B, Z, 1, 1)
     flat = np.concatenate([(rows + patch.center[cells])[present],
                            (rows + patch.center[heading])[present] + plane])
-    grid = patch.scratch("neighbors", 2 * plane, np.int32)  # zeros, kept across steps
+    # Counts saturate at 255 in the grid itself (uint8), so the gather yields the windows
+    # without a pass to clip and convert them: the same values as clipping afterwards.
+    grid = patch.scratch("neighbors_u8", 2 * plane, np.uint8)  # zeros, kept across steps
     cells_hit, counts = np.unique(flat, return_counts=True)
-    grid[cells_hit] = counts
+    grid[cells_hit] = np.minimum(counts, 255)
     core = patch.core
     row = (np.arange(b)[:, None] * z + gs.groups[None, :]) * size  # (B, N)
     windows = np.concatenate([patch.offsets, patch.offsets + plane])  # both channels, (2P,)
-    out = np.take(grid, (row + patch.center[core.pos])[..., None] + windows)  # (B, N, 2P)
+    out = grid.take((row + patch.center[core.pos])[..., None] + windows)  # (B, N, 2P) uint8
     grid[cells_hit] = 0
-    return np.minimum(out, 255).astype(np.uint8)
+    return out
 
 
 class ReferencePolicy(nn.Module):

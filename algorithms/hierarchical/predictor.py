@@ -41,6 +41,7 @@ class GroupPredictor(nn.Module):
     """f_eta_z for all receiver groups at once; tensors are group-major (Z, M, K, ...)."""
 
     scale: torch.Tensor  # buffer (2,): the grid's (H, W), positions to [0, 1]
+    msg_scale: torch.Tensor  # (MSG_DIM,): (H, W, 1, ..., 1), the divisor of ``_norm``
     deltas: torch.Tensor  # buffer (5, 2): each action's (row, col) step
 
     def __init__(self, n_param_groups: int, n_groups: int, grid_shape: tuple[int, int],
@@ -48,6 +49,8 @@ class GroupPredictor(nn.Module):
         super().__init__()
         self.hidden = hidden
         self.register_buffer("scale", torch.tensor([float(grid_shape[0]), float(grid_shape[1])]))
+        # Not a buffer (checkpoints keep their keys): the divisor of ``_norm``.
+        self.msg_scale = torch.cat([self.scale, torch.ones(MSG_DIM - 2)])
         p, z = n_param_groups, n_groups
         self.msg_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
         self.own_embed = GroupMLP(p, z, [MSG_DIM, embed], final_activation=True)
@@ -56,7 +59,10 @@ class GroupPredictor(nn.Module):
         self.register_buffer("deltas", torch.from_numpy(DELTAS.astype(np.float32)))
 
     def _norm(self, msg: torch.Tensor) -> torch.Tensor:
-        return torch.cat([msg[..., POS] / self.scale, msg[..., POS.stop:]], dim=-1)
+        """Positions to [0, 1], the rest unchanged: one division by (H, W, 1, ..., 1)
+        (x / 1 is x exactly in IEEE arithmetic, so the same values as dividing the
+        positions alone and concatenating; tests/algorithms/hierarchical/test_hot_paths.py)."""
+        return msg / self.msg_scale
 
     @staticmethod
     def age_feature(age: torch.Tensor) -> torch.Tensor:

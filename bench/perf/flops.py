@@ -5,11 +5,12 @@
 ``addmm``, ``bmm``, ``baddbmm``: forward and backward, rollout and update), grouped by input
 shape. ``shape_peak`` times those same products alone, back to back, at the same shapes (the
 best this iteration's matmuls could do on this core: small shapes are overhead-bound), and
-``large_peak`` a large square product (the core's arithmetic peak). ``matmul_rates`` turns
-them into FLOP/s: achieved = matmul FLOP per env-step x the method's measured env-steps/s
-(measured without the profiler), and its fraction of each peak. Everything on one torch
-thread and in process CPU time (one dedicated core, as the shared machine's other load
-would otherwise count against us), float32.
+``large_peak`` a large square product (the core's arithmetic peak), in float32 and in
+bfloat16 (``machine_peaks``: the machine measured in the same run, not a quoted figure).
+``matmul_rates`` turns them into FLOP/s: achieved = matmul FLOP per env-step x the
+method's measured env-steps/s (measured without the profiler), and its fraction of each
+peak. Everything on one torch thread and in process CPU time (one dedicated core, as the
+shared machine's other load would otherwise count against us); the networks run in float32.
 """
 from __future__ import annotations
 
@@ -96,18 +97,32 @@ def shape_peak(shapes: list[tuple[str, list[list[int]], int, float]], top: int =
     return {"flops_per_s": flops / secs if secs else float("nan"), "coverage": flops / total}
 
 
-def large_peak(n: int = LARGE) -> float:
-    """FLOP/s of an n x n float32 product on one thread (the core's arithmetic peak)."""
+def large_peak(n: int = LARGE, dtype: torch.dtype = torch.float32, repeats: int = 3) -> float:
+    """FLOP/s of an n x n product in ``dtype`` on one thread (the core's arithmetic peak
+    for that type): the best of ``repeats`` timings, each at least 0.2 CPU seconds (the
+    least disturbed one: CPU time still counts a busy neighbour's cache and memory use)."""
     torch.set_num_threads(1)
-    a, b = torch.randn(n, n), torch.randn(n, n)
+    a, b = torch.randn(n, n).to(dtype), torch.randn(n, n).to(dtype)
     with torch.no_grad():
-        return 2.0 * n ** 3 / seconds_per_call(torch.mm, (a, b), min_s=0.5)
+        return max(2.0 * n ** 3 / seconds_per_call(torch.mm, (a, b), min_s=0.2) for _ in range(max(repeats, 1)))
+
+
+PEAK_DTYPES = {"fp32": torch.float32, "bf16": torch.bfloat16}
+
+
+def machine_peaks(n: int = LARGE, repeats: int = 3) -> dict[str, float]:
+    """This core's matmul peaks measured now, one per type of ``PEAK_DTYPES`` (FLOP/s):
+    the fp32 the networks run in, and bf16 (AVX-512 BF16 or AMX where the CPU has them;
+    2.5x the fp32 rate on the 2-core EPYC VM of 2026-12-06)."""
+    return {name: large_peak(n, dtype, repeats) for name, dtype in PEAK_DTYPES.items()}
 
 
 def matmul_rates(method: str, n_robots: int, layout: str, env_steps_per_s_cpu: float, peak_large: float,
-                 horizon: int = 200, batch_episodes: int = 8) -> dict[str, float]:
+                 horizon: int = 200, batch_episodes: int = 8, peak_bf16: float | None = None,
+                 ) -> dict[str, float]:
     """Columns for ``bench perf --suite train``: matmul GFLOP per env-step, achieved
-    GFLOP/s at the measured rate, the two peaks and the fractions of them."""
+    GFLOP/s at the measured rate, the peaks (same shapes, large fp32 and, when given,
+    large bf16, all measured in the same run) and the fractions of them."""
     prof = matmul_profile(method, n_robots, layout, horizon=horizon, batch_episodes=batch_episodes)
     per_step = prof["flops"] / max(prof["env_steps"], 1)
     achieved = per_step * env_steps_per_s_cpu
@@ -120,4 +135,6 @@ def matmul_rates(method: str, n_robots: int, layout: str, env_steps_per_s_cpu: f
         "peak_large_gflops": peak_large / 1e9,
         "frac_of_same_shape_peak": achieved / same["flops_per_s"],
         "frac_of_large_peak": achieved / peak_large,
+        **({} if peak_bf16 is None else {"peak_large_bf16_gflops": peak_bf16 / 1e9,
+                                          "frac_of_bf16_peak": achieved / peak_bf16}),
     }

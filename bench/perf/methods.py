@@ -17,7 +17,7 @@
   map: whole ``train_iteration()`` calls (scenario sampling and reset, rollout, update)
   after a warm-up, in env-steps/s of wall time and of process CPU time; and the achieved
   matmul FLOP/s of a training iteration against this core's measured peaks at the same
-  shapes and at large shapes (bench/perf/flops.py).
+  shapes and at large shapes, fp32 and bf16, all measured in the same run (bench/perf/flops.py).
 
     .venv/bin/python -m bench.perf.methods          # prints the table
 """
@@ -129,13 +129,13 @@ def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int
                                   batch_episodes=batch_episodes, stack=k)
             for name, n, k in cases]
     if flops:  # achieved matmul FLOP/s against this core's peaks (bench/perf/flops.py)
-        from bench.perf.flops import large_peak, matmul_rates
+        from bench.perf.flops import machine_peaks, matmul_rates
 
-        peak = large_peak()
+        peaks = machine_peaks()  # fp32 and bf16, measured in this run
         for r in rows:
             if r["stacked_seeds"] == 1:
-                r.update(matmul_rates(r["method"], r["n_robots"], where, r["env_steps_per_s_cpu"], peak,
-                                      horizon=horizon, batch_episodes=batch_episodes))
+                r.update(matmul_rates(r["method"], r["n_robots"], where, r["env_steps_per_s_cpu"], peaks["fp32"],
+                                      horizon=horizon, batch_episodes=batch_episodes, peak_bf16=peaks["bf16"]))
     return pd.DataFrame([{"suite": "train", **r} for r in rows])
 
 

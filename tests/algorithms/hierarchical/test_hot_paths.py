@@ -137,6 +137,29 @@ def test_neighbor_patches__equal_the_plain_counts_call_after_call() -> None:
         assert want.max() > 1
         np.testing.assert_array_equal(got, want)
         batch.core.step(rng.integers(0, 5, size=(3, 20)))
+    # Counts above 255 saturate (300 senders' robots drawn on the cells around robot 0).
+    shape = (*shape[:3], 300)
+    cells = np.broadcast_to(patch.core.pos[:, None, None, :1], shape) + rng.integers(0, 2, size=shape)
+    heading = m.layout.next_cell[cells, 4]
+    present = np.ones(shape, bool)
+    got = neighbor_patches(patch, m.gs, cells, present, heading)
+    want = plain_neighbor_patches(patch, m.gs, cells, present, heading)
+    assert want.max() == 255
+    np.testing.assert_array_equal(got, want)
+
+
+def test_predictor_norm__equals_dividing_the_positions_alone() -> None:
+    """``_norm`` divides every column by (H, W, 1, ..., 1): bit for bit the positions
+    divided and the rest copied (signed zeros included)."""
+    from algorithms.hierarchical.messages import POS
+    from algorithms.hierarchical.predictor import GroupPredictor
+
+    model = GroupPredictor(4, 4, (33, 161))
+    msg = torch.randn(4, 3, 2, 25, 8) * 50
+    msg[0, 0, 0, 0] = -0.0
+    want = torch.cat([msg[..., POS] / model.scale, msg[..., POS.stop:]], dim=-1)
+    got = model._norm(msg)
+    assert torch.equal(got, want) and torch.equal(torch.signbit(got), torch.signbit(want))
 
 
 def plain_predictor_loss(model, data: dict) -> torch.Tensor:
