@@ -17,6 +17,11 @@ A method is built from an environment config, its hyperparameters (a pydantic mo
   evaluation fans out over workers and gives the same rows in any split.
 * ``train_iteration()`` -> one update from ``batch_episodes`` fresh episodes; returns one
   row per episode (learned methods; a planner returns no rows and learns nothing).
+* The inference-mode rule: rollouts (``begin``, ``decide``, ``observe`` inside ``evaluate`` and
+  ``train_iteration``) run under ``torch.inference_mode()``, so nothing they compute carries a
+  gradient. Store the inputs (observations, masks, sampled actions) and recompute the
+  log-probabilities in ``update``; a backward pass through a rollout tensor raises
+  ``InferenceModeError`` saying so.
 * ``state_dict()`` / ``load_state_dict()`` -> tensors and plain data only (parameters,
   optimizer states, RNG states, counters), loadable with ``torch.load(weights_only=True)``;
   a run resumed from it continues exactly as an uninterrupted one.
@@ -24,6 +29,7 @@ A method is built from an environment config, its hyperparameters (a pydantic mo
 from __future__ import annotations
 
 import time
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar, Literal
@@ -52,11 +58,14 @@ from algorithms.common.execution import (
 )
 from algorithms.common.observer import Observer, Snapshot, step_record
 from envs.config import EnvConfig, format_validation_error
+from envs.core import StepResult
 from envs.errors import BenchError
 from envs.layouts import load_layout
 
-__all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Method", "MethodParams", "masked_logits",
-           "sample_categorical"]
+# The whole Method API from one import (docs/api.md; docs/guide/tutorial.md builds a method on it).
+__all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Decision", "EpisodeBatch", "InferenceModeError",
+           "LearnedParams", "Method", "MethodParams", "StepResult", "masked_logits", "sample_categorical",
+           "shared_learned_params"]
 
 UNRANKED = 100  # legend_rank of a method that declares none: after the paper's methods
 # ``Method.paper_role``: the paper's own method, one of the baselines it is compared with, or
@@ -109,6 +118,39 @@ class LearnedParams(MethodParams):
         "robot", description="mappo: each robot's advantage from its own reward terms, or the team's")
 
 
+def shared_learned_params() -> dict[str, tuple[Any, str]]:
+    """Every parameter ``LearnedParams`` shares among learned methods: name -> (default,
+    description). A method's ``Params`` that redefines one gets a warning (``Method``)."""
+    return {name: (f.default, f.description or "") for name, f in LearnedParams.model_fields.items()
+            if name not in MethodParams.model_fields}
+
+
+class InferenceModeError(RuntimeError):
+    """``update()`` backpropagated through a tensor made during the rollout: rollouts run
+    under ``torch.inference_mode()``, so they never carry a gradient."""
+
+
+# The messages torch gives for a backward pass through rollout (inference-mode) tensors.
+_NO_GRAD_MESSAGES = ("does not require grad", "Inference tensors", "inference tensor")
+
+
+def _warn_shadowed(method: type[Method], params: type[MethodParams]) -> None:
+    """Warn when a method's own ``Params`` redefines a shared learned-method parameter
+    with another default (the comparison is then not on equal footing, decisions/0126)."""
+    if not issubclass(params, LearnedParams):
+        return
+    shared = LearnedParams.model_fields
+    own = {name for k in params.__mro__ if isinstance(k, type) and issubclass(k, LearnedParams)
+           and k is not LearnedParams for name in k.__dict__.get("__annotations__", {})}
+    for name in sorted(own & set(shared) - set(MethodParams.model_fields)):
+        default, base = params.model_fields[name].default, shared[name].default
+        if default != base:
+            warnings.warn(f"{method.__module__}.{method.__qualname__}: Params redefines the shared learned-method "
+                          f"parameter {name!r} (default {default!r}, shared {base!r}); every learned method starts "
+                          f"from the shared defaults (docs/extending.md, 'Shared parameters'): drop the field, or "
+                          "keep it and say why", UserWarning, stacklevel=3)
+
+
 class Method(ABC):
     """Base class of all methods; see the module docstring for the contract.
 
@@ -140,6 +182,12 @@ class Method(ABC):
     def label(cls) -> str:
         """The method's name in legends and tables (``display_name``, else ``name``)."""
         return cls.display_name or cls.name
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        params = cls.__dict__.get("Params")
+        if isinstance(params, type) and not cls.__module__.startswith("algorithms."):
+            _warn_shadowed(cls, params)  # a plugin's Params (the built-ins' are checked by their tests)
 
     def __init__(self, env: EnvConfig, params: Mapping[str, Any] | None = None, seed: int = 0) -> None:
         self.env = env
@@ -233,7 +281,21 @@ class Method(ABC):
         t0 = time.perf_counter()
         with torch.inference_mode():
             state, rows = self.run(self.train_batch(), ActionChoice.train(self.torch_gen))
-        return self.finish_iteration(rows, self.update(state), time.perf_counter() - t0)
+        return self.finish_iteration(rows, self.checked_update(state), time.perf_counter() - t0)
+
+    def checked_update(self, state: Any) -> dict[str, float]:
+        """``update(state)``, with torch's error for a backward pass through rollout tensors
+        (made under ``torch.inference_mode()``) turned into one that says what to do."""
+        try:
+            return self.update(state)
+        except RuntimeError as exc:
+            text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            if not any(m in text for m in _NO_GRAD_MESSAGES):
+                raise
+            raise InferenceModeError(
+                f"{self.name}.update(): {text}. Rollouts (begin/decide/observe) run under torch.inference_mode(), "
+                "so nothing they compute carries a gradient: store the inputs there (observations, masks, actions) "
+                "and recompute the log-probabilities inside update() (docs/guide/tutorial.md, step 4)") from exc
 
     def train_batch(self) -> EpisodeBatch:
         """The episodes of the next training update (scenarios and loss streams from the

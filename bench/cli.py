@@ -104,6 +104,11 @@ def run(
     verbose: bool = typer.Option(False, "--verbose", "-v",
         help="Without a terminal, log every event (cell started, each training chunk and evaluation unit) instead of "
              "one line per finished or failed cell and a summary every 5 minutes."),
+    set_: list[str] | None = typer.Option(None, "--set",
+        help="Override a cell field in every cell of the grid, KEY=VALUE (repeatable; e.g. horizon=32, "
+             "params.lr=0.01). Recorded in manifest.json; a resumed run must give the same overrides."),
+    axis: list[str] | None = typer.Option(None, "--axis",
+        help="Cross every cell with each value, KEY=V1,V2 (repeatable; e.g. loss_p=0.1,0.3)."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -128,6 +133,10 @@ def run(
     else:
         assert grid_file is not None  # exactly one of the two, checked above
         g = load_grid_file(grid_file, seeds)
+    from bench.design.overrides import apply_overrides, parse_overrides
+
+    overrides = parse_overrides(set_ or (), axis or ())
+    g = apply_overrides(g, overrides)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
     store.check_writable()
@@ -151,7 +160,7 @@ def run(
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(verbose),
                                command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stack_seeds,
-                               repair=repair, observer=observer)
+                               repair=repair, observer=observer, overrides=overrides)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None

@@ -86,6 +86,12 @@ class Decision:
     group_links: np.ndarray | None = None  # (B, Z', Z) bool: inter-group link z' -> z delivered
     robot_links: np.ndarray | None = None  # (B, N_send, N_recv) bool: robot-to-robot messages delivered
 
+    def __post_init__(self) -> None:
+        # ``choice(logits)`` gives a torch tensor; the environment and the stored rows take
+        # NumPy, so a (B, N) CPU tensor of controls is taken as its NumPy array (same values).
+        if not isinstance(self.actions, np.ndarray):
+            self.actions = np.asarray(self.actions)
+
 
 # The per-episode metric columns of every row ``EpisodeStats`` writes.
 EVAL_METRICS = (

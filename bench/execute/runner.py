@@ -40,6 +40,7 @@ from typing import Any
 
 from algorithms.registry import method_class
 from bench.design.grids import Grid
+from bench.design.overrides import check_resume_overrides
 from bench.execute.executor import (
     WAIT_S,
     Failed,
@@ -81,11 +82,13 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
              rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False,
-             observer: RunObserver | None = None) -> RunSummary:
+             observer: RunObserver | None = None, overrides: dict[str, Any] | None = None) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
 
     ``observer`` (bench/tracking/observers.py) receives each cell's start, stored training rows,
-    evaluation summary and end, from the driver (loggers: ``bench run --log``).
+    evaluation summary and end, from the driver (loggers: ``bench run --log``). ``overrides``
+    (``bench run --set/--axis``, bench/design/overrides.py) are recorded in the manifest; a
+    resumed run must give the ones the directory was made with.
 
     Raises BenchError before writing anything when the store, the grid or the address is bad,
     or when a file of the grid's cells is damaged or misplaced (bench/store/integrity.py) and not
@@ -97,6 +100,8 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
         store.check_fresh()
     lock = store.lock()
     try:
+        if not fresh:
+            check_resume_overrides(store.read_manifest(), overrides or {}, str(out))
         repaired = [] if fresh else check_integrity(store, grid, repair)
         states, others = plan_run(store, grid, fresh, rerun_changed)
         if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
@@ -115,7 +120,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
                            progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
-                           observer)
+                           observer, overrides)
                 summary = run.execute()
                 summary.repaired = repaired
                 return summary
@@ -152,8 +157,9 @@ class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
                  on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
-                 observer: RunObserver | None = None) -> None:
+                 observer: RunObserver | None = None, overrides: dict[str, Any] | None = None) -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
+        self.overrides = overrides if overrides and any(overrides.values()) else None
         self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command, self.observer = on_event, command, observer
@@ -185,6 +191,8 @@ class _Run:
                            "git": v["git"], "machine": machine(), "workers": self.n_workers,
                            "cells_done_before": sum(s.phase == "done" for s in self.states),
                            RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/store/integrity.py)
+        if self.overrides is not None:  # bench run --set/--axis (absent: none)
+            manifest["overrides"] = self.run_record["overrides"] = self.overrides
         runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
         manifest.update({
             "schema_version": SCHEMA_VERSION, "package_version": v["package"], "git_sha": v["git"],
