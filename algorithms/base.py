@@ -57,6 +57,7 @@ from algorithms.common.execution import (
     sample_categorical,
 )
 from algorithms.common.observer import Observer, Snapshot, step_record
+from algorithms.presets import Preset
 from envs.config import EnvConfig, format_validation_error
 from envs.core import StepResult
 from envs.errors import BenchError
@@ -164,7 +165,8 @@ class Method(ABC):
     ``legend_rank`` (order in legends and tables; default after the built-ins), and
     ``paper_role`` (``REFERENCE`` for the paper's method, ``BASELINE`` for a baseline it is
     compared with; "" for any other method, which the claims page checks for being above
-    each baseline of the run).
+    each baseline of the run). ``presets`` names sets of its parameters that a grid file
+    selects with ``preset = "NAME"`` (algorithms/presets.py; "paper", the defaults, is implicit).
     """
 
     name: ClassVar[str]
@@ -177,6 +179,8 @@ class Method(ABC):
     line_style: ClassVar[str] = "-"  # matplotlib line style, so lines stay apart in greyscale
     legend_rank: ClassVar[int] = UNRANKED  # position in legends and tables (lower first)
     paper_role: ClassVar[str] = ""  # REFERENCE, BASELINE or "" (a method of your own)
+    # Named presets of its parameters beside the implicit "paper" (algorithms/presets.py)
+    presets: ClassVar[Mapping[str, Preset]] = {}
 
     @classmethod
     def label(cls) -> str:

@@ -65,6 +65,7 @@ from algorithms.common.trainer import (
     store_critic_inputs,
 )
 from algorithms.hierarchical.safety_filter import SafetyFilter
+from algorithms.presets import Preset
 from envs.actions import DELTAS, N_ACTIONS
 from envs.observations import PatchExtractor
 
@@ -148,6 +149,7 @@ class DecentralizedMethod(Method):
     line_style = "--"
     payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams
+    presets = {"tuned": Preset.unpublished("studies/definitions/decentralized.toml")}  # decision 0265
     params: DecentralizedParams
 
     def __init__(self, env, params=None, seed: int = 0) -> None:

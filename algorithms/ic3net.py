@@ -93,6 +93,7 @@ from algorithms.common.trainer import (
     store_critic_inputs,
 )
 from algorithms.common.value_norm import ValueNorm
+from algorithms.presets import Preset
 from envs.actions import N_ACTIONS
 from envs.channel import Channel
 from envs.observations import PatchExtractor
@@ -231,6 +232,7 @@ class IC3NetMethod(Method):
     line_style = "-."
     payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams
+    presets = {"tuned": Preset.unpublished("studies/definitions/ic3net.toml")}  # decision 0265
     params: IC3NetParams
 
     def __init__(self, env, params=None, seed: int = 0) -> None:

@@ -43,7 +43,7 @@ from algorithms.hierarchical.messages import (
     group_messages,
     group_structure,
 )
-from algorithms.hierarchical.params import HierarchicalParams
+from algorithms.hierarchical.params import PRESETS, HierarchicalParams
 from algorithms.hierarchical.policies import (
     LocalPolicy,
     ReferencePolicy,
@@ -106,6 +106,7 @@ class HierarchicalMethod(Method):
     safety_filter_default = True  # Sec. III-C: the predictive safety filter is part of the method
     payload_model = "inter-group messages on delivered links: (Z - 1) N d_m per step at most (Sec. III-A)"
     Params = HierarchicalParams
+    presets = PRESETS  # "tuned": decision 0265
     params: HierarchicalParams
 
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:

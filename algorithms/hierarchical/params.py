@@ -1,7 +1,7 @@
 """HierarchicalParams: the hierarchical method's hyperparameters (a pydantic model).
 
 Its own module so that the method (``method.py``) and its updates (``training.py``) both
-read it without importing each other. May import: algorithms.base, pydantic.
+read it without importing each other. May import: algorithms.base, algorithms.presets, pydantic.
 """
 from __future__ import annotations
 
@@ -10,6 +10,11 @@ from typing import Literal
 from pydantic import Field
 
 from algorithms.base import LearnedParams
+from algorithms.presets import Preset
+
+# Named presets beside the paper's defaults (algorithms/presets.py): "tuned" is the winner
+# of the published study studies/definitions/hierarchical.toml, not run yet (decision 0265).
+PRESETS = {"tuned": Preset.unpublished("studies/definitions/hierarchical.toml")}
 
 
 class HierarchicalParams(LearnedParams):

@@ -7,6 +7,9 @@ settings (|R_z|, L, C_max), the layout, the budgets and the evaluation temperatu
 ``eval_temperatures``: ``Cell.execution_modes``). ``cell_id`` is the first 12 hex
 digits of the SHA-256 of the canonical JSON (sorted keys, no spaces) of all fields, so
 the same config always maps to the same rows of the store, whatever grid it came from.
+A named ``preset`` of the method's parameters (algorithms/presets.py) fills what the cell
+leaves unset and is recorded with the values; ``paper``, the default, is left out of the
+canonical JSON, so every cell id from before presets is unchanged.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from algorithms.base import MethodParams
 from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
+from algorithms.presets import PAPER, preset_values
 from algorithms.registry import method_class, method_target
 from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, Probability, bursty_loss_error, delay_error
@@ -33,7 +37,7 @@ MAX_HORIZON = limit("horizon")
 
 # Fields added after the first committed stores: left out of the canonical JSON while at
 # their default, so every cell that does not set them keeps its id (docs/decisions/0256).
-LATER_FIELDS = ("delay", "delay_model", "task")
+LATER_FIELDS = ("delay", "delay_model", "task", "preset")
 
 # Cell fields handed to a method when (and only when) its Params declares them.
 SHARED_PARAM_FIELDS = ("ref_size", "search_radius", "c_max", "safety_filter")
@@ -76,6 +80,9 @@ class Cell(BaseModel):
                          description="mean message delay in steps (0: none; beyond the paper)")
     delay_model: Literal["fixed", "geometric"] = Field("fixed", description="fixed delay or geometric per message")
     params: dict[str, Any] = Field(default_factory=dict, description="method hyperparameter overrides")
+    preset: str = Field(PAPER, description="named preset of the method's parameters (Method.presets): its "
+                        "values fill the fields and params the cell leaves unset; 'paper' (the defaults) "
+                        "is not recorded, so a paper cell's id is the one it always had")
 
     @model_validator(mode="before")
     @classmethod
@@ -83,7 +90,7 @@ class Cell(BaseModel):
         """'auto' layout -> the preset sized for N; unset safety_filter -> per-method default."""
         if not isinstance(data, dict):
             return data
-        data = dict(data)
+        data = _apply_preset(dict(data))
         if data.get("safety_filter") is None and isinstance(data.get("method"), str):
             try:  # the method's declared default (an unknown method fails in _known_method)
                 data["safety_filter"] = method_class(data["method"]).safety_filter_default
@@ -158,6 +165,7 @@ class Cell(BaseModel):
 
     # ----------------------------------------------------------------- identity
     def canonical_json(self) -> str:
+        """Every field as sorted JSON; a later field (LATER_FIELDS) only when not at its default."""
         data = self.model_dump(mode="json")
         for name in LATER_FIELDS:
             if data[name] == type(self).model_fields[name].default:
@@ -230,6 +238,32 @@ class Cell(BaseModel):
             return cls.make(**json.loads(text))
         except json.JSONDecodeError as exc:
             raise BenchError(f"invalid cell JSON: {exc}") from None
+
+
+def _apply_preset(data: dict[str, Any]) -> dict[str, Any]:
+    """``data`` with the values of its ``preset`` (algorithms/presets.py) filled in where unset:
+    cell fields the method declares as cell fields, the rest under ``params``. A preset the
+    method lacks, or one not published yet, is a ValueError naming the preset."""
+    name, method = data.get("preset", PAPER), data.get("method")
+    if name == PAPER or not isinstance(name, str) or not isinstance(method, str):
+        return data  # the field's own validation reports a non-string preset
+    try:
+        values = preset_values(method, method_class(method).presets, name)
+    except BenchError as exc:  # an unknown method is reported by _known_method
+        if str(exc).startswith("preset:"):
+            raise ValueError(str(exc)) from None
+        return data
+    params = data.get("params", {})
+    if not isinstance(params, dict):
+        return data  # the field's own validation reports it
+    params = dict(params)
+    for key, value in values.items():
+        if key in SHARED_PARAM_FIELDS:
+            data.setdefault(key, value)
+        else:
+            params.setdefault(key, value)
+    data["params"] = params
+    return data
 
 
 def _one_line(what: str, exc: ValidationError) -> str:
