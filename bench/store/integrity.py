@@ -177,6 +177,19 @@ class Checksums:
         self.files[rel] = [d for d in old if d != new] + [new]
         self._write()
 
+    def add_later(self, paths: Iterable[Path], date: str, note: str) -> list[str]:
+        """Record the digests of those ``paths`` that have no entry yet, marked in
+        ``added_later`` as recorded after they were written (``note``: what vouches for their
+        bytes); the paths added. For the committed stores that predate checksums (0197)."""
+        new = sorted(rel for rel in (self.rel(p) for p in paths) if rel not in self.files)
+        for rel in new:
+            self.files[rel] = [file_digest(self.root / rel)]
+        before = (self.added_later or {}).get("files", [])
+        self.added_later = {"date": date, "note": note, "files": sorted({*before, *new})}
+        self.active = True
+        self._write()
+        return new
+
     def forget(self, paths: Iterable[Path]) -> None:
         if not self.recording:
             return
