@@ -232,15 +232,18 @@ class Method(ABC):
         core = batch.core
         stats = EpisodeStats(core.batch, core.n, self.env.d_m, lifelong=core.lifelong)
         state = self.begin(batch, choice)
-        while batch.running:
-            running = ~core.ended
-            t, before = core.t, None if observer is None else Snapshot.of(core)
-            dec = self.decide(batch, state, choice)
-            res = core.step(dec.actions)
-            stats.add(running, res, dec)
-            self.observe(batch, state, res)
-            if observer is not None and before is not None:
-                observer(step_record(t, running, before, dec, res, core))
+        try:
+            while batch.running:
+                running = ~core.ended
+                t, before = core.t, None if observer is None else Snapshot.of(core)
+                dec = self.decide(batch, state, choice)
+                res = core.step(dec.actions)
+                stats.add(running, res, dec)
+                self.observe(batch, state, res)
+                if observer is not None and before is not None:
+                    observer(step_record(t, running, before, dec, res, core))
+        except BenchError as exc:  # a bad action or payload: name the method that decided it
+            raise BenchError(f"method {self.name}: {exc}") from None
         return state, stats.finish(core.done)
 
     @classmethod

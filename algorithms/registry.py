@@ -15,8 +15,10 @@ driver stored, so a cell of a ``module:Class`` method runs wherever that module 
 """
 from __future__ import annotations
 
+import contextlib
 import importlib
 import re
+import sys
 from dataclasses import dataclass
 from functools import cache, lru_cache
 from importlib import metadata
@@ -25,12 +27,13 @@ from typing import Any
 from algorithms.base import Method
 from envs.errors import BenchError
 
-__all__ = ["ENTRY_POINT_GROUP", "MethodInfo", "available", "describe", "find_method", "is_path", "method_class",
-           "method_target", "register", "unregister"]
+__all__ = ["ENTRY_POINT_GROUP", "MethodInfo", "available", "describe", "find_method", "is_builtin", "is_path",
+           "method_class", "method_target", "register", "unregister"]
 
 ENTRY_POINT_GROUP = "warehouse_marl_bench.methods"  # where an installed package registers a method
 _PATH_RE = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_]\w*$")
 _NAME_RE = re.compile(r"^[a-z][a-z0-9_\-]*$")
+_OWN_PACKAGE = "algorithms."  # the built-ins' modules: they may hold their own names
 
 
 @dataclass(frozen=True)
@@ -95,14 +98,36 @@ def _entry_points() -> dict[str, MethodInfo]:
 
 
 def _import(target: str, what: str) -> type[Method]:
+    """The class at ``target``; one BenchError naming it whatever its import raises (D13),
+    with anything the import prints sent to stderr (D14: stdout stays machine-readable)."""
     module, _, attr = target.partition(":")
     try:
-        cls = getattr(importlib.import_module(module), attr)
-    except (ImportError, AttributeError) as exc:
-        raise BenchError(f"method {what}: cannot import {target} ({type(exc).__name__}: {exc})") from None
+        with contextlib.redirect_stdout(sys.stderr):
+            cls = getattr(importlib.import_module(module), attr)
+    except Exception as exc:  # an outside module may raise anything at import (SyntaxError too)
+        text = " ".join(str(exc).split())[:200]
+        raise BenchError(f"method {what}: cannot import {target} ({type(exc).__name__}: {text})") from None
     if not (isinstance(cls, type) and issubclass(cls, Method)):
         raise BenchError(f"method {what}: {target} is not a subclass of algorithms.base.Method")
+    _check_names(cls, target, what)
     return cls
+
+
+def _check_names(cls: type[Method], target: str, what: str) -> None:
+    """BenchError when a method outside this package takes a built-in's ``name`` or label
+    (``display_name``): two leaderboard rows would read alike (D23)."""
+    if target.startswith(_OWN_PACKAGE):
+        return
+    mine_name = getattr(cls, "name", None)
+    mine_label = cls.display_name or mine_name
+    for name, info in _entry_points().items():
+        if info.source != "built-in":
+            continue
+        other = _import(info.target, repr(name))
+        for field, mine, theirs in (("name", mine_name, other.name), ("display name", mine_label, other.label())):
+            if mine is not None and str(mine).casefold() == str(theirs).casefold():
+                raise BenchError(f"method {what}: {target} declares the {field} {mine!r} of the built-in method "
+                                 f"{name!r}; give it a name and display_name of its own")
 
 
 @cache
@@ -116,6 +141,13 @@ def method_class(spec: str) -> type[Method]:
         raise BenchError(f"unknown method {spec!r}; choose one of {', '.join(methods)} "
                          "or give one as module:Class (`bench methods` lists them)")
     return _import(methods[spec].target, repr(spec))
+
+
+def is_builtin(spec: str) -> bool:
+    """Whether ``spec`` names one of this package's own methods (a failure in it is a bug to
+    show in full; an outside method's failure is one line naming it)."""
+    info = available().get(spec) if not is_path(spec) else None
+    return info is not None and info.source == "built-in"
 
 
 def find_method(spec: str) -> type[Method] | None:

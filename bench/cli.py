@@ -139,7 +139,7 @@ def run(
     g = apply_overrides(g, overrides)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
-    store.check_writable()
+    store.check_writable(repair and not fresh)
     if fresh:
         store.check_fresh()
         n_files = len(store.bench_files())
@@ -248,14 +248,31 @@ def methods(
     """List every method: where it comes from (built-in, entry point, module path), whether
     it learns, its execution modes, safety-filter default and payload model. A method is
     named in grid files, `bench eval --method` and `bench tune --method` by a registered
-    name or as module:Class (docs/extending.md)."""
-    from rich.console import Console
-    from rich.table import Table
-
+    name or as module:Class (docs/extending.md). A method that cannot be imported is one
+    error line after the others (exit status 2)."""
     from algorithms.registry import available, describe
 
     names = [method] if method else list(available())
-    info = [describe(n) for n in names]
+    info, broken = [], []
+    for name in names:  # one plugin that does not import leaves the others listed (D13)
+        try:
+            info.append(describe(name))
+        except BenchError as exc:
+            if method:
+                raise
+            broken.append(str(exc))
+    _methods_table(info, method, as_json)
+    for line in broken:
+        _error(line)
+    if broken:
+        raise typer.Exit(2)
+
+
+def _methods_table(info: list[dict[str, Any]], method: str | None, as_json: bool) -> None:
+    """What ``bench methods`` prints to stdout: JSON, or the table (and one method's parameters)."""
+    from rich.console import Console
+    from rich.table import Table
+
     if as_json:
         typer.echo(json.dumps(info, indent=2, default=str))
         return
@@ -392,7 +409,7 @@ def report(
         typer.echo(f"bench: warning: {d.line()}", err=True)
     cells = store.read_cells()
     damaged = {d.cell_id for d in damage}
-    if cells is not None:
+    if cells is not None and "" not in damaged:  # a folder replaced: --repair, not "complete it" (D12)
         for cid, gap in incomplete_cells(store, cells).items():
             if cid not in damaged:
                 typer.echo(f"bench: warning: cell {cid} is done but its rows are incomplete: {gap}; "

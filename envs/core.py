@@ -145,6 +145,11 @@ class WarehouseCore:
         a = np.asarray(actions)
         if a.shape != self.pos.shape:
             raise BenchError(f"step: actions must be shaped {self.pos.shape}, got {a.shape}")
+        if a.dtype.kind == "f" and not (np.isfinite(a).all() and (a == np.floor(a)).all()):
+            flat = a.reshape(-1)  # cast, NaN or 2.5 would be a garbage index (D15)
+            bad = flat[~(np.isfinite(flat) & (flat == np.floor(flat)))][0]
+            raise BenchError(f"step: action {bad} is not an integer in 0..{N_ACTIONS - 1} "
+                             "(Up, Down, Left, Right, Wait)")
         if a.size and (a.min() < 0 or a.max() >= N_ACTIONS):
             bad = int(a.reshape(-1)[(a.reshape(-1) < 0) | (a.reshape(-1) >= N_ACTIONS)][0])
             raise BenchError(f"step: action {bad} outside 0..{N_ACTIONS - 1} (Up, Down, Left, Right, Wait)")

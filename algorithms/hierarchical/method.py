@@ -104,7 +104,8 @@ class HierarchicalMethod(Method):
     legend_rank = 0
     paper_role = REFERENCE  # the paper's own method
     safety_filter_default = True  # Sec. III-C: the predictive safety filter is part of the method
-    payload_model = "inter-group messages on delivered links: (Z - 1) N d_m per step at most (Sec. III-A)"
+    payload_model = ("scalars transmitted per step on the inter-group links, delivered or lost: (Z - 1) N d_m "
+                     "on the complete group graph, fewer on a sparser one (Sec. III-A)")
     Params = HierarchicalParams
     presets = PRESETS  # "tuned": decision 0265
     params: HierarchicalParams

@@ -326,7 +326,7 @@ def _check_matrix_files(store: RunStore, repair: bool) -> bool:
     from bench.store.integrity import find_damage, move_aside
 
     checks = store.integrity()
-    damage = [d for d in find_damage(store, checks) if d.rel.startswith("matrix/")]
+    damage = [d for d in find_damage(store, checks) if d.rel.split("/")[0] == "matrix"]
     if damage and not repair:
         raise BenchError(f"{store.root}: {damage[0].line()}")
     if checks.active:

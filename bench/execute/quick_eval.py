@@ -6,8 +6,10 @@ written. By default every mode of the cell (argmax, sample, sample@T; planner fo
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import sys
 from typing import Any
 
 import numpy as np
@@ -15,6 +17,7 @@ import torch
 
 from algorithms.common.episodes import EVAL_METRICS
 from algorithms.common.execution import parse_execution
+from algorithms.registry import is_builtin
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import CellWorker
@@ -58,16 +61,20 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
     box = [state] if state is not None else []
     rows: list[dict[str, Any]] = []
     try:
-        for mode in modes:
-            for chunk in range(math.ceil(episodes / cell.method_params().eval_chunk)):
-                rows.extend(worker.eval_chunk(cell_spec(cell), box, chunk, mode)["rows"])
+        with contextlib.redirect_stdout(sys.stderr):  # a method's prints never mix into --json (D14)
+            for mode in modes:
+                for chunk in range(math.ceil(episodes / cell.method_params().eval_chunk)):
+                    rows.extend(worker.eval_chunk(cell_spec(cell), box, chunk, mode)["rows"])
     except BenchError:
         raise
-    except (KeyError, RuntimeError, ValueError) as exc:
-        if state is None:
-            raise
-        raise BenchError(f"checkpoint {checkpoint!r} does not fit {cell.method} with these settings: "
-                         f"{' '.join(str(exc).split())[:200]}") from None
+    except Exception as exc:
+        text = " ".join(str(exc).split())[:200]
+        if state is not None and isinstance(exc, (KeyError, RuntimeError, ValueError)):
+            raise BenchError(f"checkpoint {checkpoint!r} does not fit {cell.method} with these settings: "
+                             f"{text}") from None
+        if is_builtin(cell.method):
+            raise  # a bug of this package: the traceback helps
+        raise BenchError(f"method {cell.method}: {type(exc).__name__}: {text}") from None  # an outside method's
     return cell, [r for r in rows if int(r["episode"]) < episodes]
 
 

@@ -30,7 +30,7 @@ import secrets
 import socket
 import stat
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -211,10 +211,35 @@ def connect(address: str | None = None, workers: int | None = None) -> RayContex
     except ValueError:  # pragma: no cover - not the main thread
         old = None
     try:
-        return _connect(address, workers)
+        with _keep_sigterm_handler(getattr(old, "bench_stop", False)):
+            return _connect(address, workers)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM while Ray started: leave no half-started node
+        import ray
+
+        with suppress(Exception):
+            ray.shutdown()
+        raise
     finally:
         if getattr(old, "bench_stop", False):
             signal.signal(signal.SIGTERM, old)
+
+
+@contextmanager
+def _keep_sigterm_handler(keep: bool) -> Iterator[None]:
+    """While ``keep``, ``ray.init`` installs no SIGTERM handler of its own: a SIGTERM during
+    start-up reaches the bench's (exit 143 and one line) instead of Ray's ``sys.exit(15)``,
+    which ended the command silently. Ray sets its handlers through this one function."""
+    if not keep:
+        yield
+        return
+    from ray._private import utils
+
+    original = utils.set_sigterm_handler
+    utils.set_sigterm_handler = lambda handler: None
+    try:
+        yield
+    finally:
+        utils.set_sigterm_handler = original
 
 
 def _connect(address: str | None, workers: int | None) -> RayContext:
@@ -243,9 +268,16 @@ def _connect(address: str | None, workers: int | None) -> RayContext:
     cpus = max(local_cores(), workers or 1)
     secure_token_file(create=True)
     # address="local": always a new instance, never a cluster found in /tmp/ray by chance.
-    with _loopback_only():
-        ray.init(address="local", num_cpus=cpus, object_store_memory=OBJECT_STORE_BYTES,
-                 include_dashboard=False, _node_ip_address="127.0.0.1", **quiet)
+    try:
+        with _loopback_only():
+            ray.init(address="local", num_cpus=cpus, object_store_memory=OBJECT_STORE_BYTES,
+                     include_dashboard=False, _node_ip_address="127.0.0.1", **quiet)
+    except Exception as exc:  # e.g. the node's start-up timing out on a loaded machine (D19)
+        with suppress(Exception):
+            ray.shutdown()
+        raise BenchError(f"could not start Ray on this machine ({type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:200]}); rerun the same command (a busy machine starts Ray "
+                         "slower: try again when it is less loaded)") from None
     return RayContext(True, "embedded", cpus)
 
 

@@ -55,7 +55,7 @@ from bench.execute.progress import NullProgress, Progress, Snapshot
 from bench.execute.ray_cluster import RayContext, connect
 from bench.execute.signals import Terminated, sigterm_as_interrupt, sigterm_received  # noqa: F401 (re-exported)
 from bench.execute.worker import CellWorker
-from bench.store.integrity import RUN_FLAG
+from bench.store.integrity import RUN_FLAG, Damage
 from bench.store.run_store import RunStore
 from bench.store.schema import SCHEMA_VERSION
 from bench.tracking.observers import RunObserver, dispatch
@@ -95,16 +95,26 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     ``repair``; with ``repair`` such files move to superseded/ and their cells are recomputed.
     """
     store = RunStore(out)
-    store.check_writable()
+    store.check_writable(repair and not fresh)
     if fresh:
         store.check_fresh()
     lock = store.lock()
     try:
         if not fresh:
             check_resume_overrides(store.read_manifest(), overrides or {}, str(out))
-        repaired = [] if fresh else check_integrity(store, grid, repair)
-        states, others = plan_run(store, grid, fresh, rerun_changed)
-        if all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
+        damage = [] if fresh else check_integrity(store, grid, repair)
+        # Ray first when files are to be moved aside: a start that fails (D19) moves nothing
+        early = connect(address, workers) if damage else None
+        try:
+            repaired = move_damaged(store, damage)
+            states, others = plan_run(store, grid, fresh, rerun_changed)
+        except BaseException:
+            if early is not None:
+                early.shutdown()
+            raise
+        if early is not None:
+            ctx = early
+        elif all(st.phase == "done" for st in states) and not fresh and not (address or os.environ.get("RAY_ADDRESS")):
             ctx = RayContext(False, "not needed (every cell done)", 1)  # nothing to run: no Ray
         else:
             ctx = connect(address, workers)
@@ -131,25 +141,32 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
             os.close(lock)
 
 
-def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[str]:
+def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[Damage]:
     """Damaged or misplaced files of the grid's cells (and cells.parquet): a BenchError naming
-    the first, unless ``repair``, which moves them to superseded/repair-<time>/ (returns
-    one line per file moved). Reads only, without ``repair`` or without damage."""
+    the first, unless ``repair``, which returns them for ``move_damaged``. Reads only."""
     if not store.exists():
         return []
-    from bench.store.integrity import find_damage, move_aside
+    from bench.store.integrity import find_damage
 
     damage = [d for d in find_damage(store, store.integrity(), {c.cell_id for c in grid.cells}, True)
-              if not d.rel.startswith("matrix/")]  # bench matrix --repair's
-    if not damage:
-        return []
-    if not repair:
+              if not d.rel.startswith("matrix")]  # bench matrix --repair's
+    if damage and not repair:
         more = f" ({len(damage) - 1} more damaged or misplaced file(s))" if len(damage) > 1 else ""
         raise BenchError(f"{store.root}: {damage[0].line()}{more}")
+    return damage
+
+
+def move_damaged(store: RunStore, damage: list[Damage]) -> list[str]:
+    """Move ``damage`` to superseded/repair-<time>/ (bench/store/integrity.py ``move_aside``);
+    one line per file moved."""
+    from bench.store.integrity import move_aside
+
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
     dest = move_aside(store, store.integrity(), damage, stamp)
     return [f"moved damaged {d.rel} to {dest.relative_to(store.root) / d.rel} ({d.why}); "
-            + (f"recomputing cell {d.cell_id}" if d.cell_id else "cells.parquet is rebuilt from the cells' files")
+            + (f"recomputing cell {d.cell_id}" if d.cell_id else
+               "cells.parquet is rebuilt from the cells' files" if d.rel == "cells.parquet" else
+               "recomputing the cells whose files it held")
             for d in damage if dest is not None]
 
 

@@ -58,7 +58,9 @@ def _refuse_existing(targets: list[Path], allowed: bool) -> None:
 def _write(target: Path, data: bytes) -> None:
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
+        with atomic_file(target) as fh:
+            fh.write(data)
+    except BenchError:
+        raise  # a full disk: DiskFull names the file already
+    except OSError as exc:  # read-only file system, permissions (D21: every format says one line)
         raise BenchError(f"cannot write {str(target)!r}: {exc.strerror or exc}") from None
-    with atomic_file(target) as fh:
-        fh.write(data)

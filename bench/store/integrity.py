@@ -16,9 +16,20 @@ file is *misplaced*. ``bench run --repair`` moves damaged and misplaced files to
 those cells only; without it ``bench run`` refuses, naming the file (exit 2, nothing
 written), and ``bench report`` leaves the file out with a warning.
 
-Stores without checksums (written before integrity checks existed: reproduction/paper,
-reproduction/ablation, and runs of an older bench) are checked for readability and
-placement only. Checksums are *in force* when checksums.json exists and the manifest's
+A run whose manifest says it was written with checksums but whose checksums.json is gone
+is not trusted silently: every stored file then reads as damaged ("cannot be verified"), so
+``bench run`` and ``bench report`` refuse, naming the file, until checksums.json is restored
+or ``bench run --repair`` moves the unverifiable files aside and recomputes them
+(docs/decisions/0195). A stored file must be a plain file: a symbolic link where the bench
+keeps a file or a folder (a link to an edited copy would bypass the check) is damaged too,
+said with where it points and whether that is outside the run (docs/decisions/0196), and so
+is a plain file where the bench keeps a folder (``eval``, ``train``, ``checkpoints``,
+``matrix``).
+
+Stores without checksums (written before integrity checks existed, and runs of an older
+bench) are checked for readability and placement only; the committed ones of
+reproduction/ have theirs recorded since, marked ``added_later`` (docs/decisions/0197),
+which puts them in force as well. Checksums are *in force* when checksums.json exists and the manifest's
 latest run record says ``"checksums": 1``; an older bench that resumed such a store since
 leaves its latest record without the flag, and the checksums (possibly stale) are then not
 enforced: the next ``bench run`` keeps the entries its files still match and records every
@@ -45,6 +56,17 @@ RUN_FLAG = "checksums"  # key of a manifest run record written by an integrity-a
 REPAIR_PREFIX = "repair-"
 REPAIR_FILE = "repair.json"
 _HEX64 = re.compile(r"[0-9a-f]{64}")
+_CELL_ID = re.compile(r"[0-9a-f]{12}")  # bench/store/run_store.py CELL_ID_RE (not imported: it imports this)
+
+
+class AddedLater(BaseModel):
+    """Digests recorded after the files were written (the committed stores that predate
+    checksums, docs/decisions/0197): when, what vouches for the bytes, which files."""
+
+    model_config = ConfigDict(extra="forbid")
+    date: str
+    note: str
+    files: list[str]
 
 
 class ChecksumsFile(BaseModel):
@@ -55,6 +77,7 @@ class ChecksumsFile(BaseModel):
     version: Literal[1]
     algorithm: Literal["sha256"]
     files: dict[str, list[str]]
+    added_later: AddedLater | None = None
 
 
 def digest(data: bytes) -> str:
@@ -87,12 +110,17 @@ class Checksums:
         self.files: dict[str, list[str]] = {}
         self.active = False  # verified on read
         self.recording = False  # bench run / matrix of this process records its writes
+        self.missing = False  # the manifest says the run was written with checksums, the file is gone
+        self.added_later: dict[str, Any] | None = None  # ChecksumsFile.added_later, kept on rewrite
 
     @classmethod
     def load(cls, root: Path, manifest: Mapping[str, Any] | None) -> Checksums:
         """Read checksums.json (BenchError naming it when it is not valid JSON of the schema)."""
         out = cls(root)
+        runs = (manifest or {}).get("runs") or []
+        flagged = bool(runs) and isinstance(runs[-1], Mapping) and runs[-1].get(RUN_FLAG) == 1
         if not out.path.is_file():
+            out.missing = flagged  # D22: never start afresh over files that cannot be verified
             return out
         try:
             data = ChecksumsFile.model_validate(json.loads(out.path.read_text(encoding="utf-8")))
@@ -104,8 +132,8 @@ class Checksums:
             raise BenchError(f"corrupt {str(out.path)!r}: entry {bad!r} is not a list of SHA-256 digests; "
                              f"{_DELETE_HINT}")
         out.files = dict(data.files)
-        runs = (manifest or {}).get("runs") or []
-        out.active = bool(runs) and isinstance(runs[-1], Mapping) and runs[-1].get(RUN_FLAG) == 1
+        out.added_later = data.added_later.model_dump() if data.added_later is not None else None
+        out.active = flagged or data.added_later is not None
         return out
 
     # ------------------------------------------------------------- checking
@@ -114,6 +142,9 @@ class Checksums:
 
     def mismatch(self, path: Path) -> str:
         """'' when ``path`` is unrecorded or matches its entry, else why it is damaged."""
+        if self.missing:
+            return (f"it cannot be verified: {CHECKSUMS_FILE} is missing although the manifest records that "
+                    f"this run was written with checksums (restore {CHECKSUMS_FILE} if you have a copy)")
         if not self.active:
             return ""
         accepted = self.files.get(self.rel(path))
@@ -134,7 +165,7 @@ class Checksums:
             p = self.root / rel
             if p.is_file() and (self.active or file_digest(p) in accepted):
                 kept[rel] = accepted if self.active else [file_digest(p)]
-        self.files, self.active, self.recording = kept, True, True
+        self.files, self.active, self.recording, self.missing = kept, True, True, False
         self._write()
 
     def before_write(self, path: Path, data: bytes) -> None:
@@ -145,6 +176,19 @@ class Checksums:
         old = self.files.get(rel, [])[-1:]
         self.files[rel] = [d for d in old if d != new] + [new]
         self._write()
+
+    def add_later(self, paths: Iterable[Path], date: str, note: str) -> list[str]:
+        """Record the digests of those ``paths`` that have no entry yet, marked in
+        ``added_later`` as recorded after they were written (``note``: what vouches for their
+        bytes); the paths added. For the committed stores that predate checksums (0197)."""
+        new = sorted(rel for rel in (self.rel(p) for p in paths) if rel not in self.files)
+        for rel in new:
+            self.files[rel] = [file_digest(self.root / rel)]
+        before = (self.added_later or {}).get("files", [])
+        self.added_later = {"date": date, "note": note, "files": sorted({*before, *new})}
+        self.active = True
+        self._write()
+        return new
 
     def forget(self, paths: Iterable[Path]) -> None:
         if not self.recording:
@@ -158,8 +202,10 @@ class Checksums:
     def _write(self) -> None:
         from envs.atomic import atomic_file
 
-        body = {"format": CHECKSUMS_FORMAT, "version": 1, "algorithm": "sha256",
-                "files": dict(sorted(self.files.items()))}
+        body: dict[str, Any] = {"format": CHECKSUMS_FORMAT, "version": 1, "algorithm": "sha256",
+                                "files": dict(sorted(self.files.items()))}
+        if self.added_later is not None:
+            body["added_later"] = self.added_later
         with atomic_file(self.path) as fh:
             fh.write(json.dumps(body, indent=0, sort_keys=True).encode() + b"\n")
 
@@ -219,7 +265,8 @@ def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = No
     (page checksums, ``cell_id`` column) and hashes every recorded file; an unrecorded
     checkpoint is loaded only with ``load_checkpoints`` (a resume, which needs them; the
     report does not read checkpoints)."""
-    out = []
+    out = [Damage(rel, cid, why) for rel, cid, why in not_plain(store.root)
+           if cell_ids is None or not cid or cid in cell_ids]
     for path in store.bench_files():
         if path.name.startswith(".") or path.name == "manifest.json" or path == checksums.path:
             continue
@@ -239,6 +286,9 @@ def find_damage(store: Any, checksums: Checksums, cell_ids: set[str] | None = No
     return out
 
 
+FOLDERS = ("train", "eval", "checkpoints", "matrix")  # the folders of a run the bench keeps
+
+
 def owner_cell(rel: str) -> str:
     """The cell a stored file belongs to ('' for cells.parquet)."""
     parts = rel.split("/")
@@ -247,6 +297,53 @@ def owner_cell(rel: str) -> str:
     if parts[0] in ("train", "matrix") and len(parts) == 3:
         return parts[1]
     return ""
+
+
+def not_plain(root: Path) -> list[tuple[str, str, str]]:
+    """(path in the run, its cell or '', why) of every entry where the bench keeps a plain file
+    or folder that is something else: a symbolic link (followed, it would bypass the
+    checksums: D18) or a file standing where a folder belongs (D12). Entries of names the
+    bench never writes are the user's and left alone. Reads no file."""
+    root = Path(root)
+    out: list[tuple[str, str, str]] = []
+
+    def check(path: Path, cid: str, folder: bool) -> bool:
+        """Record ``path`` when it is not plain; True when it is a plain folder to look into."""
+        rel = path.relative_to(root).as_posix()
+        if path.is_symlink():
+            out.append((rel, cid, _link_why(root, path)))
+            return False
+        if folder and path.exists() and not path.is_dir():
+            out.append((rel, cid, f"a file stands where the bench keeps its folder {rel}/"))
+            return False
+        return folder and path.is_dir()
+
+    check(root / "cells.parquet", "", False)
+    for name in FOLDERS:
+        if not check(root / name, "", True):
+            continue
+        for sub in sorted((root / name).iterdir()):
+            cid = sub.name.rsplit(".", 1)[0]
+            if not _CELL_ID.fullmatch(cid):
+                continue
+            if name in ("train", "matrix"):
+                if check(sub, cid, True):
+                    for p in sorted(sub.iterdir()):
+                        if p.suffix == ".parquet":
+                            check(p, cid, False)
+            elif sub.suffix in (".parquet", ".pt"):
+                check(sub, cid, False)
+    return out
+
+
+def _link_why(root: Path, path: Path) -> str:
+    import os
+
+    target = os.readlink(path)
+    resolved = path.resolve()
+    outside = not resolved.is_relative_to(root.resolve())
+    return (f"a symbolic link to {target}{' (outside the run)' if outside else ''}; the bench stores "
+            "plain files only and never follows a link")
 
 
 def _readable(path: Path) -> str:

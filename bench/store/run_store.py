@@ -124,8 +124,9 @@ class RunStore:
         return self.checksums
 
     # ----------------------------------------------------------- validation
-    def check_writable(self) -> None:
-        """BenchError unless ``root`` is (or can become) a writable directory. Writes nothing."""
+    def check_writable(self, repair: bool = False) -> None:
+        """BenchError unless ``root`` is (or can become) a writable directory. Writes nothing.
+        With ``repair``, a file where a folder of the run belongs is left to ``--repair``."""
         p = self.root
         while not p.exists():
             if p.parent == p:
@@ -135,10 +136,11 @@ class RunStore:
             raise BenchError(f"--out {str(self.root)!r}: {str(p)!r} exists and is not a directory")
         if not os.access(p, os.W_OK | os.X_OK):
             raise BenchError(f"--out {str(self.root)!r}: directory {str(p)!r} is not writable")
-        if self.root.exists():
+        if self.root.exists() and not repair:
             for sub in (self.train_dir, self.eval_dir, self.ckpt_dir):
                 if sub.exists() and not sub.is_dir():
-                    raise BenchError(f"--out {str(self.root)!r}: {str(sub)!r} is not a directory")
+                    raise BenchError(f"--out {str(self.root)!r}: {str(sub)!r} is not a directory; rerun with "
+                                     "--repair to move it to superseded/ and recompute what belongs there")
 
     def lock(self) -> int | None:
         """Exclusive lock on the run directory (flock on the directory itself: no file is

@@ -11,7 +11,9 @@ May import: envs, algorithms, bench.store, bench.about (the layers of .importlin
 """
 from __future__ import annotations
 
+import contextlib
 import importlib
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -61,17 +63,36 @@ def make_observer(names: Sequence[str], run_dir: str | Path, grid: str,
         else:
             module, cls, _, _ = LOGGERS[name]
             factory = getattr(importlib.import_module(module), cls)
-        loggers.append(factory(root, grid))
+        loggers.append(_made(name, factory, root, grid))
     loggers += list(extra)
     return Observers(loggers) if loggers else None
+
+
+def _made(name: str, factory: Callable[..., Any], root: Path, grid: str) -> RunObserver:
+    """``factory(root, grid)``; one BenchError naming ``--log NAME`` whatever the call raises,
+    or when it returns something that is not an observer (D20: ``--log os:system``)."""
+    try:
+        logger = factory(root, grid)
+    except BenchError:
+        raise
+    except Exception as exc:
+        text = " ".join(str(exc).split())[:200]
+        raise BenchError(f"--log {name}: calling it as {name}(tracking_dir, grid_name) failed "
+                         f"({type(exc).__name__}: {text})") from None
+    hooks = ("on_cell_start", "on_train_rows", "on_eval", "on_cell_end", "close")
+    if not any(callable(getattr(logger, hook, None)) for hook in hooks):
+        raise BenchError(f"--log {name}: {name}(tracking_dir, grid_name) returned {type(logger).__name__}, "
+                         "not a logger (a bench.tracking.observers.RunObserver)")
+    return logger
 
 
 def _user_logger(path: str) -> Callable[..., Any]:
     """``module:Class`` of a logger of your own, called as ``Class(tracking_dir, grid_name)``."""
     module, _, name = path.partition(":")
     try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError, ValueError) as exc:
+        with contextlib.redirect_stdout(sys.stderr):  # its prints never mix into stdout
+            return getattr(importlib.import_module(module), name)
+    except Exception as exc:  # an outside module may raise anything at import
         raise BenchError(f"--log {path}: cannot import the logger ({type(exc).__name__}: {exc})") from None
 
 

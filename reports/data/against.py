@@ -19,6 +19,7 @@ REF; the merged report goes to MINE/report (or ``--out``) and says what it merge
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -79,11 +80,31 @@ def check_compatible(mine: Store, ref: Store, ref_name: str) -> None:
                              "(the two runs share no seed there)")
 
 
+def _unusable_files(ref: Store) -> list[str]:
+    """What ``load_store`` left out of ``ref`` for a file, each naming it: a damaged or
+    misplaced file, a done cell's absent eval file (D17: a refusal names its file)."""
+    out = [p.removeprefix("skipped ") for p in ref.problems if p.startswith("skipped ")]
+    no_rows = re.compile(r"cell ([0-9a-f]{12}) is done but has no evaluation rows")
+    for p in ref.problems:
+        m = no_rows.fullmatch(p)
+        if m and not (ref.run_dir / "eval" / f"{m[1]}.parquet").is_file():
+            out.append(f"eval/{m[1]}.parquet is absent although cells.parquet says cell {m[1]} is done; "
+                       "rerun `bench run` on that run to evaluate it again")
+    return out
+
+
 def merge_against(mine: Store, ref_dir: Path | str) -> Store:
     """``mine`` plus the done cells (and their rows) of the run at ``ref_dir`` at the
     configurations ``mine`` covers; BenchError when they are not comparable."""
     ref = load_store(ref_dir)
-    check_compatible(mine, ref, str(ref_dir))
+    try:
+        check_compatible(mine, ref, str(ref_dir))
+    except BenchError as exc:
+        unusable = _unusable_files(ref)
+        if not unusable:
+            raise
+        more = f" ({len(unusable) - 1} more)" if len(unusable) > 1 else ""
+        raise BenchError(f"{exc}; in {ref_dir}, {unusable[0]}{more}") from None
     keep = set()
     for n, p in _configs(mine.done):
         keep |= set(_at(ref.done, n, p)["cell_id"])

@@ -23,7 +23,7 @@ import pandas as pd
 import pyarrow as pa
 
 from bench.execute.plan import dict_changes
-from bench.store.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, owner_cell
+from bench.store.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, not_plain, owner_cell
 from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from envs.errors import BenchError
@@ -66,9 +66,11 @@ def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
     if not files:
         problems.append(f"{root.name}/ holds no Parquet file")
     tables = []
+    links = not_plain(root.parent)  # a link or a misplaced folder is damage, never followed (D18)
     for path in files:
         rel = path.relative_to(root.parent).as_posix()
-        why = checksums.mismatch(path) if checksums is not None else ""
+        why = next((w for r, _, w in links if rel == r or rel.startswith(r + "/")), "")
+        why = why or (checksums.mismatch(path) if checksums is not None else "")
         try:
             table = read_table(path, schema).select(schema.names).cast(schema) if not why else None
         except BenchError as exc:

@@ -24,6 +24,7 @@ import pandas as pd
 from reports.claims.claims import Claim
 from reports.pages.index_claims import badge, grouped_checks_html
 from reports.pages.layout import PAGE_CSS, Anchors, html_table, scroll_box, toc_html
+from reports.pages.provenance import provenance_lines
 
 
 @dataclass(frozen=True)
@@ -115,6 +116,9 @@ def index_markdown(d: IndexData) -> str:
     else:
         lines.append("Every cell of the store is done.\n")
     lines += [f"- {p}" for p in d.problems]
+    origin = provenance_lines(d.cells, d.manifest)
+    if origin:
+        lines += ["", "## Which commits trained the cells", "", *origin]
     lines += ["", "## Manifest", "", "| key | value |", "|---|---|"]
     lines += [f"| {k} | `{v}` |" for k, v in _manifest_rows(d.manifest)]
     if not d.manifest:
@@ -222,6 +226,9 @@ def index_html(d: IndexData) -> str:
         parts.append("<p>Every cell of the store is done.</p>")
     if d.problems:
         parts.append("<ul>" + "".join(f"<li>{e(p)}</li>" for p in d.problems) + "</ul>")
+    origin = provenance_lines(d.cells, d.manifest)
+    if origin:
+        parts.append(h2("Which commits trained the cells") + "".join(f"<p>{e(t)}</p>" for t in origin))
     parts.append(h2("Manifest"))
     rows = [[e(k), f"<code>{e(v)}</code>"] for k, v in _manifest_rows(d.manifest)]
     parts.append(scroll_box(_table(["key", "value"], rows or [["(no manifest.json)", ""]],
