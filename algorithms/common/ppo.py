@@ -44,11 +44,16 @@ PAPER, MAPPO = "paper", "mappo"
 class MAPPOParams(Protocol):
     """The ``LearnedParams`` fields the protocol reads (algorithms/base.py)."""
 
-    gamma: float
-    gae_lambda: float
-    credit: str
-    ppo_epochs: int
-    max_grad_norm: float
+    @property
+    def gamma(self) -> float: ...
+    @property
+    def gae_lambda(self) -> float: ...
+    @property
+    def credit(self) -> str: ...
+    @property
+    def ppo_epochs(self) -> int: ...
+    @property
+    def max_grad_norm(self) -> float: ...
 
 
 def robot_rewards(result: object) -> np.ndarray:
