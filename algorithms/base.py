@@ -109,8 +109,8 @@ class LearnedParams(MethodParams):
     # fields act only under protocol="mappo".
     protocol: Literal["paper", "mappo"] = Field(
         "paper", description="paper: the paper's trainer; mappo: GAE, clipped surrogate, value normalization")
-    ppo_epochs: int = Field(3, ge=1, description="mappo: epochs over each batch (actor and critic)")
-    ppo_minibatches: int = Field(2, ge=1, description="mappo: minibatches per epoch")
+    ppo_epochs: int = Field(1, ge=1, description="mappo: epochs over each batch (actor and critic)")
+    ppo_minibatches: int = Field(4, ge=1, description="mappo: minibatches per epoch")
     ppo_clip: float = Field(0.2, gt=0, description="mappo: clip range of the probability ratio")
     ppo_lr: float = Field(5e-4, gt=0, description="mappo: Adam rate of the policy (lr is the paper's)")
     gamma: float = Field(0.99, gt=0, le=1, description="mappo: discount of the GAE returns")

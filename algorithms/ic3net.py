@@ -52,7 +52,7 @@ sender and receiver both have their gate open and are alive (transmitted, lost o
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
@@ -65,15 +65,7 @@ from algorithms.common.action_path import ActionPath, progress_index
 from algorithms.common.diagnostics import KLProbe, value_diagnostics, wait_share
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice
-from algorithms.common.ppo import (
-    MAPPO,
-    PPOBatch,
-    RobotCritic,
-    mappo_critic,
-    ppo_actor_update,
-    robot_rewards,
-    update_generator,
-)
+from algorithms.common.ppo import MAPPO, RobotCritic, robot_rewards
 from algorithms.common.robot_obs import (
     HISTORY_SIZE,
     action_mask_into,
@@ -93,6 +85,7 @@ from algorithms.common.trainer import (
     store_critic_inputs,
 )
 from algorithms.common.value_norm import ValueNorm
+from algorithms.ic3net_mappo import mappo_update
 from algorithms.presets import Preset
 from envs.actions import N_ACTIONS
 from envs.channel import Channel
@@ -221,6 +214,7 @@ class IC3NetState:
     gate: np.ndarray  # (B, N) bool, talk at the next step (sampled at this one)
     collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
     running: np.ndarray  # (B,)
+    chunk_hc: list[tuple[torch.Tensor, torch.Tensor]] = field(default_factory=list)  # mappo: hc at chunk starts
 
 
 class IC3NetMethod(Method):
@@ -320,6 +314,8 @@ class IC3NetMethod(Method):
         if mask is None:
             mask = np.empty((b, n, N_ACTIONS), dtype=bool)
         action_mask_into(core, mask)
+        if self.mappo and buf is not None and buf.t % p.detach_gap == 0:
+            state.chunk_hc.append(state.hc)  # the mappo update replays chunks from here
         with torch.inference_mode():  # rollouts never backpropagate (the update replays)
             logits, gate_logits, values, state.hc = self.policy(
                 torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links.astype(np.float32)),
@@ -383,7 +379,7 @@ class IC3NetMethod(Method):
         buf, p = state.buffer, self.params
         assert buf is not None, "update() needs a training rollout"
         if isinstance(self.critic, RobotCritic):
-            return self.mappo_update(buf, self.critic)
+            return mappo_update(self, state, self.critic)
         t_used = buf.t
         data = {k: buf.tensor(k) for k in buf.data}
         active = data["active"].float()  # (T, B, N) alive robots of running episodes
@@ -463,45 +459,3 @@ class IC3NetMethod(Method):
             return torch.log_softmax(logits, dim=-1), data["active"][:gap, eps]
 
         return KLProbe(log_probs)
-
-    def mappo_update(self, buf: RolloutBuffer, critic: RobotCritic) -> dict[str, float]:
-        """``protocol="mappo"``: GAE advantages of the per-robot critic, then the clipped
-        surrogate with whole episodes as samples (the LSTM is replayed from h = 0, detached
-        every ``detach_gap`` steps as in the paper update); one ratio per alive robot-step,
-        of its control and (learned gate) its gate."""
-        p = self.params
-        assert self.critic_opt is not None
-        crit = mappo_critic(critic, self.critic_opt, buf, p)
-        data = {k: buf.tensor(k) for k in ("obs", "mask", "links", "alive", "actions", "gates", "active")}
-        t_used, b, n = data["actions"].shape
-        learn_gate = p.gate == "learned" and p.communicate
-
-        def per_episode(x: torch.Tensor) -> torch.Tensor:  # (T, B', N) -> (B', T N)
-            return x.permute(1, 0, 2).reshape(x.shape[1], -1)
-
-        def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-            hc = self.policy.initial_state(len(ix), n)
-            lps, ents = [], []
-            for lo in range(0, t_used, p.detach_gap):
-                sl = slice(lo, min(lo + p.detach_gap, t_used))
-                logits, gate_logits, _, hc = self.policy.replay(
-                    data["obs"][sl, ix], data["mask"][sl, ix], data["links"][sl, ix].to(torch.float32),
-                    data["alive"][sl, ix], hc)
-                hc = (hc[0].detach(), hc[1].detach())
-                logp_all = torch.log_softmax(logits, dim=-1)
-                logp = logp_all.gather(-1, data["actions"][sl, ix][..., None]).squeeze(-1)
-                if learn_gate:
-                    logp_g = torch.log_softmax(gate_logits, dim=-1)
-                    logp = logp + logp_g.gather(-1, data["gates"][sl, ix][..., None]).squeeze(-1)
-                lps.append(logp)
-                ents.append(-(logp_all.exp() * logp_all).sum(-1))
-            w = data["active"][:, ix].to(torch.float32)
-            return per_episode(torch.cat(lps)), per_episode(torch.cat(ents)), per_episode(w)
-
-        out = ppo_actor_update(PPOBatch(b, log_probs, per_episode(crit.robot_adv)), self.optimizer, p.ppo_epochs,
-                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
-                               update_generator(self.seed, self.iterations))
-        active = buf.data["active"][:t_used]
-        return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
-                "gate_open_rate": float(buf.data["gates"][:t_used][active].mean()) if active.any() else 0.0,
-                "diag_wait_share": wait_share(buf.data["actions"][:t_used], active)}

@@ -44,11 +44,16 @@ PAPER, MAPPO = "paper", "mappo"
 class MAPPOParams(Protocol):
     """The ``LearnedParams`` fields the protocol reads (algorithms/base.py)."""
 
-    gamma: float
-    gae_lambda: float
-    credit: str
-    ppo_epochs: int
-    max_grad_norm: float
+    @property
+    def gamma(self) -> float: ...
+    @property
+    def gae_lambda(self) -> float: ...
+    @property
+    def credit(self) -> str: ...
+    @property
+    def ppo_epochs(self) -> int: ...
+    @property
+    def max_grad_norm(self) -> float: ...
 
 
 def robot_rewards(result: object) -> np.ndarray:
@@ -59,28 +64,28 @@ def robot_rewards(result: object) -> np.ndarray:
 
 
 class RobotCritic(nn.Module):
-    """V_i(X_t) for every robot i: DeepSets over the robots' global features, each robot's
-    embedding beside the mean embedding, t / T and the share of robots done."""
+    """V_i(X_t) for every robot i: DeepSets over the robots' global features; each robot's
+    value from its embedding, the mean embedding, t / T and the share of robots done.
+
+    The first head layer acts on [e_i, context] as one linear map split in two: the
+    embedding part per robot, the context part once per step (the same function as a
+    linear layer on the concatenation, at a fraction of the cost)."""
 
     def __init__(self, hidden: int) -> None:
         super().__init__()
         self.phi = nn.Sequential(nn.Linear(CRITIC_FEATURES, hidden), nn.ReLU(),
                                  nn.Linear(hidden, hidden), nn.ReLU())
-        self.head = nn.Sequential(nn.Linear(2 * hidden + 2, hidden), nn.ReLU(), nn.Linear(hidden, 1))
+        self.head_robot = nn.Linear(hidden, hidden)
+        self.head_context = nn.Linear(hidden + 2, hidden, bias=False)
+        self.out = nn.Linear(hidden, 1)
         self.value_norm = ValueNorm()
 
     def forward(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
         """robots (..., N, 6), t_frac (...) -> normalized values (..., N)."""
         e = self.phi(robots)
-        pooled = e.mean(dim=-2, keepdim=True).expand_as(e)
-        ctx = torch.stack([t_frac, robots[..., 5].mean(dim=-1)], dim=-1)[..., None, :]
-        x = torch.cat([e, pooled, ctx.expand(*e.shape[:-1], 2)], dim=-1)
-        return self.head(x).squeeze(-1)
-
-    def values(self, robots: torch.Tensor, t_frac: torch.Tensor) -> torch.Tensor:
-        """Denormalized per-robot values (..., N), without gradient."""
-        with torch.no_grad():
-            return self.value_norm.denormalize(self(robots, t_frac))
+        ctx = torch.cat([e.mean(dim=-2), t_frac[..., None], robots[..., 5].mean(dim=-1, keepdim=True)], dim=-1)
+        x = torch.relu(self.head_robot(e) + self.head_context(ctx)[..., None, :])
+        return self.out(x).squeeze(-1)
 
 
 def gae(rewards: torch.Tensor, values: torch.Tensor, running: torch.Tensor, gamma: float, lam: float,
@@ -104,22 +109,30 @@ def gae(rewards: torch.Tensor, values: torch.Tensor, running: torch.Tensor, gamm
 
 
 def fit_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, states: torch.Tensor, t_frac: torch.Tensor,
-               targets: torch.Tensor, running: torch.Tensor, epochs: int, max_grad_norm: float,
-               ) -> dict[str, float]:
-    """``epochs`` Adam steps of the critic on the per-robot value targets (T, B, N) over the
-    running steps, in ValueNorm units (the statistics are updated with these targets first).
-    Returns the last loss and gradient norm."""
-    mask = running.to(torch.float32)[..., None].expand_as(targets)
+               targets_of: Callable[[torch.Tensor], torch.Tensor], running: torch.Tensor, epochs: int,
+               max_grad_norm: float) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
+    """``epochs`` Adam steps of the critic on per-robot value targets over the running steps,
+    in ValueNorm units. The first forward gives the values before any step (denormalized,
+    detached); ``targets_of(values)`` turns them into the targets (T, B, N), which update the
+    ValueNorm statistics before the first step. Returns the values, the targets, and the
+    last loss and gradient norm."""
+    mask = running.to(torch.float32)[..., None]
+    pred = critic(states, t_frac)
+    values = critic.value_norm.denormalize(pred.detach())
+    targets = targets_of(values)
+    mask = mask.expand_as(targets)
     critic.value_norm.update(targets, mask)
     norm_targets = critic.value_norm.normalize(targets)
     n = mask.sum().clamp_min(1.0)
     loss, grad_norm = torch.zeros(()), float("nan")
-    for _ in range(epochs):
-        loss = (((critic(states, t_frac) - norm_targets) ** 2) * mask).sum() / n
+    for epoch in range(epochs):
+        if epoch:
+            pred = critic(states, t_frac)
+        loss = (((pred - norm_targets) ** 2) * mask).sum() / n
         optimizer.zero_grad()
         loss.backward()
         grad_norm = clip_and_step(optimizer, max_grad_norm)
-    return {"critic_loss": float(loss.detach()), "diag_critic_grad_norm": grad_norm}
+    return values, targets, {"critic_loss": float(loss.detach()), "diag_critic_grad_norm": grad_norm}
 
 
 def critic_diagnostics(values: torch.Tensor, targets: torch.Tensor, running: torch.Tensor) -> dict[str, float]:
@@ -200,19 +213,27 @@ class MAPPOCritic:
 
 
 def mappo_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
-                 p: MAPPOParams) -> MAPPOCritic:
+                 p: MAPPOParams, t_frac: torch.Tensor | None = None) -> MAPPOCritic:
     """The critic half of a ``mappo`` update on a rollout buffer holding ``critic``,
     ``t_frac`` (``critic_inputs``) and ``robot_reward`` (T, B, N): values before the step,
-    GAE advantages and targets, then ``fit_critic``."""
-    states, t_frac = buf.tensor("critic"), buf.tensor("t_frac")
+    GAE advantages and targets, then ``fit_critic``. ``t_frac`` (T, B): t / T where the
+    buffer does not store it."""
+    states = buf.tensor("critic")
+    t_frac = buf.tensor("t_frac") if t_frac is None else t_frac
     rewards = buf.tensor("robot_reward")
     running = torch.from_numpy(buf.running[: buf.t])
-    values = critic.values(states, t_frac)
-    adv, targets = gae(rewards, values, running, p.gamma, p.gae_lambda)
-    if p.credit == "team":
-        team_adv, _ = gae(rewards.mean(-1, keepdim=True), values.mean(-1, keepdim=True), running,
-                          p.gamma, p.gae_lambda)
-        adv = team_adv.expand_as(adv)
-    losses = {**critic_diagnostics(values, targets, running),
-              **fit_critic(critic, optimizer, states, t_frac, targets, running, p.ppo_epochs, p.max_grad_norm)}
+    adv = torch.zeros(())
+
+    def targets_of(values: torch.Tensor) -> torch.Tensor:
+        nonlocal adv
+        adv, targets = gae(rewards, values, running, p.gamma, p.gae_lambda)
+        if p.credit == "team":
+            team_adv, _ = gae(rewards.mean(-1, keepdim=True), values.mean(-1, keepdim=True), running,
+                              p.gamma, p.gae_lambda)
+            adv = team_adv.expand_as(adv)
+        return targets
+
+    values, targets, fit = fit_critic(critic, optimizer, states, t_frac, targets_of, running, p.ppo_epochs,
+                                      p.max_grad_norm)
+    losses = {**critic_diagnostics(values, targets, running), **fit}
     return MAPPOCritic(adv, values, rewards, running, losses)

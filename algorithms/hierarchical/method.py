@@ -33,8 +33,10 @@ import torch
 from algorithms.base import REFERENCE, Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice, sample_categorical
+from algorithms.common.ppo import MAPPO, RobotCritic
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
 from algorithms.hierarchical.fallback import offenders_wait
+from algorithms.hierarchical.mappo import mappo_policy_update
 from algorithms.hierarchical.messages import (
     CTRL,
     MSG_DIM,
@@ -63,7 +65,6 @@ from algorithms.hierarchical.training import Learner, policy_update, predictor_u
 from envs.actions import N_ACTIONS, WAIT
 from envs.channel import Channel
 from envs.config import EnvConfig
-from envs.errors import BenchError
 from envs.observations import PatchExtractor, feature_size, robot_features
 
 
@@ -113,8 +114,6 @@ class HierarchicalMethod(Method):
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:
         super().__init__(env, params, seed)
         p = self.params
-        if p.protocol != "paper":  # algorithms/common/ppo.py: not wired to the two levels yet
-            raise BenchError(f"hierarchical: protocol {p.protocol!r} is not available yet; use 'paper'")
         self.gs = group_structure(env)
         z = env.groups
         pz = 1 if p.share_params else z
@@ -126,15 +125,18 @@ class HierarchicalMethod(Method):
             with torch.no_grad():
                 self.local.ref_embed.mul_(p.ref_embed_scale / 0.5)
         self.predictor = GroupPredictor(pz, z, self.layout.shape, p.predictor_hidden, p.predictor_embed)
-        self.critic = CentralCritic(p.critic_hidden)
+        self.mappo = p.protocol == MAPPO  # algorithms/hierarchical/mappo.py
+        self.critic: CentralCritic | RobotCritic = RobotCritic(p.critic_hidden) if self.mappo \
+            else CentralCritic(p.critic_hidden)
+        lr = p.ppo_lr if self.mappo else p.lr
         if p.ref_lr is None:  # one group: checkpoints keep the optimizer layout of the default
             self.opt_policy = torch.optim.Adam(
-                [*self.reference.parameters(), *self.local.parameters()], lr=p.lr)
+                [*self.reference.parameters(), *self.local.parameters()], lr=lr)
         else:
             param_groups: list[dict[str, Any]] = [
                 {"params": list(self.reference.parameters()), "lr": p.ref_lr},
                 {"params": list(self.local.parameters())}]
-            self.opt_policy = torch.optim.Adam(param_groups, lr=p.lr)
+            self.opt_policy = torch.optim.Adam(param_groups, lr=lr)
         self.opt_critic = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.opt_predictor = torch.optim.Adam(self.predictor.parameters(), lr=p.predictor_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max)
@@ -210,6 +212,7 @@ class HierarchicalMethod(Method):
                 "msgs": ((zz, slots, MSG_DIM), np.float32),
                 "avail": ((zz, links), np.bool_),
                 "age": ((zz, links), np.int64),
+                **({"robot_reward": ((n,), np.float32)} if self.mappo else {}),
             })
         return ctrl
 
@@ -300,6 +303,8 @@ class HierarchicalMethod(Method):
             terms = result.progress + result.goal_bonus + result.collision_penalty + result.time_penalty
             state.buffer.data["group_reward"][state.buffer.t] = (
                 self.gs.gather(terms, fill=0.0).sum(-1) / self.env.n_robots)
+            if self.mappo:
+                state.buffer.data["robot_reward"][state.buffer.t] = terms
             state.buffer.reward(result.reward, state.running)
 
     # ---------------------------------------------------------------- helpers
@@ -367,7 +372,8 @@ class HierarchicalMethod(Method):
     def update(self, state: Controller) -> dict[str, float]:
         assert state.buffer is not None
         learner = self.learner()
-        losses = policy_update(learner, state.buffer)
+        losses = (mappo_policy_update(learner, state.buffer, self.seed, self.iterations) if self.mappo
+                  else policy_update(learner, state.buffer))
         if self.params.messages == "predicted":  # else unused
             losses.update(predictor_update(learner, state.buffer))
         else:

@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
+from algorithms.common.ppo import RobotCritic
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -57,7 +58,7 @@ class Learner:
     reference: ReferencePolicy
     local: LocalPolicy
     predictor: GroupPredictor
-    critic: CentralCritic
+    critic: CentralCritic | RobotCritic  # RobotCritic under protocol="mappo" (mappo.py)
     opt_policy: torch.optim.Optimizer
     opt_critic: torch.optim.Optimizer
     opt_predictor: torch.optim.Optimizer
@@ -75,6 +76,7 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     running, rewards = buf.running[:t_used], buf.rewards[:t_used]
     t_frac = torch.from_numpy(
         np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy())
+    assert isinstance(learner.critic, CentralCritic)  # the paper protocol's critic
     # The critic first (its own parameters and optimizer): one step on the whole batch,
     # and the team advantage from its values before the step.
     crit = critic_step(learner.critic, learner.opt_critic, torch.from_numpy(d["critic"]), t_frac,

@@ -7,7 +7,6 @@ import torch
 from algorithms.common.ppo import RobotCritic, gae, robot_rewards
 from algorithms.registry import method_class
 from envs.config import EnvConfig
-from envs.errors import BenchError
 
 
 def test_gae__one_step_td_with_lambda_0_and_monte_carlo_with_lambda_1() -> None:
@@ -36,7 +35,7 @@ def test_robot_rewards_average_to_the_team_reward() -> None:
     assert robot_rewards(res).mean(1) == pytest.approx(res.reward, abs=1e-6)
 
 
-@pytest.mark.parametrize("method", ["decentralized", "ic3net"])
+@pytest.mark.parametrize("method", ["decentralized", "ic3net", "hierarchical"])
 @pytest.mark.parametrize("credit", ["robot", "team"])
 def test_mappo_trains_and_is_recorded_in_the_params(method: str, credit: str) -> None:
     env = EnvConfig.make(n_robots=6, layout="tiny", horizon=12, loss_p=0.3, groups=2, on_goal="stay")
@@ -58,7 +57,11 @@ def test_the_default_protocol_is_the_papers() -> None:
     assert m.params.protocol == "paper" and type(m.critic).__name__ == "CentralCritic"  # type: ignore[attr-defined]
 
 
-def test_hierarchical_refuses_the_protocol_it_does_not_have() -> None:
+def test_hierarchical_mappo_trains_both_levels() -> None:
     env = EnvConfig.make(n_robots=6, layout="tiny", horizon=12, loss_p=0.3, groups=2, on_goal="stay")
-    with pytest.raises(BenchError, match="protocol"):
-        method_class("hierarchical")(env, {"protocol": "mappo"}, seed=1)
+    m = method_class("hierarchical")(env, {"batch_episodes": 2, "protocol": "mappo"}, seed=1)
+    ref = [q.detach().clone() for q in m.reference.parameters()]  # type: ignore[attr-defined]
+    loc = [q.detach().clone() for q in m.local.parameters()]  # type: ignore[attr-defined]
+    m.train_iteration()
+    assert any(not torch.equal(a, b) for a, b in zip(ref, m.reference.parameters(), strict=True))  # type: ignore[attr-defined]
+    assert any(not torch.equal(a, b) for a, b in zip(loc, m.local.parameters(), strict=True))  # type: ignore[attr-defined]
