@@ -13,7 +13,8 @@ in their seed runs as one batch. Their per-group weights are stacked group-major
 every layer; inputs stay (Z, S x B, ...) with the episodes of seed s in rows s B..(s+1) B,
 so ``x.reshape(Z S, -1, in)`` is a view whose slice z S + s is seed s's group z, and one
 batched matmul computes every slice exactly as the seed's own matmul would (same shapes per
-slice; tests/algorithms/hierarchical/test_seed_stack.py).
+slice; tests/algorithms/hierarchical/test_seed_stack.py). With shared parameters the S seeds'
+weights are (S, in, out), repeated Z times (``per_slice``).
 """
 from __future__ import annotations
 
@@ -40,11 +41,7 @@ class GroupLinear(nn.Module):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         z = x.shape[0] * self.seeds
         flat = x.reshape(z, -1, x.shape[-1])
-        w: torch.Tensor = self.weight
-        b: torch.Tensor = self.bias
-        if w.shape[0] != z:  # shared parameters
-            w, b = w.expand(z, -1, -1), b.expand(z, -1, -1)
-        out = torch.baddbmm(b, flat, w)
+        out = torch.baddbmm(per_slice(self.bias, z), flat, per_slice(self.weight, z))
         return out.reshape(*x.shape[:-1], out.shape[-1])
 
 
@@ -92,6 +89,18 @@ class GroupGRUCell(nn.Module):
         u = torch.sigmoid(i_z + h_z)
         n = torch.tanh(i_n + r * h_n)
         return (1.0 - u) * n + u * h
+
+
+def per_slice(param: torch.Tensor, z: int) -> torch.Tensor:
+    """A parameter stacked on its leading axis as the z = Z S slices of the inputs: per
+    group (leading axis z) as it is; shared by the groups (1) expanded; shared and S
+    seeds stacked (S) repeated Z times, so slice z S + s holds seed s's parameters."""
+    g = param.shape[0]
+    if g == z:
+        return param
+    if g == 1:
+        return param.expand(z, *param.shape[1:])
+    return param.repeat(z // g, *(1,) * (param.dim() - 1))
 
 
 def relu(x: torch.Tensor) -> torch.Tensor:

@@ -148,18 +148,19 @@ class HierarchicalMethod(Method):
 
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
+        # Shared parameters stack too (``stack_view``), but bench run and the grid's cost
+        # estimates keep stacking per-group configurations only (docs/decisions/0220).
         return not cls.parse_params(params).share_params  # type: ignore[attr-defined]  # Params is HierarchicalParams
 
     @classmethod
     def stack_view(cls, methods: Sequence[Method]) -> HierarchicalMethod:
         """The rollout of S seeds of one configuration as one batch (seed_stack): a method
         whose per-group weights are the seeds' stacked group-major (Z S groups, see
-        ``group_layers``); each seed's predictor decodes its own lost links."""
+        ``group_layers``; shared parameters: S sets, ``per_slice``); each seed's predictor
+        decodes its own lost links."""
         first = methods[0]
         if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
             raise ValueError("stack_view: the methods must differ only in their seed")
-        if first.params.share_params:  # type: ignore[attr-defined]  # every m is cls: checked above
-            raise NotImplementedError("hierarchical: seed stacking needs per-group parameters")
         rng = torch.get_rng_state()  # building the view must not move the global stream
         view = cls(first.env, first.params.model_dump(), seed=first.seed)
         torch.set_rng_state(rng)

@@ -32,7 +32,7 @@ from torch import nn
 from algorithms.common.action_path import ACTION_GAIN, progress_index  # shared with the baselines
 from algorithms.common.execution import ActionChoice
 from algorithms.common.robot_obs import robots_on_target_index
-from algorithms.hierarchical.group_layers import GroupLinear, GroupMLP, masked_mean, relu
+from algorithms.hierarchical.group_layers import GroupLinear, GroupMLP, masked_mean, per_slice, relu
 from algorithms.hierarchical.messages import GroupStructure
 from envs.actions import N_ACTIONS
 from envs.observations import PatchExtractor
@@ -125,15 +125,21 @@ class LocalPolicy(nn.Module):
         m = robots.shape[1] // self.seeds
         h = self.enc(robots)
         pooled = masked_mean(h, mask, dim=-2)  # shared group encoding
-        table = self.ref_embed.expand(zg, -1, -1) if self.ref_embed.shape[0] != zg else self.ref_embed
+        table = per_slice(self.ref_embed, zg)
         e = torch.gather(table, 1, ref.reshape(zg, m, 1).expand(zg, m, table.shape[-1]))  # (Z, M, H)
         logits = self._head(h, torch.cat([pooled, e.reshape(*pooled.shape[:2], -1)], dim=-1))
         # index_select of the flattened table: robots[..., action_idx] without advanced
         # indexing's overhead (the same values and layout, as in ``ActionPath``).
         k, a = self.action_idx.shape
         phi = robots.index_select(-1, self.action_idx.reshape(-1)).view(zg, m, n, k, a).transpose(-1, -2)
-        logits = logits + ACTION_GAIN * (phi * self.action_w).sum(-1).reshape(logits.shape)
+        logits = logits + ACTION_GAIN * (phi * self._action_w(zg)).sum(-1).reshape(logits.shape)
         return torch.log_softmax(logits.masked_fill(~action_mask, -1e9), dim=-1)
+
+    def _action_w(self, zg: int) -> torch.Tensor:
+        """v_z for zg parameter groups: broadcast when shared by every slice, else one per
+        slice (shared parameters of S stacked seeds: seed s's v for slice z S + s)."""
+        w: torch.Tensor = self.action_w
+        return w if w.shape[0] in (1, zg) else per_slice(w, zg)
 
     def _head(self, h: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """``head(cat([h_i, ctx]))`` for h (Z, M, n, H) and the per-row context ctx
@@ -143,10 +149,7 @@ class LocalPolicy(nn.Module):
         z, m, n, d = h.shape
         zg = z * self.seeds  # parameter groups; (Z, M) rows are (Z S, M / S) blocks
         first = cast(GroupLinear, self.head.layers[0])  # a ModuleList item is typed Module
-        w: torch.Tensor = first.weight
-        b: torch.Tensor = first.bias
-        if w.shape[0] != zg:  # shared parameters
-            w, b = w.expand(zg, -1, -1), b.expand(zg, -1, -1)
+        w, b = per_slice(first.weight, zg), per_slice(first.bias, zg)
         per_row = torch.baddbmm(b, ctx.reshape(zg, -1, ctx.shape[-1]), w[:, d:])  # context part + bias
         x = (torch.bmm(h.reshape(zg, -1, d), w[:, :d]).reshape(z, m, n, -1)
              + per_row.reshape(z, m, -1).unsqueeze(2))

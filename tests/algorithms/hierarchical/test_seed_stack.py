@@ -59,6 +59,9 @@ def _same(a: tuple, b: tuple) -> None:
 @pytest.mark.parametrize("kw, params", [
     ({}, {}),
     ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30}, {"messages": "oracle", "ref_hold": 3}),
+    ({}, {"share_params": True}),  # one set of weights per seed, repeated over the groups
+    ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30},
+     {"share_params": True, "fallback": "per_robot", "ref_lr": 1e-3}),
 ])
 def test_stacked_training__is_bit_for_bit_each_seed_trained_alone(kw, params) -> None:
     env = _env(**kw)
@@ -138,8 +141,8 @@ def test_stack_view__refuses_methods_that_differ_in_more_than_the_seed() -> None
     env = _env()
     with pytest.raises(ValueError, match="differ only in their seed"):
         HierarchicalMethod.stack_view(_methods(env, [0]) + _methods(env, [1], lr=1e-4))
-    with pytest.raises(NotImplementedError, match="per-group parameters"):
-        HierarchicalMethod.stack_view(_methods(env, [0, 1], share_params=True))
+    with pytest.raises(ValueError, match="differ only in their seed"):
+        HierarchicalMethod.stack_view(_methods(env, [0], share_params=True) + _methods(env, [1]))
 
 
 def test_train_stacked__one_method_is_its_own_iteration_and_wall_times_add_up() -> None:
