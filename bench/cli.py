@@ -481,13 +481,13 @@ def export(
              "cells.csv, train.csv, eval.csv."),
     out: Path | None = typer.Option(None, "--out",
         help="File (marl-eval) or folder (csv) to write (default: RUN/export/marl-eval.json or RUN/export/csv/). An "
-             "existing file there is replaced only with --yes."),
+             "existing file, at the default or at --out, is replaced only with --yes."),
     execution: str = typer.Option("argmax", "--execution",
         help="marl-eval: the execution mode exported (PIBT: planner, its only mode)."),
     balanced: bool = typer.Option(False, "--balanced",
         help="marl-eval: only the tasks every method ran, with the same seeds everywhere (what marl-eval's rliable "
              "matrices need)."),
-    yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing files at --out."),
+    yes: bool = typer.Option(False, "--yes", "-y", help="Replace existing export files (default target or --out)."),
 ) -> None:
     """Write a run's results for other evaluators: marl-eval JSON or tidy CSV tables."""
     from bench.export.command import export_run

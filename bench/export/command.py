@@ -1,8 +1,8 @@
 """``bench export``: read a run's store, build the chosen export, write it atomically.
 
-Nothing in the run folder changes except ``RUN/export/`` (the default target). An explicit
-``--out`` that already holds a file the export would write is refused unless ``--yes``
-(the bench never overwrites a file it may not have written).
+Nothing in the run folder changes except ``RUN/export/`` (the default target). A file the
+export would write that already exists, at the default target or at ``--out``, is refused
+unless ``--yes`` (the same rule on every path: an export is never replaced silently).
 """
 from __future__ import annotations
 
@@ -23,14 +23,13 @@ def export_run(run: Path, fmt: str, out: Path | None = None, *, execution: str =
     cells = store.read_cells()
     if cells is None:
         raise BenchError(f"bench export: {str(run)!r} has no cells.parquet")
-    default = out is None
     if fmt == "marl-eval":
         from bench.export.to_marl_eval import marl_eval_data
 
         target = run / "export" / "marl-eval.json" if out is None else out
         if target.is_dir():
             raise BenchError(f"--out {str(target)!r} is a folder; marl-eval's export is one JSON file")
-        _refuse_existing([target], default or overwrite)
+        _refuse_existing([target], overwrite)
         data = marl_eval_data(cells, store.read_train(), store.read_eval(), execution, balanced)
         _write(target, json.dumps(data, indent=1).encode())
         return [target]
@@ -41,7 +40,7 @@ def export_run(run: Path, fmt: str, out: Path | None = None, *, execution: str =
         if folder.exists() and not folder.is_dir():
             raise BenchError(f"--out {str(folder)!r} is a file; the csv export writes a folder")
         targets = [folder / f"{name}.csv" for name in CSV_TABLES]
-        _refuse_existing(targets, default or overwrite)
+        _refuse_existing(targets, overwrite)
         tables = tidy_tables(cells, store.read_train(), store.read_eval())
         for name, target in zip(CSV_TABLES, targets, strict=True):
             _write(target, to_csv_bytes(tables[name]))
@@ -52,7 +51,7 @@ def export_run(run: Path, fmt: str, out: Path | None = None, *, execution: str =
 def _refuse_existing(targets: list[Path], allowed: bool) -> None:
     existing = [t for t in targets if t.exists()]
     if existing and not allowed:
-        raise BenchError(f"--out: {str(existing[0])!r} exists; pass --yes to replace it")
+        raise BenchError(f"bench export: {str(existing[0])!r} exists; pass --yes to replace it")
 
 
 def _write(target: Path, data: bytes) -> None:

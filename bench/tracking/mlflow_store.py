@@ -1,9 +1,10 @@
-"""MLflow logger: a local file store at ``RUN/tracking/mlflow/`` (``MLFLOW_ALLOW_FILE_STORE=true
-mlflow ui --backend-store-uri RUN/tracking/mlflow``), experiment = the grid's name, one run
-per cell.
+"""MLflow logger: a SQLite tracking store at ``RUN/tracking/mlflow/mlflow.db``, MLflow's
+recommended local backend (``mlflow ui --backend-store-uri sqlite:///RUN/tracking/mlflow/mlflow.db``;
+``mlflow.set_tracking_uri`` with that URI, then ``mlflow.search_runs``; no environment
+variable needed; docs/decisions/0231), experiment = the grid's name, one run per cell.
 
-The run is named by the cell id (tag ``cell_id`` too) and carries the cell's config as
-params; metrics ``train.<metric>`` per update (step = episodes trained) and
+The run is named by method, N, p, seed and cell id (``CellInfo.run_name``; tag ``cell_id``)
+and carries the cell's config as params; metrics ``train.<metric>`` per update (step = episodes trained) and
 ``eval.<mode>.<metric>`` at the end (``sample@0.5`` as ``sample_t0.5``); status FINISHED or FAILED. A resumed cell
 continues
 its run (found by the ``cell_id`` tag). Uses ``MlflowClient`` on an explicit store URI, so
@@ -11,6 +12,7 @@ nothing global (``mlflow.set_tracking_uri``, an active run) is touched.
 """
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -29,8 +31,19 @@ def mlflow_name(mode: str) -> str:
     return mode.replace("@", "_t")
 
 
+DB_NAME = "mlflow.db"  # the SQLite file under RUN/tracking/mlflow/
+
+
 def store_uri(root: Path) -> str:
-    return (Path(root) / "mlflow").resolve().as_uri()
+    """The tracking URI of a run's store, ``sqlite:////abs/RUN/tracking/mlflow/mlflow.db``
+    (``root`` is RUN/tracking)."""
+    return "sqlite:///" + (Path(root) / "mlflow" / DB_NAME).resolve().as_posix()
+
+
+def artifact_uri(root: Path) -> str:
+    """Where the experiment's artifacts would go (none are logged): beside the database, not
+    ./mlruns of the working directory (MLflow's default for a database store)."""
+    return (Path(root) / "mlflow" / "artifacts").resolve().as_uri()
 
 
 class MlflowLogger(Observer):
@@ -40,18 +53,21 @@ class MlflowLogger(Observer):
         self.runs: dict[str, str] = {}
 
     def _open(self) -> None:
-        import os
-
         from mlflow.tracking import MlflowClient
 
-        # MLflow 3.18 keeps the file store in maintenance mode and asks for this opt-in
-        # (docs/decisions/0166); `mlflow ui` needs it set as well.
-        os.environ.setdefault("MLFLOW_ALLOW_FILE_STORE", "true")
-
         (self.root / "mlflow").mkdir(parents=True, exist_ok=True)
-        self.client = MlflowClient(tracking_uri=store_uri(self.root))
-        exp = self.client.get_experiment_by_name(self.grid)
-        self.experiment_id = exp.experiment_id if exp is not None else self.client.create_experiment(self.grid)
+        quiet = [logging.getLogger(name) for name in ("mlflow.store.db.utils", "alembic")]
+        levels = [log.level for log in quiet]
+        for log in quiet:  # creating the database's tables logs INFO lines into the run's output
+            log.setLevel(logging.WARNING)
+        try:
+            self.client = MlflowClient(tracking_uri=store_uri(self.root))
+            exp = self.client.get_experiment_by_name(self.grid)
+        finally:
+            for log, level in zip(quiet, levels, strict=True):
+                log.setLevel(level)
+        self.experiment_id = exp.experiment_id if exp is not None else self.client.create_experiment(
+            self.grid, artifact_location=artifact_uri(self.root))
 
     def _run_id(self, cell: CellInfo) -> str:
         if cell.cell_id in self.runs:
@@ -64,7 +80,7 @@ class MlflowLogger(Observer):
             run_id = found[0].info.run_id
             self.client.update_run(run_id, status="RUNNING")
         else:
-            run = self.client.create_run(self.experiment_id, run_name=cell.cell_id,
+            run = self.client.create_run(self.experiment_id, run_name=cell.run_name(),
                                          tags={"cell_id": cell.cell_id, "method": cell.method,
                                                "label": cell.label})
             run_id = run.info.run_id

@@ -27,7 +27,7 @@ Row = Mapping[str, Any]
 
 @dataclass(frozen=True)
 class CellInfo:
-    """What an observer knows of a cell: its id (the tracker run's name), method, grid and
+    """What an observer knows of a cell: its id (in the tracker run's name), method, grid and
     config (the cell's canonical JSON fields, method parameters resolved: the run's
     parameters), and how many episodes one update trains (rows per update)."""
 
@@ -37,6 +37,23 @@ class CellInfo:
     config: dict[str, Any] = field(default_factory=dict)
     batch_episodes: int = 1
     label: str = ""
+
+    def run_name(self) -> str:
+        """The tracker run's name, readable in a run list: method, N, p and seed, then the
+        cell id (what stays unique), e.g. 'hierarchical N=8 p=0.2 seed=0 3f2a9c1b7d4e'."""
+        c = self.config
+        parts = [self.method]
+        for key, label in (("n_robots", "N"), ("loss_p", "p"), ("seed", "seed")):
+            if key in c:
+                value = c[key]
+                parts.append(f"{label}={value:g}" if isinstance(value, float) else f"{label}={value}")
+        return " ".join([*parts, self.cell_id])
+
+    def folder_name(self) -> str:
+        """``run_name`` as a portable folder name (TensorBoard lists runs by folder):
+        'hierarchical_N8_p0.2_seed0_3f2a9c1b7d4e'."""
+        text = self.run_name().replace("=", "").replace(" ", "_")
+        return "".join(ch if ch.isalnum() or ch in "._-" else "-" for ch in text)
 
 
 @runtime_checkable

@@ -1,4 +1,6 @@
-"""TensorBoard logger: ``RUN/tracking/tensorboard/<cell_id>/`` event files, one run per cell.
+"""TensorBoard logger: ``RUN/tracking/tensorboard/<run>/`` event files, one run per cell, its
+folder named by method, N, p, seed and cell id (``CellInfo.folder_name``; a folder named by the
+cell id alone, written before, is continued).
 
 Scalars ``train/<metric>`` per update (step = episodes trained) and ``eval/<mode>/<metric>``
 at step = the cell's training episodes; the config as the run's hparams and as a ``config``
@@ -25,7 +27,10 @@ class TensorBoardLogger(Observer):
         if cell.cell_id not in self.writers:
             from torch.utils.tensorboard import SummaryWriter
 
-            self.writers[cell.cell_id] = SummaryWriter(log_dir=str(self.root / cell.cell_id))
+            folder = self.root / cell.cell_id  # a run written before names stayed readable
+            if not folder.is_dir():
+                folder = self.root / cell.folder_name()
+            self.writers[cell.cell_id] = SummaryWriter(log_dir=str(folder))
         return self.writers[cell.cell_id]
 
     def on_cell_start(self, cell: CellInfo) -> None:

@@ -1,7 +1,8 @@
 """Weights & Biases logger, offline: ``RUN/tracking/wandb/`` (``wandb sync`` uploads it
-later), project = the grid's name, one run per cell (id and name = the cell id, the cell's
-config as the run config). ``train/<metric>`` per update with ``episodes`` (episodes
-trained) as its x-axis, ``eval/<mode>/<metric>`` in the run summary. Never goes online:
+later), project = the grid's name, one run per cell (id = the cell id, name =
+``CellInfo.run_name``: method, N, p, seed and cell id; the cell's config as the run config).
+``train/<metric>`` per update with ``episodes`` (episodes trained) as its x-axis,
+``eval/<mode>/<metric>`` in the run summary. Never goes online:
 ``mode="offline"`` and ``WANDB_MODE`` is not consulted.
 """
 from __future__ import annotations
@@ -24,7 +25,7 @@ class WandbLogger(Observer):
             import wandb
 
             self.dir.mkdir(parents=True, exist_ok=True)
-            run = wandb.init(project=self.project, name=cell.cell_id, id=cell.cell_id, dir=str(self.dir),
+            run = wandb.init(project=self.project, name=cell.run_name(), id=cell.cell_id, dir=str(self.dir),
                              config=cell.config, mode="offline", resume="allow", reinit="create_new",
                              tags=[cell.method], settings=wandb.Settings(silent=True, console="off"))
             run.define_metric("episodes")

@@ -145,6 +145,21 @@ def test_export_cli__existing_out_refused_without_yes_and_bad_mode_is_one_line(
         err = capsys.readouterr().err.strip()
         assert exc.value.code == 2 and len(err.splitlines()) == 1 and needle in err, err
     assert target.read_text() == "my notes" and snapshot(toy_run) == before
+    for fmt, default in (("marl-eval", toy_run / "export" / "marl-eval.json"),
+                         ("csv", toy_run / "export" / "csv" / "cells.csv")):
+        with pytest.raises(SystemExit) as exc:
+            main(["export", "--run", str(toy_run), "--format", fmt])  # the first export: written
+        assert exc.value.code == 0
+        first = default.read_bytes()
+        default.write_bytes(b"edited")
+        with pytest.raises(SystemExit) as exc:  # the default target is never replaced silently either
+            main(["export", "--run", str(toy_run), "--format", fmt])
+        err = capsys.readouterr().err.strip()
+        assert exc.value.code == 2 and len(err.splitlines()) == 1 and "pass --yes" in err, err
+        assert default.read_bytes() == b"edited"
+        with pytest.raises(SystemExit) as exc:
+            main(["export", "--run", str(toy_run), "--format", fmt, "--yes"])
+        assert exc.value.code == 0 and default.read_bytes() == first
     with pytest.raises(SystemExit) as exc:
         main(["export", "--run", str(toy_run), "--format", "marl-eval", "--out", str(target), "--yes"])
     assert exc.value.code == 0

@@ -4,6 +4,8 @@ Runtime: ~40 s on 2 shared cores (one tiny 2-cell run on Ray for the module)."""
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -80,8 +82,12 @@ def test_tracking__tensorboard_event_files_hold_the_stored_train_rows_per_update
     out, _ = tracked_run
     expected = _expected_updates(out)
     evals = RunStore(out).read_eval()
+    cells = RunStore(out).read_cells().set_index("cell_id")
+    folders = {p.name for p in (out / "tracking" / "tensorboard").iterdir()}
+    folder = {cid: f"toy_N4_p0.2_seed{cells.loc[cid, 'seed']}_{cid}" for cid in cells.index}  # readable runs
+    assert folders == set(folder.values())
     for cid, exp in expected.groupby("cell_id"):
-        acc = EventAccumulator(str(out / "tracking" / "tensorboard" / cid))
+        acc = EventAccumulator(str(out / "tracking" / "tensorboard" / folder[cid]))
         acc.Reload()
         for key in TRAIN_KEYS:
             events = acc.Scalars(f"train/{key}")
@@ -101,12 +107,13 @@ def test_tracking__mlflow_store_holds_one_run_per_cell_with_its_config_and_the_s
     from bench.tracking.mlflow_store import store_uri
 
     out, _ = tracked_run
-    os.environ.setdefault("MLFLOW_ALLOW_FILE_STORE", "true")
     client = MlflowClient(tracking_uri=store_uri(out / "tracking"))
     exp = client.get_experiment_by_name("toygrid")
-    runs = {r.info.run_name: r for r in client.search_runs([exp.experiment_id])}
+    runs = {r.data.tags["cell_id"]: r for r in client.search_runs([exp.experiment_id])}
     cells = RunStore(out).read_cells().set_index("cell_id")
     assert set(runs) == set(cells.index)
+    for cid, run in runs.items():
+        assert run.info.run_name == f"toy N=4 p=0.2 seed={cells.loc[cid, 'seed']} {cid}"
     expected = _expected_updates(out)
     evals = RunStore(out).read_eval()
     for cid, run in runs.items():
@@ -123,12 +130,28 @@ def test_tracking__mlflow_store_holds_one_run_per_cell_with_its_config_and_the_s
         assert run.data.metrics["eval.sample_t0.5.episodes"] == 5
 
 
+def test_tracking__mlflow_search_runs_reads_the_store_with_no_environment_variable(tracked_run) -> None:
+    out, _ = tracked_run
+    code = ("import mlflow, sys; mlflow.set_tracking_uri(sys.argv[1]); "
+            "df = mlflow.search_runs(experiment_names=['toygrid']); "
+            "print(sorted(df['tags.mlflow.runName'])); print(sorted(df['status']))")
+    from bench.tracking.mlflow_store import store_uri
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("MLFLOW_")}
+    done = subprocess.run([sys.executable, "-c", code, store_uri(out / "tracking")], capture_output=True, text=True,
+                          env=env, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "toy N=4 p=0.2 seed=0 " in done.stdout and "toy N=4 p=0.2 seed=1 " in done.stdout
+    assert "['FINISHED', 'FINISHED']" in done.stdout
+
+
 def test_tracking__wandb_writes_one_offline_run_per_cell(tracked_run) -> None:
     out, _ = tracked_run
     files = sorted((out / "tracking" / "wandb").rglob("run-*.wandb"))
     cells = set(RunStore(out).read_cells()["cell_id"])
     assert {f.stem.removeprefix("run-") for f in files} == cells
     assert all(b"train/team_return" in f.read_bytes() for f in files)
+    assert all(b"toy N=4 p=0.2 seed=" in f.read_bytes() for f in files)  # the readable run name
 
 
 def test_tracking__observer_sees_each_cell_start_train_eval_end_in_order_and_the_stored_rows(tracked_run) -> None:
@@ -170,7 +193,7 @@ def test_docs_tracking__the_custom_logger_example_runs_as_written(
 
     registry.register("toy", TOY_PATH)
     page = (REPO / "docs" / "tracking.md").read_text()
-    blocks = re.findall(r"```python\n(.*?)```", page, flags=re.S)
+    blocks = [b for b in re.findall(r"```python\n(.*?)```", page, flags=re.S) if "import mlflow" not in b]
     assert len(blocks) == 2 and "class BestReturn(Observer)" in blocks[0]
     grid = Grid("smoke", "test", tuple(Cell.make(**toy_spec(seed=s)) for s in (0, 1)))
     monkeypatch.setattr("bench.design.grids.get_grid", lambda name, seeds=None: grid)  # the toy grid, not smoke
