@@ -59,6 +59,8 @@ def _same(a: tuple, b: tuple) -> None:
 @pytest.mark.parametrize("kw, params", [
     ({}, {}),
     ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30}, {"messages": "oracle", "ref_hold": 3}),
+    ({"layout": "tiny", "n_robots": 6, "horizon": 30, "task": "lifelong", "delay": 1.5,
+      "delay_model": "geometric"}, {}),
 ])
 def test_stacked_training__is_bit_for_bit_each_seed_trained_alone(kw, params) -> None:
     env = _env(**kw)
