@@ -38,6 +38,7 @@ class GridName(str, Enum):
     paper = "paper"
     full = "full"
     ablation = "ablation"
+    lifelong = "lifelong"
 
 
 class Suite(str, Enum):

@@ -127,8 +127,11 @@ class DelayLine:
         if self.model == "fixed":
             return np.full(self.shape, int(self.mean), dtype=np.int64)
         assert self.rng is not None
-        d = self.rng.geometric(1.0 / (1.0 + self.mean), size=self.shape) - 1  # support {0, 1, ...}
-        return np.minimum(d, self.bound)
+        # Inverse CDF of P(d >= k) = q^k, q = mean / (1 + mean), from uniform draws only (so a
+        # stack of generators, one per part's episodes, draws each part's own delays).
+        u = self.rng.random(self.shape)
+        d = np.floor(np.log1p(-u) / np.log(self.mean / (1.0 + self.mean)))
+        return np.minimum(d, self.bound).astype(np.int64)
 
     def step(self, delivered: np.ndarray) -> np.ndarray:
         """Send this step's messages (``delivered``: not lost); returns where a message

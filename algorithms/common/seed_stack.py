@@ -51,6 +51,11 @@ class StackedRNG:
                              f"episodes, got shape {shape}")
         return np.concatenate([r.random((b, *shape[1:])) for r, b in zip(self.rngs, self.sizes, strict=True)])
 
+    def spawn(self, n: int) -> list[StackedRNG]:
+        """``n`` children, each the stack of every part's child (what each part's run spawns)."""
+        kids = [r.spawn(n) for r in self.rngs]
+        return [StackedRNG([k[i] for k in kids], self.sizes) for i in range(n)]
+
 
 class StackedBatch(EpisodeBatch):
     """The episodes of S batches on one core, seed-major; ``rng`` is a ``StackedRNG``."""

@@ -1,5 +1,6 @@
 """Named grids of cells: ``smoke`` (CI), ``paper`` (Fig. 1-3, Table I), ``full`` (SPEC 4),
-``ablation`` (the hierarchical method's components, issue 18).
+``ablation`` (the hierarchical method's components, issue 18), ``lifelong`` (CI: lifelong
+tasks with and without message delay).
 
 A grid is a deduplicated, ordered tuple of cells. ``--seeds K`` replicates every
 configuration over seeds 0..K-1; ``paper`` runs 3 seeds by default (the fewest a claim's
@@ -80,6 +81,20 @@ def smoke(seeds: int = 1) -> Grid:
         for m in ALL_METHODS for n, layout in ((8, "tiny"), (16, "wh20")) for p in (0.2, 0.6)
     ]
     return Grid("smoke", "CI: every method, N in {8,16}, p in {0.2,0.6}, tiny budgets",
+                _cells(specs, seeds))
+
+
+def lifelong(seeds: int = 1) -> Grid:
+    """Lifelong tasks (beyond the paper): every method at N=8 (tiny), p=0.2, with no delay
+    and a fixed 2-step delay; smoke budgets (CI runs it end to end)."""
+    specs = [
+        _planner_settings(dict(
+            method=m, n_robots=8, layout="tiny", loss_p=0.2, task="lifelong", delay=d, episodes=16,
+            horizon=48, eval_episodes=10, params={"batch_episodes": 8, "eval_chunk": 5},
+        ))
+        for m in ALL_METHODS for d in (0, 2)
+    ]
+    return Grid("lifelong", "CI: every method, lifelong tasks, N=8, p=0.2, delay 0 and 2, tiny budgets",
                 _cells(specs, seeds))
 
 
@@ -169,8 +184,9 @@ def ablation(seeds: int = 3) -> Grid:
                 "1000 episodes x 300 steps", _cells(ablation_specs(), seeds))
 
 
-BUILTIN: dict[str, Callable[..., Grid]] = {"smoke": smoke, "paper": paper, "full": full, "ablation": ablation}
-DEFAULT_SEEDS = {"smoke": 1, "paper": 3, "full": 3, "ablation": 3}
+BUILTIN: dict[str, Callable[..., Grid]] = {"smoke": smoke, "paper": paper, "full": full, "ablation": ablation,
+                                           "lifelong": lifelong}
+DEFAULT_SEEDS = {"smoke": 1, "paper": 3, "full": 3, "ablation": 3, "lifelong": 1}
 
 
 def get_grid(name: str, seeds: int | None = None) -> Grid:

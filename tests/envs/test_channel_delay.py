@@ -85,3 +85,8 @@ def test_config__delay_errors_are_one_clear_line():
     with pytest.raises(BenchError, match="below delay_max"):
         EnvConfig.make(delay=4, delay_model="geometric", delay_max=4)
     assert EnvConfig.make(delay=1.5, delay_model="geometric").delay == 1.5
+
+
+def test_geometric_delay__has_the_configured_mean():
+    d = DelayLine((40_000,), 2.0, "geometric", 16, np.random.default_rng(1)).delays()
+    assert abs(d.mean() - 2.0) < 0.05 and d.min() == 0  # the bound moves the mean by 0.003

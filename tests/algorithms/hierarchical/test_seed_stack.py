@@ -62,6 +62,8 @@ def _same(a: tuple, b: tuple) -> None:
     ({}, {"share_params": True}),  # one set of weights per seed, repeated over the groups
     ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30},
      {"share_params": True, "fallback": "per_robot", "ref_lr": 1e-3}),
+    ({"layout": "tiny", "n_robots": 6, "horizon": 30, "task": "lifelong", "delay": 1.5,
+      "delay_model": "geometric"}, {}),
 ])
 def test_stacked_training__is_bit_for_bit_each_seed_trained_alone(kw, params) -> None:
     env = _env(**kw)

@@ -33,3 +33,13 @@ def test_delay__bad_values_are_one_clear_error():
         Cell.make(method="pibt", n_robots=8, loss_p=0.2, delay=2.5)
     with pytest.raises(BenchError, match="delay"):
         Cell.make(method="pibt", n_robots=8, loss_p=0.2, delay=-1)
+
+
+def test_lifelong_grid__every_method_lifelong_with_and_without_delay():
+    from bench.design.grids import ALL_METHODS, get_grid
+
+    grid = get_grid("lifelong")
+    assert {c.method for c in grid.cells} == set(ALL_METHODS)
+    assert {c.task for c in grid.cells} == {"lifelong"}
+    assert {c.delay for c in grid.cells} == {0.0, 2.0}
+    assert all(c.episodes == 0 for c in grid.cells if c.method == "pibt")
