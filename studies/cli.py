@@ -20,6 +20,7 @@ import typer
 
 from envs.errors import BenchError
 from studies import DEFAULT_ROOT
+from studies.seeds import PUBLISHED_ROOT
 
 __all__ = ["TuneResult", "print_best", "tune", "tune_study"]
 
@@ -48,14 +49,17 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
                root: Path | str = DEFAULT_ROOT, workers: int | None = None,
                address: str | None = None, inline: bool = False,
                log: Callable[[str], None] = lambda _m: None,
-               progress: Callable[[Any], None] = lambda _s: None) -> TuneResult:
+               progress: Callable[[Any], None] = lambda _s: None,
+               published: Path | None = PUBLISHED_ROOT) -> TuneResult:
     """Run study ``name`` until it holds ``n_trials`` finished trials, then export + report.
 
     ``options`` holds what the user set explicitly: any ``TrialSettings`` field plus
     ``seed``, ``c_max`` (bool: search C_max), ``param`` (list of ``NAME=VALUES``),
     ``pruner``, ``search`` (auto/grid/tpe), ``replicates``, ``prune_warmup`` and
     ``prune_min_rho``. For a resumed study the stored values fill in the rest.
-    ``n_trials`` None: every point ``replicates`` times (grid), else 20.
+    ``n_trials`` None: every point ``replicates`` times (grid), else 20. The study's
+    seeds must be disjoint from every seed the committed grids under ``published`` evaluate
+    (studies/seeds.py; None: no check).
     """
     import optuna
 
@@ -66,6 +70,7 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     from studies.report import build_study_report
     from studies.runner import make_pruner, preflight, run_study
     from studies.schedule import SearchPlan
+    from studies.seeds import check_tuning_seeds, published_seeds
     from studies.space import plain, space_size
     from studies.storage import (
         CONFIG_ATTR,
@@ -85,12 +90,15 @@ def tune_study(name: str, n_trials: int | None, options: dict[str, Any], *, stor
     check_count("--workers", "workers", workers)
     directory = study_dir(name, root)
     given = _config(options)  # bad options fail before anything is written
+    published_seed_map = published_seeds(published)
+    check_tuning_seeds(given["seed"], given["replicates"], published_seed_map)
     store = open_storage(storage, directory, log)
     explicit = set(options) - {"c_max", "param"} | ({"space"} if {"c_max", "param"} & set(options) else set())
     stored = stored_config(store, name)
     config = merge_config(name, stored, given, explicit)
     settings = TrialSettings.make(**{k: v for k, v in config.items() if k in TrialSettings.model_fields})
     space = {k: tuple(v) for k, v in config["space"].items()}
+    check_tuning_seeds(config["seed"], config["replicates"], published_seed_map)  # a resumed study's own
     preflight(settings, space)
     plan = SearchPlan.make(config["search"], space, config["replicates"], config["seed"])
     pruner = make_pruner(config["pruner"], settings.multi_objective, settings.iterations,
@@ -177,6 +185,31 @@ def _config(options: dict[str, Any]) -> dict[str, Any]:
             "prune_warmup": warmup, "prune_min_rho": min_rho}
 
 
+def _from_definition(path: Path, study: str | None, trials: int | None, options: dict[str, Any],
+                     estimate: bool) -> tuple[str, int, dict[str, Any]]:
+    """(study name, trials, options) of definition ``path``; with ``estimate``, print its
+    cost instead. Options the definition fixes may not be given beside it."""
+    from studies.definitions import estimate as cost_of
+    from studies.definitions import load_definition
+
+    if study is not None or options:
+        given = ["--study"] if study is not None else []
+        given += [f"--{k.replace('_', '-')}" for k in options]
+        raise BenchError(f"--definition {str(path)!r} fixes the study, its protocol and its space; "
+                         f"drop {given[0]}")
+    d = load_definition(path)
+    _config(d.options)  # its space and settings are valid for its method
+    if estimate:
+        e = cost_of(d)
+        s = e["settings"]
+        typer.echo(f"study {d.name}: {s.method}, {d.trials} trials of {s.episodes} episodes x horizon "
+                   f"{s.horizon} at N={s.n_robots}, p={s.loss_p}, {s.layout}; per trial about "
+                   f"{e['trial_s'] / 60:.1f} min (training {e['train_s'] / 60:.1f}, evaluations "
+                   f"{e['eval_s'] / 60:.1f}); about {e['worker_hours']:.1f} worker-hours with no trial pruned "
+                   f"(bench grids' rates, good to a factor of 2)")
+    return d.name, trials if trials is not None else d.trials, dict(d.options)
+
+
 def print_best(name: str, storage: str | None = None, root: Path | str = DEFAULT_ROOT) -> str:
     """The best configuration of study ``name`` as a grid-file snippet."""
     import optuna
@@ -240,6 +273,11 @@ def tune(
     inline: bool = typer.Option(False, "--inline", help="run trials in this process, without Ray (debugging)"),
     method: str | None = typer.Option(None, "--method", help="the learned method to tune: a registered name or "
                                       "module:Class (default: hierarchical); its hyperparameters: `bench methods M`"),
+    definition: Path | None = typer.Option(None, "--definition", metavar="FILE",
+        help="run the committed study definition FILE (studies/definitions/*.toml: the published protocol); "
+             "only --trials, --workers, --inline, --out, --storage and --address may go with it"),
+    estimate: bool = typer.Option(False, "--estimate", help="with --definition: print the study's cost "
+                                  "(worker-hours, no trial pruned) and exit"),
 ) -> None:
     """Tune a learned method with Optuna by one protocol for every method: by default |R_z|
     (ref_size) and L (search_radius) of the hierarchical method (the paper's study), else
@@ -247,14 +285,20 @@ def tune(
     if best is not None:
         typer.echo(print_best(best, storage, out), nl=False)
         return
-    if study is None:
-        raise BenchError("give --study NAME (or --best STUDY)")
+    if estimate and definition is None:
+        raise BenchError("--estimate needs --definition FILE")
     local = {"method": method, "n_robots": n_robots, "loss_p": loss_p, "layout": layout,
              "groups": groups, "episodes": episodes, "horizon": horizon,
              "eval_episodes": eval_episodes, "objectives": objectives, "c_max": c_max,
              "param": param or None, "pruner": pruner, "seed": seed, "search": search,
              "replicates": replicates, "prune_warmup": prune_warmup, "prune_min_rho": prune_min_rho}
     options = {k: v for k, v in local.items() if v is not None}
+    if definition is not None:
+        study, trials, options = _from_definition(definition, study, trials, options, estimate)
+        if estimate:
+            return
+    if study is None:
+        raise BenchError("give --study NAME (or --best STUDY, or --definition FILE)")
     if workers is not None and workers < 1:
         raise BenchError(f"--workers must be >= 1, got {workers}")
     from studies.progress import make_bar
