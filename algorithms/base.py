@@ -159,7 +159,8 @@ class Method(ABC):
     module outside its own names it (docs/extending.md): ``learned`` (False: a planner,
     evaluated in mode ``planner`` and never trained), ``safety_filter_default`` (a cell's
     ``safety_filter`` when the cell leaves it unset), ``payload_model`` (how the scalars it
-    sends per step are counted, shown by ``bench methods``), ``display_name`` and ``color``
+    sends per step are counted, shown by ``bench methods``; ``payload_not_modelled``: True when
+    ``Decision.payload`` is NaN every step, a method with no channel to count), ``display_name`` and ``color``
     (legend label and hex colour in every report figure; default: the name, grey),
     ``line_style`` and
     ``legend_rank`` (order in legends and tables; default after the built-ins), and
@@ -174,6 +175,7 @@ class Method(ABC):
     Params: ClassVar[type[MethodParams]] = MethodParams
     safety_filter_default: ClassVar[bool] = False
     payload_model: ClassVar[str] = "scalars the method reports in Decision.payload each step"
+    payload_not_modelled: ClassVar[bool] = False  # True: Decision.payload is NaN (a centralized planner)
     display_name: ClassVar[str] = ""
     color: ClassVar[str] = "#4d4d4d"
     line_style: ClassVar[str] = "-"  # matplotlib line style, so lines stay apart in greyscale
@@ -237,6 +239,7 @@ class Method(ABC):
                 running = ~core.ended
                 t, before = core.t, None if observer is None else Snapshot.of(core)
                 dec = self.decide(batch, state, choice)
+                self._check_payload(dec.payload)
                 res = core.step(dec.actions)
                 stats.add(running, res, dec)
                 self.observe(batch, state, res)
@@ -245,6 +248,16 @@ class Method(ABC):
         except BenchError as exc:  # a bad action or payload: name the method that decided it
             raise BenchError(f"method {self.name}: {exc}") from None
         return state, stats.finish(core.done)
+
+    def _check_payload(self, payload: np.ndarray | float) -> None:
+        """BenchError unless ``payload`` is finite, or NaN throughout for a method whose
+        payload is not modelled (``payload_not_modelled``): an inf or a stray NaN would be
+        stored as NaN without a word (issue 52, D16)."""
+        p = np.asarray(payload, dtype=np.float64)
+        if np.isfinite(p).all() or (self.payload_not_modelled and np.isnan(p).all()):
+            return
+        raise BenchError(f"Decision.payload holds {p[~np.isfinite(p)].flat[0]}: it counts the scalars sent this "
+                         "step, a finite number (per episode or one for all)")
 
     @classmethod
     def execution_modes(cls, temperatures: Iterable[float] = DEFAULT_TEMPERATURES) -> tuple[str, ...]:

@@ -135,6 +135,7 @@ class PIBTMethod(Method):
     paper_role = BASELINE  # compared with the paper's method (Sec. IV)
     line_style = ":"
     payload_model = "not modelled: a centralized planner with full information (NaN in the eval rows)"
+    payload_not_modelled = True
     learned = False
     Params = PIBTParams
 

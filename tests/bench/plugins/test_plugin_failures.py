@@ -48,6 +48,8 @@ PLUGINS = {
     "noisy": "print('imported noisy')\n" + WAITER + "NOISY = True\n",
     "nan_actions": WAITER + "ACTIONS = float('nan')\n",
     "nan_payload": WAITER + "PAYLOAD = float('inf')\n",
+    "undeclared_nan_payload": WAITER + "PAYLOAD = float('nan')\n",
+    "declared_nan_payload": WAITER + "PAYLOAD = float('nan')\nWaiter.payload_not_modelled = True\n",
     "impostor": WAITER + "Waiter.name = 'pibt'\nWaiter.display_name = 'PIBT'\n",
     "label_impostor": WAITER + "Waiter.display_name = 'pibt'\n",
 }
@@ -132,11 +134,19 @@ def test_d15_fractional_float_actions_are_refused_and_integral_floats_still_work
     assert core.t == 1
 
 
+@pytest.mark.parametrize("module, value", [("nan_payload", "inf"), ("undeclared_nan_payload", "nan")])
 def test_d16_a_non_finite_payload_is_one_line_naming_the_method(
-        plugins: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run_cli(capsys, *EVAL, "--method", "p52_nan_payload:Waiter")
+        plugins: Path, capsys: pytest.CaptureFixture[str], module: str, value: str) -> None:
+    code, _, err = run_cli(capsys, *EVAL, "--method", f"p52_{module}:Waiter")
     assert code == 2
-    one_error_line(err, "method waiter", "Decision.payload holds inf")
+    one_error_line(err, "method waiter", f"Decision.payload holds {value}")
+
+
+def test_d16_a_method_that_declares_its_payload_not_modelled_reports_nan(
+        plugins: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run_cli(capsys, *EVAL, "--method", "p52_declared_nan_payload:Waiter", "--json")
+    assert code == 0, err
+    assert json.loads(out)["mean"]["planner"]["payload_scalars_per_step"] is None  # NaN: not modelled
 
 
 @pytest.mark.parametrize("module, field", [("impostor", "name 'pibt'"), ("label_impostor", "display name 'pibt'")])
