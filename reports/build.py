@@ -44,6 +44,7 @@ from reports.data.variants import cell_variants, default_rows
 from reports.figures.fig1_training import fig1_training
 from reports.figures.fig2_success import fig2_modes, fig2_success
 from reports.figures.fig3_payload import fig3_payload
+from reports.figures.training_diagnostics import training_diagnostics
 from reports.matrix import matrix_entries
 from reports.pages.index import Entry, IndexData, index_html, index_markdown, markdown_tables
 from reports.tables.ablation import ablation_frame, ablation_markdown, component_values, setting
@@ -259,6 +260,13 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
             save_figure(built.fig, out / stem, built.caption)
             entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"), tuple(built.notes),
                                  image=f"{stem}.png", caption=built.caption))
+
+    diag = training_diagnostics(train)  # runs whose train rows hold the diagnostics (docs/decisions/0205)
+    if diag is not None:
+        save_figure(diag.fig, out / "training_diagnostics", diag.caption)
+        entries.append(Entry("Training diagnostics", ("training_diagnostics.png", "training_diagnostics.pdf",
+                                                      "training_diagnostics.txt"), tuple(diag.notes),
+                             image="training_diagnostics.png", caption=diag.caption))
 
     table, t_notes = table1_frame(evals)
     write_text(out / "table1_safety.md", table1_markdown(table, t_notes))

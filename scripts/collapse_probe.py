@@ -39,10 +39,12 @@ def main() -> int:
     ap.add_argument("--layout", default="warehouse-10-20-10-2-1")
     ap.add_argument("--params", default="{}", help="method parameters as JSON")
     ap.add_argument("--csv", type=Path)
+    ap.add_argument("--eval", type=int, default=0, help="then evaluate this many episodes per mode (argmax, sample)")
     args = ap.parse_args()
     torch.set_num_threads(1)
     env = EnvConfig.make(n_robots=args.n, layout=args.layout, horizon=args.horizon, loss_p=args.p, groups=4)
-    method = method_class(args.method)(env, json.loads(args.params), seed=args.seed)
+    params = {**json.loads(args.params), **({"eval_chunk": args.eval} if args.eval else {})}
+    method = method_class(args.method)(env, params, seed=args.seed)
     rows: list[dict] = []
     print("update", *SHOWN, sep="\t")
     for u in range(args.updates):
@@ -50,6 +52,10 @@ def main() -> int:
         rows += batch
         means = [float(np.nanmean([float(r.get(k, np.nan)) for r in batch])) for k in SHOWN]
         print(u, *(f"{v:.4g}" for v in means), sep="\t", flush=True)
+    for mode in ("argmax", "sample") if args.eval else ():
+        ev = method.evaluate(0, execution=mode)
+        print(f"eval {mode}: success {np.mean([r['success_rate'] for r in ev]):.3f} "
+              f"return {np.mean([r['team_return'] for r in ev]):.1f} over {len(ev)} episodes", flush=True)
     if args.csv:
         keys = sorted({k for r in rows for k in r})
         with args.csv.open("w", newline="") as fh:
