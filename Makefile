@@ -1,18 +1,28 @@
-# The README's two quick-start commands are `make smoke` and `make test`; CI calls `make test`.
+# The README's two quick-start commands are `make smoke` (the runtime only: no test, lint or docs
+# tools) and `make test` (adds them: the dev extra); CI calls `make setup` and `make test`.
 VENV ?= .venv
 BENCH := $(VENV)/bin/bench
 PY := $(VENV)/bin/python
 
-.PHONY: setup smoke test lint docs anchors marl-eval clean-venv example-check docker-check cluster-check
+.PHONY: runtime setup smoke test lint docs anchors marl-eval clean-venv example-check docker-check cluster-check
 
+# The runtime (what `bench` needs to run and report), then the dev extra on top of it.
 $(VENV)/.installed: pyproject.toml constraints.txt scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
 	touch $@
 
-setup: $(VENV)/.installed
+$(VENV)/.installed-dev: $(VENV)/.installed
+	VENV=$(VENV) EXTRAS=dev bash scripts/setup.sh
+	touch $@
 
-## Set up, run the smoke grid on this machine and build its report.
-smoke: setup
+## The runtime only (what `make smoke` installs).
+runtime: $(VENV)/.installed
+
+## The runtime and the test, lint and docs tools (the dev extra).
+setup: $(VENV)/.installed-dev
+
+## Set up the runtime, run the smoke grid on this machine and build its report.
+smoke: runtime
 	$(BENCH) run --grid smoke --out results/smoke
 	$(BENCH) report --run results/smoke
 

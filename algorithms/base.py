@@ -32,10 +32,9 @@ import time
 import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
-import torch
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from algorithms.common.allocator import tune_allocator
@@ -62,6 +61,9 @@ from envs.config import EnvConfig, format_validation_error
 from envs.core import StepResult
 from envs.errors import BenchError
 from envs.layouts import load_layout
+
+if TYPE_CHECKING:  # imported where it is used: the registry, cells and the CLI load this without torch
+    import torch
 
 # The whole Method API from one import (docs/api.md; docs/guide/tutorial.md builds a method on it).
 __all__ = ["BASELINE", "REFERENCE", "UNRANKED", "ActionChoice", "Decision", "EpisodeBatch", "InferenceModeError",
@@ -200,6 +202,8 @@ class Method(ABC):
         self.params = self.parse_params(params or {})
         self.seed = int(seed)
         self.layout = load_layout(env.layout)
+        import torch
+
         self.iterations = 0  # training updates done
         self.episodes_done = 0
         torch.manual_seed(self.seed)  # initial weights: a pure function of the seed
@@ -281,6 +285,8 @@ class Method(ABC):
         ``execution`` (default argmax, planner for a planner); each row names its mode
         (``execution``) and its scenario (``scenario``, a hash of starts and goals).
         ``observer`` sees every step of the chunk's batch (see ``run``)."""
+        import torch
+
         size = self.params.eval_chunk
         seed = self.seed if seed is None else int(seed)
         choice = self.execution_choice(execution, seed, chunk)
@@ -298,6 +304,8 @@ class Method(ABC):
         """One update from ``batch_episodes`` fresh episodes; rows carry the losses."""
         if not self.learned:
             return []
+        import torch
+
         t0 = time.perf_counter()
         with torch.inference_mode():
             state, rows = self.run(self.train_batch(), ActionChoice.train(self.torch_gen))
@@ -362,6 +370,8 @@ class Method(ABC):
         return {}
 
     def state_dict(self) -> dict[str, Any]:
+        import torch
+
         out: dict[str, Any] = {
             "iterations": self.iterations,
             "episodes_done": self.episodes_done,
@@ -373,6 +383,8 @@ class Method(ABC):
         return out
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        import torch
+
         self.iterations = int(state["iterations"])
         self.episodes_done = int(state["episodes_done"])
         self.torch_gen.set_state(state["torch_gen"])
@@ -383,5 +395,7 @@ class Method(ABC):
 
 def masked_logits(logits: torch.Tensor, mask: np.ndarray | torch.Tensor) -> torch.Tensor:
     """Set logits of disallowed actions (mask False) to a large negative number."""
+    import torch
+
     m = torch.as_tensor(mask, dtype=torch.bool)
     return logits.masked_fill(~m, -1e9)

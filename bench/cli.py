@@ -48,6 +48,7 @@ class Suite(str, Enum):
     pibt = "pibt"
     train = "train"
     peers = "peers"
+    cli = "cli"
     all = "all"
 
 
@@ -116,6 +117,9 @@ def run(
     from bench.tracking import parse_log
 
     log_names = parse_log(log)
+    from bench.design.overrides import apply_overrides, parse_overrides
+
+    overrides = parse_overrides(set_ or (), axis or ())  # a misspelled key: one line before any grid is built
     from bench.design.grid_files import check_run_name, load_grid_file
     from bench.design.grids import get_grid
     from bench.execute.runner import sigterm_as_interrupt, sigterm_received
@@ -134,9 +138,6 @@ def run(
     else:
         assert grid_file is not None  # exactly one of the two, checked above
         g = load_grid_file(grid_file, seeds)
-    from bench.design.overrides import apply_overrides, parse_overrides
-
-    overrides = parse_overrides(set_ or (), axis or ())
     g = apply_overrides(g, overrides)
     out_dir = out if out is not None else Path("results") / check_run_name(g.name, "grid name")
     store = RunStore(out_dir)
@@ -318,6 +319,11 @@ def eval_(
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
+    if method is not None:  # a misspelled name is one line before torch and Ray load (issue 51 item 6)
+        from algorithms.registry import available, is_path, method_class
+
+        if not is_path(method) and method not in available():
+            method_class(method)  # the registry's one-line error, naming the registered methods
     from bench.execute.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
@@ -393,11 +399,6 @@ def report(
     if out is None and not _writable(target):
         raise BenchError(f"run directory {str(run_dir)!r} is read-only; write the report elsewhere "
                          "with --out DIR")
-    try:
-        from reports.build import build_report
-    except ImportError as exc:
-        raise BenchError(f"the report builder is not available: {exc}") from None
-    from bench.store.completeness import incomplete_cells
     from bench.store.integrity import find_damage
     from bench.store.run_store import RunStore
 
@@ -406,10 +407,18 @@ def report(
     broken = [d for d in damage if d.rel == "cells.parquet"]
     if broken:
         raise BenchError(f"{str(run_dir)!r}: {broken[0].line()}")
-    for d in damage:  # left out of the report (reports/data/store.py), never read as numbers
-        typer.echo(f"bench: warning: {d.line()}", err=True)
     cells = store.read_cells()
     damaged = {d.cell_id for d in damage}
+    if against is not None and cells is not None:  # the cell lists first: refused before any row is read
+        _precheck_against(cells[~cells["cell_id"].isin(damaged)], against)
+    try:
+        from reports.build import build_report
+    except ImportError as exc:
+        raise BenchError(f"the report builder is not available: {exc}") from None
+    from bench.store.completeness import incomplete_cells
+
+    for d in damage:  # left out of the report (reports/data/store.py), never read as numbers
+        typer.echo(f"bench: warning: {d.line()}", err=True)
     if cells is not None and "" not in damaged:  # a folder replaced: --repair, not "complete it" (D12)
         for cid, gap in incomplete_cells(store, cells).items():
             if cid not in damaged:
@@ -428,6 +437,22 @@ def report(
         hint = "; write the report elsewhere with --out DIR" if out is None else ""
         raise BenchError(f"cannot write the report: {exc.filename or target}: read-only file system{hint}") from None
     typer.echo(f"report: {built / 'index.html'}  (also index.md, figures, tables, claims.md)")
+
+
+def _precheck_against(cells: Any, against: Path) -> None:
+    """``--against``'s checks of configurations and settings on the two runs' cells.parquet
+    (reports/data/against.py), before the report loads any row."""
+    from bench.store.run_store import RunStore
+    from reports.data.against import check_cell_lists
+
+    ref = RunStore(against)
+    ref.require_run()
+    ref_cells = ref.read_cells()
+    if ref_cells is None:
+        return  # load_store says what is missing, as before
+    done = cells[cells["status"].fillna("pending").astype(str) == "done"]
+    ref_done = ref_cells[ref_cells["status"].fillna("pending").astype(str) == "done"]
+    check_cell_lists(done, ref_done, str(against))
 
 
 @app.command()
@@ -590,6 +615,7 @@ PERF_SUITES = {
     "pibt": ("bench.perf.pibt", "run_pibt_suite"),
     "train": ("bench.perf.methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
     "peers": ("bench.perf.peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
+    "cli": ("bench.perf.cli", "run_cli_suite"),  # wall time of commands that do not train (issue 51)
 }
 
 

@@ -23,11 +23,14 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
 from envs.errors import BenchError
+
+if TYPE_CHECKING:  # imported where it is used: naming a mode or checking a cell needs no torch
+    import torch
 
 __all__ = ["ACTION_STREAM", "ARGMAX", "ARGMAX_CHOICE", "DEFAULT_TEMPERATURES", "HEADLINE", "PLANNER", "SAMPLE", "TRAIN",
            "ActionChoice", "ExecutionMode", "action_generator", "check_temperatures", "execution_modes",
@@ -108,6 +111,8 @@ def sample_categorical(logits: torch.Tensor, temperature: float | None,
     """
     if temperature is None:
         return logits.argmax(dim=-1)
+    import torch
+
     flat = logits.reshape(-1, logits.shape[-1]).double()
     if float(temperature) != 1.0:  # x / 1.0 is x: skipped at T = 1 (training, 'sample')
         flat = flat / float(temperature)
@@ -120,6 +125,8 @@ def multinomial_one(probs: torch.Tensor, gen: torch.Generator | None) -> torch.T
     CPU kernel computes it (argmax of p / q with q ~ Exp(1) drawn by ``exponential_`` from
     ``gen``): the same samples and the same generator state afterwards, with one finiteness
     check instead of torch's several validity reductions (tests/algorithms/test_baseline_fast_paths.py)."""
+    import torch
+
     q = torch.empty_like(probs).exponential_(1, generator=gen)
     torch.div(probs, q, out=q)
     if not bool(torch.isfinite(probs.sum())):
@@ -130,6 +137,8 @@ def multinomial_one(probs: torch.Tensor, gen: torch.Generator | None) -> torch.T
 def action_generator(seed: int, chunk: int) -> torch.Generator:
     """The action-sampling generator of evaluation chunk ``chunk`` of a cell seed; a stream
     of its own (``ACTION_STREAM``), never the scenario/loss stream of the chunk."""
+    import torch
+
     state = np.random.SeedSequence([int(seed), ACTION_STREAM, int(chunk)]).generate_state(2, np.uint32)
     return torch.Generator().manual_seed(int(state[0]) << 31 | int(state[1]) >> 1)
 

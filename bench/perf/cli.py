@@ -54,12 +54,12 @@ def run_cli_suite(repeats: int = 3, reproduction: Path | None = None) -> pd.Data
     """One row per command of ``COMMANDS``, and ``against_refused`` where the committed
     ``reproduction`` folder is found (default: ./reproduction): ``report --run
     reproduction/ablation --against reproduction/paper``, refused (their horizons differ)."""
-    rows = [{"command": name, **time_command(argv, repeats)} for name, argv in COMMANDS.items()]
+    rows = [{"suite": "cli", "command": name, **time_command(argv, repeats)} for name, argv in COMMANDS.items()]
     root = (reproduction or Path("reproduction")).resolve()
     if (root / "ablation").is_dir() and (root / "paper").is_dir():
         with tempfile.TemporaryDirectory() as out:
             argv = ["report", "--run", str(root / "ablation"), "--against", str(root / "paper"), "--out", out]
-            rows.append({"command": "against_refused", **time_command(argv, repeats)})
+            rows.append({"suite": "cli", "command": "against_refused", **time_command(argv, repeats)})
     return pd.DataFrame(rows)
 
 

@@ -47,7 +47,14 @@ def _learned(cells: pd.DataFrame) -> pd.DataFrame:
 def check_compatible(mine: Store, ref: Store, ref_name: str) -> None:
     """BenchError naming the first configuration, setting or scenario where ``ref`` cannot
     stand beside ``mine`` (see the module docstring)."""
-    mine_done, ref_done = mine.done, ref.done
+    check_cell_lists(mine.done, ref.done, ref_name)
+    _check_scenarios(mine, ref, ref_name)
+
+
+def check_cell_lists(mine_done: pd.DataFrame, ref_done: pd.DataFrame, ref_name: str) -> None:
+    """Checks 1 and 2 of the module docstring on the two runs' done cells alone (rows of
+    cells.parquet): ``bench report`` runs them before it loads any training or evaluation
+    row, so a mismatch is refused in a second."""
     if mine_done.empty:
         raise BenchError(f"--against {ref_name}: the run has no done cell to compare")
     for n, p in _configs(mine_done):
@@ -65,6 +72,10 @@ def check_compatible(mine: Store, ref: Store, ref_name: str) -> None:
         if ea and eb and ea != eb:
             raise BenchError(f"--against {ref_name}: training episodes differ at {where}: "
                              f"{', '.join(map(str, ea))} here, {', '.join(map(str, eb))} there")
+
+
+def _check_scenarios(mine: Store, ref: Store, ref_name: str) -> None:
+    """Check 3 of the module docstring: paired evaluation episodes ran equal scenarios."""
     ours = mine.eval[PAIR + ["scenario"]].drop_duplicates(PAIR)
     theirs = ref.eval[PAIR + ["scenario"]].drop_duplicates(PAIR)
     pairs = ours.merge(theirs, on=PAIR, suffixes=("", "_ref"))
@@ -74,7 +85,7 @@ def check_compatible(mine: Store, ref: Store, ref_name: str) -> None:
         raise BenchError(f"--against {ref_name}: scenario differs at N={int(r.n_robots)} p={fmt_p(r.loss_p)} "
                          f"seed {int(r.seed)} episode {int(r.episode)}: {r.scenario} here, {r.scenario_ref} "
                          "there (another layout, evaluation chunk size or code version)")
-    for n, p in _configs(mine_done):
+    for n, p in _configs(mine.done):
         if _at(pairs, n, p).empty:
             raise BenchError(f"--against {ref_name}: no paired evaluation episode at N={n} p={fmt_p(p)} "
                              "(the two runs share no seed there)")
