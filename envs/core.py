@@ -106,7 +106,7 @@ class WarehouseCore:
             on_goal = goals == starts
             if on_goal.any():
                 goals[on_goal] = self.tasks.next_goals(on_goal, starts)
-        self._set_goals(goals.copy())
+        self._set_goals(goals.copy(), per_robot=self.tasks is not None)
         self.done = self.pos == self.goal  # (B, N) task completed
         self.ended = np.zeros(b, dtype=bool)  # (B,) episode over
         self.prev_actions = np.full((b, n), WAIT, dtype=np.int64)  # U_{t-1}
@@ -118,16 +118,32 @@ class WarehouseCore:
         self._claim = np.zeros(b * f + m, dtype=np.int64)
         self._dest = np.full(b * f + m, -1, dtype=np.int64)  # next key by current key
 
-    def _set_goals(self, goals: np.ndarray) -> None:
-        """Goals g (B, N) and what depends on them: their (row, col), the distance fields of
-        the distinct goals and D(p_t, g)."""
+    def _set_goals(self, goals: np.ndarray, per_robot: bool = False) -> None:
+        """Goals g (B, N) and what depends on them: their (row, col), the distance fields and
+        D(p_t, g). One field per distinct goal, or with ``per_robot`` one per robot (lifelong
+        goals change one robot at a time: ``_retarget`` then replaces only those fields)."""
         b, n, f = goals.shape[0], self.n, self.layout.n_free
         self.goal = goals
         self.goal_rc = self.layout.float_cells[self.goal]  # (B, N, 2) float32 (row, col) of g
-        uniq, inv = np.unique(self.goal, return_inverse=True)
-        self._fields = np.ascontiguousarray(self._dist.fields(uniq).reshape(-1))  # (U*F,)
-        self._goal_base = inv.reshape(b, n).astype(np.int64) * f  # (B, N)
+        if per_robot:
+            self._fields = np.ascontiguousarray(self._dist.fields(goals.reshape(-1)).reshape(-1))  # (B*N*F,)
+            self._goal_base = np.arange(b * n, dtype=np.int64).reshape(b, n) * f
+        else:
+            uniq, inv = np.unique(self.goal, return_inverse=True)
+            self._fields = np.ascontiguousarray(self._dist.fields(uniq).reshape(-1))  # (U*F,)
+            self._goal_base = inv.reshape(b, n).astype(np.int64) * f  # (B, N)
         self.dist = self._fields[self._goal_base + self.pos]  # (B, N) D(p_t, g)
+
+    def _retarget(self, reached: np.ndarray, goals: np.ndarray) -> None:
+        """Lifelong: the robots where ``reached`` (B, N) get the next ``goals`` (C order);
+        their fields are replaced in place (one field per robot, ``_set_goals``)."""
+        f = self.layout.n_free
+        self.goal = self.goal.copy()
+        self.goal[reached] = goals
+        self.goal_rc = self.layout.float_cells[self.goal]
+        slots = self._goal_base[reached] // f
+        self._fields.reshape(-1, f)[slots] = self._dist.fields(goals)
+        self.dist = self._fields[self._goal_base + self.pos]
 
     @property
     def occupying(self) -> np.ndarray:
@@ -213,9 +229,7 @@ class WarehouseCore:
         if self.tasks is not None:  # lifelong: nobody completes, arrivals get a next goal
             self.done = done = self.done & False
             if np.count_nonzero(reached):
-                goals = self.goal.copy()
-                goals[reached] = self.tasks.next_goals(reached, new_pos)
-                self._set_goals(goals)
+                self._retarget(reached, self.tasks.next_goals(reached, new_pos))
         terminated = done.all(axis=1)
         if not all_running:
             terminated &= running

@@ -11,6 +11,7 @@ from algorithms.registry import method_class
 from envs.actions import N_ACTIONS
 from envs.config import EnvConfig
 from envs.core import WarehouseCore
+from envs.distances import distance_cache
 from envs.errors import BenchError
 from envs.layouts import load_layout
 from envs.tasks import task_cells
@@ -52,7 +53,12 @@ def test_core__arrivals_get_the_next_goal_and_the_episode_runs_to_the_horizon():
         new = core.goal[res.reached]
         was = before[res.reached]
         assert np.isin(new[np.isin(was, pickups)], stations).all()  # pickup, then delivery
-        assert np.array_equal(core.dist, core.distances_to_goal(core.pos[..., None])[..., 0])
+        fresh = distance_cache(core.layout).fields(core.goal.reshape(-1))  # (B N, F), from scratch
+        assert np.array_equal(core.dist.reshape(-1), fresh[np.arange(fresh.shape[0]), core.pos.reshape(-1)])
+        near = core.layout.next_cell[core.pos]  # every field, not only at the robots' cells
+        assert np.array_equal(core.distances_to_goal(near),
+                              fresh.reshape(*core.pos.shape, -1)[np.arange(3)[:, None, None],
+                                                                 np.arange(6)[None, :, None], near])
         assert (res.goal_bonus[res.reached] > 0).all()
     assert core.t == 60 and arrivals > 6
 
