@@ -80,6 +80,9 @@ class MethodParams(BaseModel):
     """Hyperparameters shared by every method; subclasses add their own fields."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
+    # Parameters added after cells were stored whose default is the behaviour those cells ran
+    # with: a stored row without one is no change while it is at its default (decision 0275).
+    added_later: ClassVar[tuple[str, ...]] = ()
 
     batch_episodes: int = Field(8, ge=1, description="episodes per training update (batched in one process)")
     eval_chunk: int = Field(10, ge=1, description="evaluation episodes per chunk (the unit of fan-out)")
@@ -99,6 +102,9 @@ class LearnedParams(MethodParams):
     """Hyperparameters every learned method shares, with one set of defaults (SPEC 3
     "Equal footing": identical defaults; chosen by the measurement in
     docs/decisions/0126). Method-specific fields stay in each method's subclass."""
+
+    added_later: ClassVar[tuple[str, ...]] = (
+        "protocol", "ppo_epochs", "ppo_minibatches", "ppo_clip", "ppo_lr", "gamma", "gae_lambda", "credit")
 
     hidden: int = Field(64, ge=4, description="hidden width of the method's policy networks")
     critic_hidden: int = Field(64, ge=4, description="width of the centralized critic V_omega")

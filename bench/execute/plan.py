@@ -132,7 +132,15 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
         return []
     if not isinstance(old, dict):  # e.g. "nan" from a row written without parameters
         return []
-    return dict_changes(old, cell.method_params().model_dump(mode="json"))  # as stored in params_json
+    params = cell.method_params()
+    now = params.model_dump(mode="json")  # as stored in params_json
+    # A parameter its Params declares added later, absent from the stored row, is no change
+    # while at its default: the cell ran its default behaviour (docs/decisions/0275).
+    defaults = type(params).model_fields
+    for key in set(params.added_later) - set(old):
+        if now.get(key) == defaults[key].default:
+            del now[key]
+    return dict_changes(old, now)
 
 
 def dict_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:

@@ -503,3 +503,14 @@ def test_changed_default__a_field_the_stored_row_lacks_and_many_cells_in_one_mes
     msg = str(exc.value)
     assert msg.startswith(f"{out}: 7 stored cell(s) were run with other method parameters")
     assert msg.count('marker: (absent) -> ""') == 5 and "; and 2 more. Resuming" in msg
+
+
+def test_params_changes__a_parameter_added_later_is_a_change_only_off_its_default() -> None:
+    cell = Cell.make(method="decentralized", n_robots=8, loss_p=0.2, layout="tiny")
+    stored = cell.method_params().model_dump(mode="json")
+    del stored["protocol"]  # a cell trained before the parameter existed (decision 0275)
+    assert params_changes(json.dumps(stored), cell) == []
+    mappo = Cell.make(method="decentralized", n_robots=8, loss_p=0.2, layout="tiny", params={"protocol": "mappo"})
+    assert params_changes(json.dumps(stored), mappo) == ["protocol: (absent) -> \"mappo\""]
+    stored["protocol"] = "mappo"  # a stored value other than today's is a change, default or not
+    assert params_changes(json.dumps(stored), cell) == ["protocol: \"mappo\" -> \"paper\""]
