@@ -97,6 +97,9 @@ def repair_hint(rel: str = "") -> str:
     if rel.startswith("matrix/"):
         return ("rerun `bench matrix` (same --run and conditions) with --repair: it moves the file to "
                 "superseded/ and evaluates that unit again")
+    if rel in FOLDERS or (rel.split("/")[0] in FOLDERS and not owner_cell(rel)):  # a folder replaced
+        return ("rerun `bench run` (same grid and --out) with --repair: it moves it to superseded/ and "
+                "recomputes the cells whose files it held")
     return ("rerun `bench run` (same grid and --out) with --repair: it moves the file to "
             "superseded/ and recomputes that cell only")
 
