@@ -21,9 +21,12 @@ if TYPE_CHECKING:
 
 INFO_KEYS = (
     "position", "goal", "group", "collision", "at_goal", "invalid", "progress",
-    "goal_bonus", "collision_penalty", "time_penalty", "link_available", "payload_hier",
-    "payload_dec", "t",
+    "goal_bonus", "collision_penalty", "time_penalty", "link_available", "message_age",
+    "payload_hier", "payload_dec", "t",
 )
+
+
+_ROWS = ("link_available", "message_age")  # (N, Z) columns handed out as row views
 
 
 class _Pending:
@@ -51,7 +54,9 @@ class StepInfos(dict[str, Any]):
     per robot i,
     ``position``/``goal`` (N, 2) (row, col), ``group`` (N,), ``collision``, ``at_goal``,
     ``invalid`` (N,) bool, the four reward terms (N,) float, ``link_available`` (N, Z)
-    bool (row i: A_t[:, z_i]); ``constants`` are ``payload_hier``, ``payload_dec``, ``t``.
+    bool (row i: A_t[:, z_i]), ``message_age`` (N, Z) int (row i: steps since the freshest
+    message group z_i holds from each group was sent; 0 for its own); ``constants`` are
+    ``payload_hier``, ``payload_dec``, ``t``.
     The arrays must not be modified afterwards (the adapter passes fresh ones).
     """
 
@@ -76,7 +81,7 @@ class StepInfos(dict[str, Any]):
         if callable(cols):
             cols = self._cols = cols()
         if lists is None:  # one tolist per column, the first time any info is read
-            lists = self._lists = {k: v.tolist() for k, v in cols.items() if k != "link_available"}
+            lists = self._lists = {k: v.tolist() for k, v in cols.items() if k not in _ROWS}
         i = self._ids[agent]
         info = {
             "position": tuple(lists["position"][i]), "goal": tuple(lists["goal"][i]),
@@ -86,6 +91,7 @@ class StepInfos(dict[str, Any]):
             "collision_penalty": lists["collision_penalty"][i],
             "time_penalty": lists["time_penalty"][i],
             "link_available": cols["link_available"][i],
+            "message_age": cols["message_age"][i],
         }
         info.update(self._const)
         return info

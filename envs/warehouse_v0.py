@@ -169,6 +169,8 @@ class WarehouseParallelEnv(ParallelEnv):
             tasks = TaskStream.seeded(self.layout, n, 1, self._rng.spawn(1)[0])
         self.core.reset(starts, goals, tasks)
         self.links = self.channel.step()[0]  # A_0
+        self._held = np.full(self.links.shape, -1, dtype=np.int64)  # send step of what z holds from z'
+        self._hold()
         self._last = None
         # Every robot starts in ``agents``, even one placed on its goal (done at t = 0).
         self._live[:] = True
@@ -195,6 +197,7 @@ class WarehouseParallelEnv(ParallelEnv):
         res = self.core.step_checked(u[None])  # action_vector checked every action
         self._last = res
         self.links = self.channel.step()[0]  # A_{t+1}: messages carrying X_{t+1}
+        self._hold()
 
         names = self.agents  # alive at the start of this step, in index order
         false, true, pending, live = self._templates()
@@ -233,6 +236,22 @@ class WarehouseParallelEnv(ParallelEnv):
         if self.record:
             self.frames.append(self._frame())
         return obs, rewards, terminations, truncations, infos
+
+    def _hold(self) -> None:
+        """Update the send step of the freshest message each group holds from each other
+        (the channel's own record under a delay; the last delivery otherwise)."""
+        channel = self._live_channel()
+        if channel.sent_at is not None:
+            self._held = channel.sent_at[0].copy()
+        else:
+            self._held[self.links] = self.core.t
+
+    def message_ages(self) -> np.ndarray:
+        """(Z, Z) int [z', z]: steps since the freshest message z holds from z' was sent
+        (t + 1 when none has arrived yet; 0 on the diagonal: a group knows its own state)."""
+        ages = self.core.t - self._held
+        np.fill_diagonal(ages, 0)
+        return ages
 
     def _templates(self) -> tuple[dict, dict, dict, np.ndarray | None]:
         """{agent: False}, {agent: True} and StepInfos' pending dict over ``agents``, and
@@ -283,7 +302,8 @@ class WarehouseParallelEnv(ParallelEnv):
         # Copies (a few hundred bytes): the infos must not change if the core or the
         # channel ever reuse their arrays in place.
         columns = partial(_info_columns, self.layout.cells, self.core.pos[0].copy(),
-                          self.core.goal[0].copy(), self.groups, self.links.copy(), progress.copy(),
+                          self.core.goal[0].copy(), self.groups, self.links.copy(), self.message_ages(),
+                          progress.copy(),
                           goal_bonus.copy(), collision_penalty.copy(), time_penalty.copy(),
                           collision.copy(), invalid.copy())
         channel = self._live_channel()
@@ -356,7 +376,7 @@ class WarehouseParallelEnv(ParallelEnv):
 
 
 def _info_columns(cells: np.ndarray, pos: np.ndarray, goal: np.ndarray, groups: np.ndarray,
-                  links: np.ndarray, progress: np.ndarray, goal_bonus: np.ndarray,
+                  links: np.ndarray, ages: np.ndarray, progress: np.ndarray, goal_bonus: np.ndarray,
                   collision_penalty: np.ndarray, time_penalty: np.ndarray,
                   collision: np.ndarray, invalid: np.ndarray) -> dict[str, np.ndarray]:
     """The (N, ...) columns of ``StepInfos`` from cell indices pos/goal (N,), the cell
@@ -367,6 +387,7 @@ def _info_columns(cells: np.ndarray, pos: np.ndarray, goal: np.ndarray, groups: 
         "progress": progress, "goal_bonus": goal_bonus,
         "collision_penalty": collision_penalty, "time_penalty": time_penalty,
         "link_available": links.T[groups],  # (N, Z): does z_i hear from z'
+        "message_age": ages.T[groups],  # (N, Z): age of what z_i holds from z'
     }
 
 

@@ -117,6 +117,7 @@ class PlainParallelEnv(WarehouseParallelEnv):
         res = self.core.step(u[None])
         self._last = res
         self.links = self.channel.step()[0]
+        self._hold()
 
         names = self.agents
         everyone = len(names) == self.config.n_robots

@@ -90,3 +90,21 @@ def test_config__delay_errors_are_one_clear_line():
 def test_geometric_delay__has_the_configured_mean():
     d = DelayLine((40_000,), 2.0, "geometric", 16, np.random.default_rng(1)).delays()
     assert abs(d.mean() - 2.0) < 0.05 and d.min() == 0  # the bound moves the mean by 0.003
+
+
+@pytest.mark.parametrize("delay, loss, want", [
+    (0.0, 0.0, lambda t: 0),  # every message arrives the step it is sent
+    (2.0, 0.0, lambda t: min(t + 1, 2)),  # nothing before t = 2, then the message of t - 2
+    (0.0, 1.0, lambda t: t + 1),  # never anything
+])
+def test_pettingzoo__infos_carry_the_age_of_what_each_group_holds(delay, loss, want):
+    from envs.warehouse_v0 import parallel_env
+
+    env = parallel_env(n_robots=8, layout="wh20", groups=4, horizon=10, loss_p=loss, delay=delay)
+    _, infos = env.reset(seed=0)
+    for t in range(6):
+        for agent, info in infos.items():
+            own = env.groups[env.agent_ids[agent]]
+            ages = np.asarray(info["message_age"])
+            assert ages[own] == 0 and (np.delete(ages, own) == want(t)).all(), (t, agent, ages)
+        _, _, _, _, infos = env.step(dict.fromkeys(env.agents, 4))

@@ -21,6 +21,7 @@ def make_infos() -> tuple[StepInfos, dict]:
         "progress": np.array([1.0, -1.0]), "goal_bonus": np.array([0.0, 10.0]),
         "collision_penalty": np.array([-2.0, 0.0]), "time_penalty": np.array([-0.1, 0.0]),
         "link_available": np.array([[False, True], [True, False]]),
+        "message_age": np.array([[0, 2], [0, 0]]),
     }
     consts = {"payload_hier": 12, "payload_dec": 6, "t": 3}
     infos = StepInfos(["robot_0", "robot_1"], {"robot_0": 0, "robot_1": 1}, columns, consts)
@@ -38,8 +39,9 @@ def make_infos() -> tuple[StepInfos, dict]:
 
 
 def plain(d: dict) -> dict:
-    """Drop the array entry so dicts compare with ==."""
-    return {a: {k: v for k, v in info.items() if k != "link_available"} for a, info in d.items()}
+    """Drop the array entries so dicts compare with ==."""
+    return {a: {k: v for k, v in info.items() if k not in ("link_available", "message_age")}
+            for a, info in d.items()}
 
 
 @pytest.mark.parametrize("read", [
@@ -55,6 +57,7 @@ def test_step_infos__every_read_path_gives_the_built_dicts(read):
     assert type(got["robot_0"]) is dict and plain(got) == want
     assert list(got["robot_0"]) == list(INFO_KEYS)
     np.testing.assert_array_equal(got["robot_1"]["link_available"], [True, False])
+    np.testing.assert_array_equal(got["robot_0"]["message_age"], [0, 2])
     assert all(type(v) in (int, float, bool, tuple) for v in want["robot_0"].values())
 
 
@@ -79,8 +82,9 @@ def test_step_infos__equal_to_a_dict_with_the_same_content():
     infos, want = make_infos()
     other, _ = make_infos()
     for a in want:
-        other[a].pop("link_available")
-        infos[a].pop("link_available")
+        for key in ("link_available", "message_age"):
+            other[a].pop(key)
+            infos[a].pop(key)
     assert infos == want and infos == other and not infos != want
 
 
