@@ -93,6 +93,11 @@ class MethodParams(BaseModel):
         return data
 
 
+# LearnedParams fields added after stores were written (issue 54): a stored params_json
+# without one ran with its default (bench/execute/plan.py params_changes).
+LATER_PARAMS = ("protocol", "ppo_epochs", "ppo_minibatches", "ppo_clip", "ppo_lr", "gamma", "gae_lambda", "credit")
+
+
 class LearnedParams(MethodParams):
     """Hyperparameters every learned method shares, with one set of defaults (SPEC 3
     "Equal footing": identical defaults; chosen by the measurement in

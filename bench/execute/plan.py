@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from algorithms.base import LATER_PARAMS
 from bench.design.cells import Cell
 from bench.design.costs import cell_seconds
 from bench.design.grids import Grid
@@ -132,7 +133,13 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
         return []
     if not isinstance(old, dict):  # e.g. "nan" from a row written without parameters
         return []
-    return dict_changes(old, cell.method_params().model_dump(mode="json"))  # as stored in params_json
+    params = cell.method_params()
+    now = params.model_dump(mode="json")  # as stored in params_json
+    for key in LATER_PARAMS:  # added after stores were written: absent there means its default
+        spec = type(params).model_fields.get(key)
+        if key not in old and spec is not None and now.get(key) == spec.default:
+            now.pop(key)
+    return dict_changes(old, now)
 
 
 def dict_changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
