@@ -1,6 +1,8 @@
 """The mappo training protocol (algorithms/common/ppo.py, issue 54)."""
 from __future__ import annotations
 
+import json
+
 import pytest
 import torch
 
@@ -65,3 +67,19 @@ def test_hierarchical_mappo_trains_both_levels() -> None:
     m.train_iteration()
     assert any(not torch.equal(a, b) for a, b in zip(ref, m.reference.parameters(), strict=True))  # type: ignore[attr-defined]
     assert any(not torch.equal(a, b) for a, b in zip(loc, m.local.parameters(), strict=True))  # type: ignore[attr-defined]
+
+
+def test_a_stored_params_json_without_the_protocol_fields_is_unchanged() -> None:
+    from algorithms.base import LATER_PARAMS
+    from bench.design.cells import Cell
+    from bench.execute.plan import params_changes
+
+    cell = Cell(method="decentralized", n_robots=6, loss_p=0.3, groups=2, layout="tiny", episodes=4, horizon=12,
+                eval_episodes=2, seed=0)
+    now = cell.method_params().model_dump(mode="json")
+    before = {k: v for k, v in now.items() if k not in LATER_PARAMS}  # a cell stored before issue 54
+    assert params_changes(json.dumps(before), cell) == []
+    assert params_changes(json.dumps({**before, "protocol": "mappo"}), cell) == ['protocol: "mappo" -> "paper"']
+    mappo = Cell(method="decentralized", n_robots=6, loss_p=0.3, groups=2, layout="tiny", episodes=4, horizon=12,
+                 eval_episodes=2, seed=0, params={"protocol": "mappo"})
+    assert params_changes(json.dumps(before), mappo) == ['protocol: (absent) -> "mappo"']
