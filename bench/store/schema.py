@@ -15,8 +15,7 @@ import pyarrow as pa
 
 from algorithms.common.diagnostic_columns import DIAGNOSTIC_COLUMNS
 
-__all__ = ["ADDED_TRAIN_COLUMNS",
-           "CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
+__all__ = ["CELLS_SCHEMA", "EVAL_SCHEMA", "LOSS_COLUMNS", "METRIC_FIELDS", "SCHEMA_VERSION", "STATUSES", "TRAIN_SCHEMA",
            "VERSION_KEY", "added_columns", "file_version", "rows_to_table", "with_version"]
 
 SCHEMA_VERSION = 2  # 2: eval rows carry execution and scenario; cells carry executions
