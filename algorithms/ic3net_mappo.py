@@ -10,16 +10,13 @@ May import: algorithms.common (ppo, diagnostics, trainer), torch.
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any
 
 import torch
 from torch.nn import functional as F
 
 from algorithms.common.diagnostics import wait_share
 from algorithms.common.ppo import PPOBatch, RobotCritic, mappo_critic, ppo_actor_update, update_generator
-
-if TYPE_CHECKING:
-    from algorithms.ic3net import IC3NetMethod, IC3NetState
 
 __all__ = ["mappo_update"]
 
@@ -34,8 +31,10 @@ def _chunked(x: torch.Tensor, gap: int) -> torch.Tensor:
     return F.pad(x, pad).reshape(c, gap, *x.shape[1:])
 
 
-def mappo_update(method: IC3NetMethod, state: IC3NetState, critic: RobotCritic) -> dict[str, float]:
-    """One ``mappo`` update of IC3Net from a finished training batch."""
+def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, float]:
+    """One ``mappo`` update of IC3Net from a finished training batch: ``method`` is the
+    ``IC3NetMethod`` and ``state`` its ``IC3NetState`` (typed loosely: naming them here would
+    close an import circle with algorithms/ic3net.py)."""
     p, buf = method.params, state.buffer
     assert buf is not None and method.critic_opt is not None
     crit = mappo_critic(critic, method.critic_opt, buf, p)
