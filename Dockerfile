@@ -38,6 +38,7 @@ COPY algorithms ./algorithms
 COPY bench ./bench
 COPY studies ./studies
 COPY reports ./reports
+COPY paper ./paper
 RUN --mount=type=secret,id=pip_ca \
     if [ -s /run/secrets/pip_ca ]; then export PIP_CERT=/run/secrets/pip_ca; fi; \
     /opt/venv/bin/pip install --quiet --no-deps .

@@ -33,14 +33,6 @@ app = typer.Typer(
 )
 
 
-class GridName(str, Enum):
-    smoke = "smoke"
-    paper = "paper"
-    full = "full"
-    ablation = "ablation"
-    lifelong = "lifelong"
-
-
 class Suite(str, Enum):
     env = "env"
     hierarchical = "hierarchical"
@@ -71,8 +63,9 @@ def _root(
 # --------------------------------------------------------------------- run
 @app.command()
 def run(
-    grid: GridName | None = typer.Option(None, "--grid",
-        help="Built-in grid: smoke (CI), paper (Fig. 1-3, Table I), full, ablation (hierarchical variants)."),
+    grid: str | None = typer.Option(None, "--grid",
+        help="Named grid (`bench grids` lists them): smoke (CI), paper (Fig. 1-3, Table I), full, ablation "
+             "(hierarchical variants), or one an installed package registers."),
     grid_file: Path | None = typer.Option(None, "--grid-file",
         help="User grid (TOML or YAML): a base cell and list-valued axes."),
     seeds: int | None = typer.Option(None, "--seeds", min=1,
@@ -134,7 +127,7 @@ def run(
                                  ("--stack-seeds", "stack_seeds", stack_seeds)):
         check_count(option, field, value)
     if grid is not None:
-        g = get_grid(grid.value, seeds)
+        g = get_grid(grid, seeds)
     else:
         assert grid_file is not None  # exactly one of the two, checked above
         g = load_grid_file(grid_file, seeds)
@@ -205,7 +198,7 @@ def grids(
     from bench.design import costs
     from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates
     from bench.design.grid_files import load_grid_file
-    from bench.design.grids import BUILTIN, get_grid
+    from bench.design.grids import get_grid, grid_builders
 
     rates = None
     source = f"{costs.LABEL} on {costs.RATES_RUN}"
@@ -225,7 +218,7 @@ def grids(
                         f"{source}{stacked}; summed over cells = configurations x seeds)")
     for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "worker-hours"):
         table.add_column(col)
-    listed = [get_grid(name, seeds) for name in BUILTIN]
+    listed = [get_grid(name, seeds) for name in grid_builders()]
     if grid_file is not None:
         listed.append(load_grid_file(grid_file, seeds))
     for g in listed:
@@ -570,43 +563,6 @@ def replay(
     typer.echo(str(path))
 
 
-@app.command()
-def calibrate(
-    sims: int = typer.Option(5000, "--sims", min=10, max=1_000_000,
-                             help="Simulations per check and truth (5000: MC s.e. <= 0.005 for rates up to 14%)."),
-    run: Path | None = typer.Option(None, "--run",
-        help="Store whose per-seed spread is resampled (default: reproduction/paper)."),
-    seed: int = typer.Option(0, "--seed", min=0, help="Seed of the simulations."),
-    coverage_sims: int = typer.Option(2000, "--coverage-sims", min=10, help="Simulations for the CI coverage table."),
-    as_json: bool = typer.Option(False, "--json", help="Print JSON instead of tables."),
-    out: Path | None = typer.Option(None, "--out", help="Also write the JSON here (e.g. RUN/report/calibration.json)."),
-) -> None:
-    """Rate of `supported` of every claim check under its null (must be <= 5% + 2 MC s.e.),
-    its power under the stated effect, and its rate of `contradicted` where the claim holds
-    or sits at its boundary (same limit), with each rate's MC s.e.: every check at its own
-    seed counts and Bonferroni level, and every claim as a whole, on seed values resampled
-    from the store's own spread (and a normal case); exit 1 if an error rate is too high."""
-    import pandas as pd
-
-    from reports.claims.calibrate import calibration_report
-
-    rep = calibration_report(sims, seed, coverage_sims=coverage_sims, run=run)
-    text = json.dumps(rep, indent=2)
-    if out is not None:
-        from envs.atomic import atomic_file
-
-        with atomic_file(out) as fh:
-            fh.write(text.encode())
-    if as_json:
-        typer.echo(text)
-    else:
-        _print_frame(pd.DataFrame(rep["calibration"]),
-            f"bench calibrate ({sims} sims, null limit {rep['meta']['null_limit']})")
-        _print_frame(pd.DataFrame(rep["coverage"]), "coverage of 95% intervals over seeds")
-    if not rep["all_null_ok"]:
-        raise typer.Exit(1)
-
-
 # -------------------------------------------------------------------- perf
 PERF_SUITES = {
     "env": ("bench.perf.env", "run_env_suite"),
@@ -642,7 +598,7 @@ def perf(
             continue
         frames.append(fn())
     df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-    _print_frame(df, f"bench perf --suite {suite.value}")
+    print_frame(df, f"bench perf --suite {suite.value}")
     if json_path is not None:
         from envs.atomic import atomic_file
 
@@ -650,7 +606,7 @@ def perf(
             fh.write(df.to_json(orient="records", indent=2).encode())
 
 
-def _print_frame(df: Any, title: str) -> None:
+def print_frame(df: Any, title: str) -> None:
     """Plain aligned text (wide tables stay readable in logs and narrow terminals)."""
     typer.echo(title)
     typer.echo(df.to_string(index=False, float_format=lambda v: f"{v:.4g}") if len(df) else "(no rows)")
@@ -664,6 +620,19 @@ def _register_tune() -> None:
 
 
 _register_tune()
+
+
+def _register_commands() -> None:
+    """Commands installed packages add (entry-point group ``warehouse_marl_bench.commands``,
+    ``name = "module:function"``, a typer command function); e.g. the paper wing's
+    ``bench calibrate``. Their modules import lightly; heavy imports run inside them."""
+    from importlib import metadata
+
+    for ep in metadata.entry_points(group="warehouse_marl_bench.commands"):
+        app.command(ep.name)(ep.load())
+
+
+_register_commands()
 
 
 # -------------------------------------------------------------------- main

@@ -1,21 +1,21 @@
 """``build_report``: rebuild every figure, table and page of the report from the store alone.
 
 The only function of ``reports`` that writes files. It reads the run's Parquet store
-(``reports.data.store``), calls the pure builders (figures, Table I, summary, claims, index)
-and writes their outputs into ``<run>/report/`` (or ``bench report --out DIR``, e.g. for
-a read-only run folder), each atomically (temp file + rename, permissions from the
-umask), so an interrupted rebuild never leaves a half-written file; a full disk is one
-``DiskFull`` line. Done cells whose rows are incomplete (bench/store/completeness.py) are
-listed among the store's problems. Deterministic: bootstrap
-generators are seeded, so the same store gives the same numbers.
+(``reports.data.store``), calls the pure builders and writes their outputs into
+``<run>/report/`` (or ``bench report --out DIR``, e.g. for a read-only run folder), each
+atomically (temp file + rename, permissions from the umask), so an interrupted rebuild
+never leaves a half-written file; a full disk is one ``DiskFull`` line. Done cells whose
+rows are incomplete (bench/store/completeness.py) are listed among the store's problems.
+Deterministic: bootstrap generators are seeded, so the same store gives the same numbers.
 
-Outputs: fig1_training, fig2_success_percentiles (the run's first execution mode, argmax
-when it has it) and fig2_success_percentiles_<mode> for each other mode, fig3_comm_payload
-(.png at 200 dpi, .pdf and the caption in .txt), table1_safety.{md,tex,csv}, summary.{md,csv},
-success_by_mode.md (the README's
-results table), progress.md, claims.{md,csv}, calibration.{json,md} (the
-calibration of the claim tests), matrix_*.png/.pdf and matrix.{md,csv} when RUN/matrix/ exists
-(reports/matrix.py), index.md, index.html.
+The generic report, for any run and any method, comes first: the leaderboard
+(leaderboard.{md,csv}, its aggregates, safety_all_methods.csv, leaders.{md,csv},
+success_vs_n, success_vs_p, performance_profiles), the learning curves of every learned
+method (learning_curves), the robustness of training (robustness.{md,csv}), the summary
+(summary.{md,csv}, success_by_mode.md, progress.md), linked studies and the robustness
+matrix (reports/matrix.py). Then each registered section that applies to the run
+(``reports.sections``; e.g. the paper wing's Fig. 1-3, Table I, ablation and claims), and
+index.md, index.html.
 """
 from __future__ import annotations
 
@@ -30,24 +30,14 @@ from bench.store.study_files import CONFIG_FILE, LINK_KEY, REPORT_PAGES, report_
 from bench.store.study_files import REPORT_DIR as STUDY_REPORT_DIR
 from envs.atomic import temp_target
 from envs.errors import BenchError
-from reports.claims.catalog import all_claims
-from reports.claims.method_claims import method_claims
-from reports.claims.page import (
-    calibration_markdown,
-    claims_frame,
-    claims_markdown,
-    claims_table_markdown,
-)
 from reports.data.against import merge_against
 from reports.data.store import load_store
 from reports.data.variants import cell_variants, default_rows
-from reports.figures.fig1_training import fig1_training
-from reports.figures.fig2_success import fig2_modes, fig2_success
-from reports.figures.fig3_payload import fig3_payload
+from reports.figures.learning_curves import learning_curves
 from reports.figures.training_diagnostics import training_diagnostics
 from reports.matrix import matrix_entries
-from reports.pages.index import Entry, IndexData, index_html, index_markdown, markdown_tables
-from reports.tables.ablation import ablation_frame, ablation_markdown, component_values, setting
+from reports.pages.index import Entry, IndexData, index_html, index_markdown
+from reports.sections import ReportContext, registered_sections
 from reports.tables.leaderboard import (
     aggregate_frame,
     leaderboard_display,
@@ -65,35 +55,12 @@ from reports.tables.leaders import (
     per_method_frame,
 )
 from reports.tables.progress import progress_markdown
+from reports.tables.robustness import ROBUSTNESS_CAPTION, robustness_display, robustness_frame, robustness_markdown
 from reports.tables.success_table import success_markdown
-from reports.tables.summary import (
-    SUMMARY_CAPTION,
-    ci_display,
-    summary_display,
-    summary_frame,
-    summary_markdown,
-)
-from reports.tables.table1_safety import (
-    table1_caption,
-    table1_display,
-    table1_frame,
-    table1_latex,
-    table1_markdown,
-)
+from reports.tables.summary import SUMMARY_CAPTION, summary_display, summary_frame, summary_markdown
 from reports.writers import copy_file, save_figure, write_text
 
 REPORT_DIR = "report"
-ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eval episodes", "departs": "departs from"}
-ABLATION_METRICS = {"success_rate": ("success rate", "pct"), "collision_rate": ("collision rate", "pct"),
-                    "correction_rate": ("correction rate", "pct"), "fallback_rate": ("fallback rate", "pct"),
-                    "payload_scalars_per_step": ("payload (scalars/step)", "payload")}
-FIGURES = ("fig1_training", "fig2_success_percentiles", "fig3_comm_payload")
-
-
-def mode_slug(mode: str) -> str:
-    """A file-name part for an execution mode: "sample@0.5" -> "sample_at_0p5" (no dot, so
-    ``Path.with_suffix`` keeps it)."""
-    return "".join(c if c.isalnum() else {"@": "_at_", ".": "p"}.get(c, "_") for c in mode)
 
 
 def remove_stale_temp_files(out: Path) -> int:
@@ -150,24 +117,6 @@ def _study_entries(run_dir: Path, out: Path, problems: list[str] | None = None) 
     return entries, "" if entries else HOW_TO_LINK.format(run=run.name)
 
 
-CALIBRATION = Path(__file__).parent / "claims" / "calibration.json"  # `bench calibrate --out`, committed
-
-
-def _calibration(out: Path) -> str | None:
-    """``calibration.md`` from ``<report>/calibration.json`` (copied from the packaged
-    table when absent); returns its name for the claims page, None without a table."""
-    cached = out / "calibration.json"
-    if not cached.exists() and CALIBRATION.exists():
-        copy_file(CALIBRATION, cached)
-    if not cached.exists():
-        return None
-    rep = json.loads(cached.read_text(encoding="utf-8"))
-    import pandas as pd
-
-    write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta")))
-    return "calibration.md"
-
-
 def _shown_path(run_dir: Path) -> str:
     """The run directory as the index shows it: relative to the working directory when
     inside it (a committed report does not name the machine it was built on), else absolute."""
@@ -216,6 +165,47 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
                  image="success_vs_n.png", caption=captions[0])
 
 
+def _learning_curves(train: pd.DataFrame, out: Path) -> Entry:
+    """Every learned method's training curve per configuration (reports/figures/learning_curves.py)."""
+    built = learning_curves(train)
+    save_figure(built.fig, out / "learning_curves", built.caption)
+    return Entry("Learning curves: every learned method of the run",
+                 ("learning_curves.png", "learning_curves.pdf", "learning_curves.txt"), tuple(built.notes),
+                 image="learning_curves.png", caption=built.caption)
+
+
+def _training_diagnostics(train: pd.DataFrame, out: Path) -> list[Entry]:
+    """Runs whose train rows hold the diagnostics (docs/decisions/0205): their figure."""
+    diag = training_diagnostics(train)
+    if diag is None:
+        return []
+    save_figure(diag.fig, out / "training_diagnostics", diag.caption)
+    return [Entry("Training diagnostics", ("training_diagnostics.png", "training_diagnostics.pdf",
+                                           "training_diagnostics.txt"), tuple(diag.notes),
+                  image="training_diagnostics.png", caption=diag.caption)]
+
+
+def _robustness(train: pd.DataFrame, evals: pd.DataFrame, out: Path) -> Entry:
+    """Collapsed seeds and falling returns per learned method and N (reports/tables/robustness.py)."""
+    frame = robustness_frame(train, evals)
+    write_text(out / "robustness.md", robustness_markdown(frame))
+    write_text(out / "robustness.csv", frame.to_csv(index=False))
+    return Entry("Robustness of training", ("robustness.md", "robustness.csv"),
+                 tables=((ROBUSTNESS_CAPTION, robustness_display(frame)),) if len(frame) else ())
+
+
+def _summary(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> Entry:
+    """Every configuration and variant (reports/tables/summary.py) and the README's tables."""
+    write_text(out / "progress.md", progress_markdown(cells))  # the README's status table
+    summary = summary_frame(evals, cells)
+    write_text(out / "summary.md", summary_markdown(summary))
+    write_text(out / "summary.csv", summary.to_csv(index=False))
+    write_text(out / "success_by_mode.md", success_markdown(summary, cells))  # the README's results table
+    return Entry("Summary of every configuration (method x N x p x execution mode)",
+                 ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"),
+                 tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),))
+
+
 def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper",
                  against: Path | str | None = None) -> Path:
     """Rebuild the report (default ``<run_dir>/report/``, else ``out_dir``) from the store;
@@ -235,83 +225,14 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     # the summary and the success table show every variant in its own row.
     variants = cell_variants(store.cells)
     train, evals = default_rows(store.train, variants), default_rows(store.eval, variants)
-    paper_cells = default_rows(store.cells, variants)
-    if len(paper_cells) < len(store.cells):
+    default_cells = default_rows(store.cells, variants)
+    if len(default_cells) < len(store.cells):
         store.problems.append(
-            f"{len(store.cells) - len(paper_cells)} cells are variants of their configuration "
+            f"{len(store.cells) - len(default_cells)} cells are variants of their configuration "
             "(reports/data/variants.py): they have their own rows in the summary and success tables "
             "and are left out of the figures, Table I and the claims")
-    entries: list[Entry] = []
-
-    titles = {
-        "fig1_training": "Fig. 1: training convergence",
-        "fig2_success_percentiles": "Fig. 2: success-rate percentile curves vs IC3Net",
-        "fig3_comm_payload": "Fig. 3: communication payload and ratio",
-    }
-    fig2_mode_list = fig2_modes(evals)  # Fig. 2: one figure per execution mode, the first under its CI name
-    builders = {"fig1_training": lambda: [("fig1_training", titles["fig1_training"], fig1_training(train))],
-                "fig2_success_percentiles": lambda: [
-                    ("fig2_success_percentiles" + ("" if k == 0 else "_" + mode_slug(m)),
-                     f"{titles['fig2_success_percentiles']} ({m} execution)", fig2_success(evals, m))
-                    for k, m in enumerate(fig2_mode_list)],
-                "fig3_comm_payload": lambda: [("fig3_comm_payload", titles["fig3_comm_payload"], fig3_payload(evals))]}
-    for key in FIGURES:
-        for stem, title, built in builders[key]():
-            save_figure(built.fig, out / stem, built.caption)
-            entries.append(Entry(title, (f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"), tuple(built.notes),
-                                 image=f"{stem}.png", caption=built.caption))
-
-    diag = training_diagnostics(train)  # runs whose train rows hold the diagnostics (docs/decisions/0205)
-    if diag is not None:
-        save_figure(diag.fig, out / "training_diagnostics", diag.caption)
-        entries.append(Entry("Training diagnostics", ("training_diagnostics.png", "training_diagnostics.pdf",
-                                                      "training_diagnostics.txt"), tuple(diag.notes),
-                             image="training_diagnostics.png", caption=diag.caption))
-
-    table, t_notes = table1_frame(evals)
-    write_text(out / "table1_safety.md", table1_markdown(table, t_notes))
-    write_text(out / "table1_safety.tex", table1_latex(table))
-    write_text(out / "table1_safety.csv", table.to_csv(index=False))
-    modes = list(dict.fromkeys(table["execution"])) if len(table) else []
-    entries.append(Entry("Table I: safety filter, per execution mode",
-                         ("table1_safety.md", "table1_safety.tex", "table1_safety.csv"), tuple(t_notes),
-                         tables=tuple((f"Table I ({m}). " + table1_caption(table, m), table1_display(table, m))
-                                      for m in modes)))
-
-    write_text(out / "progress.md", progress_markdown(store.cells))  # the README's status table
-    summary = summary_frame(store.eval, store.cells)
-    write_text(out / "summary.md", summary_markdown(summary))
-    write_text(out / "summary.csv", summary.to_csv(index=False))
-    write_text(out / "success_by_mode.md", success_markdown(summary, store.cells))  # the README's results table
-    entries.append(Entry("Summary of every configuration (method x N x p x execution mode)",
-                         ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"),
-                         tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),)))
-
-    entries.append(_leaderboard(evals, out))
-
-    ablation = ablation_frame(store.eval, store.cells)
-    if len(ablation):  # runs of the ablation grid
-        ab_md = ablation_markdown(ablation, component_values(store.eval, store.cells), setting(store.cells))
-        write_text(out / "ablation.md", ab_md)
-        write_text(out / "ablation.csv", ablation.to_csv(index=False))
-        entries.append(Entry("Ablation of the hierarchical method", ("ablation.md", "ablation.csv"),
-                             tables=tuple(
-                                 (f"Ablation, {mode} execution: mean over seeds [95% CI over {g['ci_over'].iloc[0]}]",
-                                  ci_display(g, ABLATION_LABELS, ABLATION_METRICS))
-                                 for mode, g in ablation.groupby("execution", sort=False))))
-
-    claims = all_claims(train, evals, at=claims_at, cells=paper_cells) + method_claims(evals)
-    cal = _calibration(out)
-    write_text(out / "claims.md", claims_markdown(claims, cal))
-    write_text(out / "claims_table.md", claims_table_markdown(claims))  # the README's table
-    checks = claims_frame(claims)
-    write_text(out / "claims.csv", checks.to_csv(index=False))
-    cal_tables = markdown_tables((out / cal).read_text(encoding="utf-8"), (
-        "Calibration of the claim tests: rate of 'supported' on simulated data where the claim is "
-        "false (null, must be <= 5% + MC error) or true (effect: the power)")) if cal else []
-    entries.append(Entry("Claims of Sec. IV", ("claims.md", "claims.csv", "claims_table.md") + ((cal,) if cal else ()),
-                         tables=tuple(cal_tables), checks=checks))  # checks grouped per claim (index_claims)
-
+    entries = [_leaderboard(evals, out), _learning_curves(train, out), *_training_diagnostics(train, out),
+               _robustness(train, evals, out), _summary(store.eval, store.cells, out)]
     studies, studies_note = _study_entries(Path(run_dir), out, store.problems)
     entries += studies
     entries += matrix_entries(run_dir, out)  # RUN/matrix/ (bench matrix)
@@ -323,7 +244,9 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
         if clip.resolve().parent != (out / "replays").resolve():
             copy_file(clip, out / "replays" / clip.name)
     replays = sorted(str(p.relative_to(out)) for k in kinds for p in out.glob(f"replays/{k}"))
-    data = IndexData(_shown_path(Path(run_dir)), store.manifest, store.cells, entries, claims,
+    ctx = ReportContext(Path(run_dir), out, store, train, evals, default_cells, {"claims_at": claims_at})
+    parts = [section.build(ctx) for section in registered_sections() if section.applies(ctx)]
+    data = IndexData(_shown_path(Path(run_dir)), store.manifest, store.cells, entries, parts,
                      store.problems, replays, studies_note)
     write_text(out / "index.md", index_markdown(data))
     write_text(out / "index.html", index_html(data))

@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 VENV="${VENV:-.venv}"
 BENCH="$VENV/bin/bench"
 OUT="${EXAMPLE_OUT:-results/example-check}"
-PACKAGE="envs algorithms bench reports studies pyproject.toml constraints.txt reproduction"
+PACKAGE="envs algorithms bench reports studies paper pyproject.toml constraints.txt reproduction"
 before=$(git status --porcelain -- $PACKAGE; git diff -- $PACKAGE | sha256sum)
 
 "$VENV/bin/pip" install --quiet --no-deps -e examples/external_method
@@ -42,6 +42,12 @@ for want in "Greedy (example)|$OUT/smoke/report/leaderboard.md" "Linear (example
             "## above_baselines_wmb_random:RandomWalk|$OUT/module-path/report/claims.md"; do
   grep -q "${want%%|*}" "${want#*|}" || { echo "example-check: '${want%%|*}' missing from ${want#*|}" >&2; exit 1; }
 done
+# A run of outside methods only: the generic report (leaderboard first, the learning curves of
+# its learned method) and no section of the paper's wing.
+first=$(grep -m1 '^### ' "$OUT/smoke/report/index.md")
+[ "$first" = "### Leaderboard: every method of the run" ] || { echo "example-check: the smoke report opens with '$first'" >&2; exit 1; }
+grep -q "Linear (example)" "$OUT/smoke/report/learning_curves.txt" || { echo "example-check: no learning curve of linear" >&2; exit 1; }
+! grep -q "The paper's reproduction" "$OUT/smoke/report/index.md" || { echo "example-check: a paper section in a run of outside methods" >&2; exit 1; }
 after=$(git status --porcelain -- $PACKAGE; git diff -- $PACKAGE | sha256sum)
 [ "$before" = "$after" ] || { echo "example-check: files of this package changed" >&2; exit 1; }
 echo "example-check: both outside packages ran through methods, run, report (--against), tune and eval, their claims on the claims pages; this package unchanged"

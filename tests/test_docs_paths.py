@@ -1,5 +1,5 @@
 """Every file of this repository that the README, CONTRIBUTING, a docs page or a decision
-record names by its path (``bench/execute/runner.py``, ``tests/reports/claims/test_claims.py``)
+record names by its path (``bench/execute/runner.py``, ``tests/paper/claims/test_claims.py``)
 exists, so a reader who opens it finds it. Findings (docs/findings/) are dated records of
 what was true then and may name files that have since moved; they are not checked."""
 from __future__ import annotations
@@ -21,5 +21,5 @@ def test_named_paths__exist() -> None:
 
 
 def test_named_paths__the_pattern_finds_what_it_should() -> None:
-    text = "see `bench/execute/runner.py` and tests/reports/claims/test_claims.py, not x/bench/a.py"
-    assert PATH.findall(text) == ["bench/execute/runner.py", "tests/reports/claims/test_claims.py"]
+    text = "see `bench/execute/runner.py` and tests/paper/claims/test_claims.py, not x/bench/a.py"
+    assert PATH.findall(text) == ["bench/execute/runner.py", "tests/paper/claims/test_claims.py"]

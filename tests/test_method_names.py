@@ -14,26 +14,15 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 BUILT_INS = {"hierarchical", "decentralized", "ic3net", "pibt"}
 SCANNED = ("bench", "reports", "studies", "envs", "algorithms/common", "algorithms/base.py",
-           "algorithms/registry.py", "algorithms/testing.py")
+           "algorithms/registry.py", "algorithms/testing.py")  # not paper/: the paper's wing names its methods
 ALLOWED = {
-    "bench/design/grids.py": "the paper's and the benchmark's grids name the methods they run (configuration data)",
+    "bench/design/grids.py": "the smoke grid names the built-ins CI runs (configuration data)",
     "bench/design/costs.py": "cost rates measured per method (data)",
     "bench/cli.py": "`bench perf --suite` names of benchmarks of the built-ins' own kernels",
     "bench/perf/methods.py": "benchmarks of the built-in methods' kernels",
     "bench/perf/baselines.py": "benchmarks of the built-in baselines' kernels",
     "bench/perf/cli.py": "times commands that name a built-in method (a misspelled one, PIBT's eval)",
     "bench/perf/peers.py": "benchmarks the built-in decentralized trainer against TorchRL's MAPPO",
-    "reports/claims/claims.py": "the paper's own claims (Sec. IV) are about its method and baselines",
-    "reports/claims/catalog.py": "the list of the paper's claims, each about its method and baselines",
-    "reports/claims/calibrate.py": "simulates the paper's claims on synthetic rows of those methods",
-    "reports/claims/calibrate_data.py": "resamples the paper's claims from the committed rows of those methods",
-    "reports/figures/fig1_training.py": "the paper's Fig. 1 (hierarchical vs decentralized)",
-    "reports/figures/fig2_success.py": "the paper's Fig. 2 (hierarchical vs IC3Net)",
-    "reports/figures/fig3_payload.py": "the paper's Fig. 3 (hierarchical vs all-to-all payload)",
-    "reports/data/payload.py": "the payload points of the paper's Fig. 3 and its payload claim "
-                               "(hierarchical vs decentralized)",
-    "reports/tables/table1_safety.py": "the paper's Table I (the hierarchical method's filter)",
-    "reports/tables/ablation.py": "the ablation of the paper's method against its baseline",
     "studies/objective.py": "the paper's study (|R_z| x L of its method) is the default study",
 }
 
@@ -64,3 +53,38 @@ def test_no_module_outside_a_method_names_a_built_in_method_for_behaviour() -> N
 def test_every_allowed_module_still_names_one() -> None:
     stale = [f for f in ALLOWED if not _mentions(ROOT / f)]
     assert not stale, f"drop these from ALLOWED: {stale}"
+
+
+WING = "paper"
+OUTSIDE_THE_WING = ("envs", "algorithms", "bench", "reports", "studies", "scripts")
+
+
+def _imports_of(path: Path) -> set[str]:
+    """Every module ``path`` imports (``import x.y``, ``from x.y import z``), at any depth."""
+    import ast
+
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            out.add(node.module)
+    return out
+
+
+def test_no_module_outside_the_paper_wing_imports_it() -> None:
+    """The paper's claims, figures, tables and grids live in its wing (paper/), which
+    registers with the harness by entry point; nothing below it imports it (SPEC 1)."""
+    found = {}
+    for entry in OUTSIDE_THE_WING:
+        for path in sorted((ROOT / entry).rglob("*.py")):
+            hits = sorted(m for m in _imports_of(path) if m == WING or m.startswith(WING + "."))
+            if hits:
+                found[str(path.relative_to(ROOT))] = hits
+    assert not found, f"modules outside the paper's wing import it: {found}"
+
+
+def test_the_wing_check_sees_an_import_of_the_wing(tmp_path: Path) -> None:
+    planted = tmp_path / "m.py"
+    planted.write_text("def f():\n    from paper.claims.claims import Claim\n    return Claim\n")
+    assert _imports_of(planted) == {"paper.claims.claims"}

@@ -1,4 +1,4 @@
-"""Figures: the paper's Fig. 1-3, the shared look, replay frames.
+"""Figures: the learning curves of every learned method, the shared look, replay frames.
 
 May import: envs, algorithms, bench, reports.data, reports.stats (the layers of .importlinter).
 """

@@ -1,30 +1,31 @@
-"""The report's front page, ``index.md`` and ``index.html``: every output, its notes, the
-claims' verdicts, what the run lacks (cells not done, failed with their error, paper
-configurations absent) and the run's manifest (versions, git commit, command).
+"""The report's front page, ``index.md`` and ``index.html``: every output and its notes, the
+generic entries first and then each registered section (``reports.sections``) under its
+own heading with its front matter (e.g. a section's verdicts of its claims), what the run
+lacks (cells not done, failed with their error) and the run's manifest (versions, git
+commit, command).
 
-In ``index.html`` a table of contents (``reports.pages.layout``) links every section, figure
-and claim; the content uses the window's width; every figure has its caption beside or
-under it and every table (Table I per execution mode, the summary, the claims' checks with
-their readable names and numbers, the ablation) is an HTML table with a caption, written by
-pandas' ``Styler.to_html`` with every cell escaped, in a box that scrolls when the table is
-wider or longer than the window. The claims' checks are grouped per claim, the ones
-without enough seeds in one line (``reports.pages.index_claims``). Every link is relative to the report folder and
-stays inside it (no ``..``),
-so a copied report folder keeps working."""
+In ``index.html`` a table of contents (``reports.pages.layout``) links every section and
+entry; the content uses the window's width; every figure has its caption beside or under
+it and every table is an HTML table with a caption, written by pandas' ``Styler.to_html``
+with every cell escaped, in a box that scrolls when the table is wider or longer than the
+window. An entry may add its own HTML block (``Entry.html_block``, e.g. a section's checks
+grouped per claim). Every link is relative to the report folder and stays inside it (no
+``..``), so a copied report folder keeps working."""
 from __future__ import annotations
 
 import html
 import json
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import pandas as pd
 
-from reports.claims.claims import Claim
-from reports.pages.index_claims import badge, grouped_checks_html
 from reports.pages.layout import PAGE_CSS, Anchors, html_table, scroll_box, toc_html
 from reports.pages.provenance import provenance_lines
+
+TocItems = list[tuple[str, str]]  # (text, element id) under one heading of the table of contents
 
 
 @dataclass(frozen=True)
@@ -37,7 +38,26 @@ class Entry:
     image: str | None = None  # PNG shown inline in the HTML page
     caption: str = ""  # printed under the figure (index.html, index.md)
     tables: tuple[tuple[str, pd.DataFrame], ...] = ()  # (caption, display strings) -> HTML tables
-    checks: pd.DataFrame | None = None  # the claims' checks (claims_frame), grouped per claim in HTML
+    # HTML the entry adds under its files (given the page's anchors and its heading's
+    # table-of-contents items, which it may extend), e.g. a section's checks grouped per claim
+    html_block: Callable[[Anchors, TocItems], str] | None = None
+
+
+class Front(Protocol):
+    """What a section prints under its heading before its entries (index.md and index.html)."""
+
+    def markdown(self) -> list[str]: ...
+
+    def html(self, anchor: Anchors, toc: TocItems) -> list[str]: ...
+
+
+@dataclass(frozen=True)
+class Part:
+    """A registered section of the index (reports.sections): heading, front matter, entries."""
+
+    title: str
+    entries: list[Entry]
+    front: Front | None = None
 
 
 @dataclass
@@ -45,8 +65,8 @@ class IndexData:
     run_dir: str
     manifest: dict[str, Any]
     cells: pd.DataFrame  # all cells of the store
-    entries: list[Entry]
-    claims: list[Claim]
+    entries: list[Entry]  # the generic report's
+    parts: list[Part] = field(default_factory=list)  # registered sections, after the generic entries
     problems: list[str] = field(default_factory=list)
     replays: list[str] = field(default_factory=list)
     studies_note: str = ""  # why no study is linked, and how to link one
@@ -81,18 +101,9 @@ def _cell_lines(cells: pd.DataFrame) -> tuple[str, list[dict[str, str]]]:
     return head, rows
 
 
-def index_markdown(d: IndexData) -> str:
-    title = d.manifest.get("grid", "run")
-    lines = [f"# Report: {title}", "", f"Run directory: `{d.run_dir}`", ""]
-    head, missing = _cell_lines(d.cells)
-    lines += ["## Claims of the paper (Sec. IV)", "", "| claim | verdict |", "|---|---|"]
-    lines += [f"| {c.key} | **{c.verdict}** |" for c in d.claims if c.home == "paper"]
-    own = [c for c in d.claims if c.home != "paper"]  # reports.claims.method_claims
-    if own:
-        lines += ["", "## Methods of this run above each baseline", "", "| claim | verdict (run configurations) |",
-                  "|---|---|"] + [f"| {c.key} | **{c.verdict}** |" for c in own]
-    lines += ["", "Details, numbers and tests: [claims.md](claims.md)", "", "## Figures and tables", ""]
-    for e in d.entries:
+def _entries_markdown(entries: list[Entry]) -> list[str]:
+    lines: list[str] = []
+    for e in entries:
         links = ", ".join(f"[{f}]({f})" for f in e.files)
         lines.append(f"### {e.title}\n\n{links}\n")
         if e.image:
@@ -102,6 +113,17 @@ def index_markdown(d: IndexData) -> str:
         lines += [f"- {n}" for n in e.notes]
         if e.notes:
             lines.append("")
+    return lines
+
+
+def index_markdown(d: IndexData) -> str:
+    title = d.manifest.get("grid", "run")
+    lines = [f"# Report: {title}", "", f"Run directory: `{d.run_dir}`", ""]
+    head, missing = _cell_lines(d.cells)
+    lines += ["## Figures and tables", ""] + _entries_markdown(d.entries)
+    for part in d.parts:
+        lines += [f"## {part.title}", ""] + (part.front.markdown() if part.front else []) + _entries_markdown(
+            part.entries)
     if d.studies_note:
         lines += ["## Studies", "", d.studies_note, ""]
     if d.replays:
@@ -154,12 +176,37 @@ def markdown_tables(md: str, title: str) -> list[tuple[str, pd.DataFrame]]:
     return out
 
 
-def _table(head: list[str], rows: list[list[str]], caption: str) -> str:
+def small_table(head: list[str], rows: list[list[str]], caption: str) -> str:
     """A small table of already-escaped cell HTML (verdict badges, code) with a caption."""
     h = "".join(f"<th>{html.escape(c)}</th>" for c in head)
     body = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
     return (f"<table><caption>{html.escape(caption)}</caption><thead><tr>{h}</tr></thead>"
             f"<tbody>{body}</tbody></table>")
+
+
+def _entries_html(entries: list[Entry], anchor: Anchors, toc: TocItems, prefix: str) -> list[str]:
+    """Each entry: its heading, figure and caption or file links, notes, HTML block, tables."""
+    e = html.escape
+    parts = []
+    for k, en in enumerate(entries):
+        uid = anchor(en.title)
+        toc.append((en.title, uid))
+        links = ", ".join(f"<a href='{e(f)}'>{e(f)}</a>" for f in en.files)
+        notes = "<ul>" + "".join(f"<li>{e(n)}</li>" for n in en.notes) + "</ul>" if en.notes else ""
+        parts.append(f"<h3 id='{e(uid)}'>{e(en.title)}</h3>")
+        if en.image:
+            cap = f"<figcaption>{e(en.caption)}</figcaption>" if en.caption else ""
+            parts.append(f"<div class='figrow'><figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>"
+                         f"</figure><div class='side'>{cap}<p>Files: {links}</p>{notes}</div></div>")
+        else:
+            parts.append(f"<p>Files: {links}</p>")
+        if en.html_block is not None:
+            parts.append(en.html_block(anchor, toc))
+        for j, (caption, frame) in enumerate(en.tables):
+            parts.append(scroll_box(html_table(frame, caption, f"{prefix}{k}_{j}")))
+        if notes and not en.image:
+            parts.append(notes)
+    return parts
 
 
 def index_html(d: IndexData) -> str:
@@ -173,43 +220,13 @@ def index_html(d: IndexData) -> str:
         return f"<h2 id='{e(uid)}'>{e(text)}</h2>"
 
     title = e(str(d.manifest.get("grid", "run")))
-    parts = [f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", h2("Claims of the paper (Sec. IV)")]
-    claims_toc = toc[-1][2]  # each claim's block of checks, nested under the claims' heading
-    claim_ids = {c.key: anchor(f"claim {c.key}") for c in d.claims}
-    paper, own = [c for c in d.claims if c.home == "paper"], [c for c in d.claims if c.home != "paper"]
-
-    def verdicts(claims: list[Claim], caption: str) -> str:
-        return scroll_box(_table(["claim", "key", "verdict"], [
-            [f"<a href='#{e(claim_ids[c.key])}'>{e(c.name)}</a>", f"<code>{e(c.key)}</code>", badge(c.verdict)]
-            for c in claims], caption))
-    parts.append(verdicts(paper, "Verdict of each claim at the paper's configurations (its checks per "
-                          "configuration and execution mode under \"Claims of Sec. IV\" below)"))
-    if own:  # reports.claims.method_claims
-        parts.append(verdicts(own, "Methods of this run above each baseline: verdict at the run's "
-                              "configurations (its checks under \"Claims of Sec. IV\" below)"))
-    parts.append(h2("Figures and tables"))
-    for k, en in enumerate(d.entries):
-        uid = anchor(en.title)
-        toc[-1][2].append((en.title, uid))
-        links = ", ".join(f"<a href='{e(f)}'>{e(f)}</a>" for f in en.files)
-        notes = "<ul>" + "".join(f"<li>{e(n)}</li>" for n in en.notes) + "</ul>" if en.notes else ""
-        parts.append(f"<h3 id='{e(uid)}'>{e(en.title)}</h3>")
-        if en.image:
-            cap = f"<figcaption>{e(en.caption)}</figcaption>" if en.caption else ""
-            parts.append(f"<div class='figrow'><figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>"
-                         f"</figure><div class='side'>{cap}<p>Files: {links}</p>{notes}</div></div>")
-        else:
-            parts.append(f"<p>Files: {links}</p>")
-        if en.checks is not None:
-            block, claim_toc = grouped_checks_html(en.checks, {c.key: c.verdict for c in d.claims},
-                                                   lambda key: claim_ids.get(key) or anchor(f"claim {key}"),
-                                                   {c.key for c in own})
-            parts.append(block)
-            claims_toc += claim_toc
-        for j, (caption, frame) in enumerate(en.tables):
-            parts.append(scroll_box(html_table(frame, caption, f"t{k}_{j}")))
-        if notes and not en.image:
-            parts.append(notes)
+    parts = [f"<p>Run directory: <code>{e(d.run_dir)}</code></p>", h2("Figures and tables")]
+    parts += _entries_html(d.entries, anchor, toc[-1][2], "t")
+    for k, part in enumerate(d.parts):
+        parts.append(h2(part.title))
+        if part.front is not None:
+            parts += part.front.html(anchor, toc[-1][2])
+        parts += _entries_html(part.entries, anchor, toc[-1][2], f"s{k}_")
     if d.studies_note:
         parts.append(h2("Studies") + f"<p>{e(d.studies_note)}</p>")
     if d.replays:
@@ -219,7 +236,7 @@ def index_html(d: IndexData) -> str:
     parts.append(h2("What this run lacks") + f"<p>{e(head)}</p>")
     if missing:
         keys = ["cell", "method", "N", "p", "seed", "status", "error"]
-        parts.append(scroll_box(_table(keys, [[e(r[k]) for k in keys] for r in missing],
+        parts.append(scroll_box(small_table(keys, [[e(r[k]) for k in keys] for r in missing],
                                        "Cells of the store that are not done, with the last line of their error"),
                                 wrap=True))
     else:
@@ -231,7 +248,7 @@ def index_html(d: IndexData) -> str:
         parts.append(h2("Which commits trained the cells") + "".join(f"<p>{e(t)}</p>" for t in origin))
     parts.append(h2("Manifest"))
     rows = [[e(k), f"<code>{e(v)}</code>"] for k, v in _manifest_rows(d.manifest)]
-    parts.append(scroll_box(_table(["key", "value"], rows or [["(no manifest.json)", ""]],
+    parts.append(scroll_box(small_table(["key", "value"], rows or [["(no manifest.json)", ""]],
                                    "The run's manifest: versions, git commit and command"), wrap=True))
     nav = toc_html(toc)
     return ("\n".join([f"<!DOCTYPE html><html><head><meta charset='utf-8'><meta name='viewport' "

@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from paper.figures.fig2_success import fig2_modes, fig2_success
+from paper.tables.table1_safety import table1_frame, table1_latex, table1_markdown
 from reports.data.store import execution_order, fmt_pct
-from reports.figures.fig2_success import fig2_modes, fig2_success
 from reports.tables.summary import fmt_ci, summary_frame, summary_markdown
-from reports.tables.table1_safety import table1_frame, table1_latex, table1_markdown
 from tests.reports.synthetic import frames, joined
 
 MODES = ["argmax", "sample", "sample@0.5"]

@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from bench.design.grids import BUILTIN, DEFAULT_SEEDS
+from bench.design.grids import default_seeds, grid_builders
 from bench.execute.plan import params_changes
 from bench.store.completeness import incomplete_cells
 from bench.store.run_store import RunStore
@@ -44,7 +44,7 @@ def todays_cells(name: str) -> dict:
     Fig. 1(a) seeds 3-4, which share the paper grid's cell ids for those seeds)."""
     from bench.design.grid_files import load_grid_file
 
-    cells = {c.cell_id: c for c in BUILTIN[name](seeds=DEFAULT_SEEDS[name]).cells}
+    cells = {c.cell_id: c for c in grid_builders()[name](seeds=default_seeds(name)).cells}
     for path in sorted(ROOT.glob("*.toml")):
         grid = load_grid_file(path)
         if grid.name == name:
@@ -83,7 +83,7 @@ def test_committed_done_cells__have_every_row_in_every_mode(run) -> None:
 
 def missing_cells(name: str, cells: pd.DataFrame) -> list[str]:
     """Cells of the ``name`` grid (its default seeds, at least 3) not committed as done."""
-    grid = BUILTIN[name](seeds=max(3, DEFAULT_SEEDS[name]))
+    grid = grid_builders()[name](seeds=max(3, default_seeds(name)))
     done = set(cells.loc[cells["status"] == "done", "cell_id"])
     return sorted(f"{c.method} N={c.n_robots} p={c.loss_p} seed={c.seed}" for c in grid.cells
                   if c.cell_id not in done)
@@ -160,7 +160,7 @@ def test_fig1a_five_seed_grid_file__adds_exactly_the_paper_grids_seeds_3_and_4()
     """reproduction/fig1a-5seeds.toml repeats PAPER_SETTINGS by hand; if they drift, its cells
     would get new ids and land beside, not inside, the paper grid's Fig. 1(a) cells."""
     from bench.design.grid_files import load_grid_file
-    from bench.design.grids import paper
+    from paper.grids import paper
 
     extra = load_grid_file(ROOT / "fig1a-5seeds.toml").cells
     five, three = {c.cell_id for c in paper(5).cells}, {c.cell_id for c in paper(3).cells}

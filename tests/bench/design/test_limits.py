@@ -8,7 +8,7 @@ import pytest
 
 from bench.cli import main
 from bench.design.cells import Cell
-from bench.design.grids import BUILTIN, DEFAULT_SEEDS
+from bench.design.grids import default_seeds, grid_builders
 from bench.design.limits import LIMITS
 from envs.errors import BenchError
 from tests.bench.conftest import snapshot, toy_spec, write_grid_file
@@ -62,5 +62,5 @@ def test_cli__a_huge_count_is_one_line_naming_option_and_reason(
 def test_bounds__admit_every_built_in_grid_cell() -> None:
     """The committed runs' ids are checked in tests/reproduction; here: no built-in cell is
     near a bound, at five seeds."""
-    for name, make in BUILTIN.items():
-        assert len(make(max(5, DEFAULT_SEEDS[name])).cells) > 0
+    for name, make in grid_builders().items():
+        assert len(make(max(5, default_seeds(name))).cells) > 0

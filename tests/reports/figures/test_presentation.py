@@ -17,13 +17,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import to_rgb
 from PIL import Image
 
+from paper.figures.fig1_training import fig1_training
+from paper.figures.fig2_success import GRID, fig2_success, seed_quantile_curves
+from paper.figures.fig3_payload import fig3_payload
+from paper.tables.table1_safety import table1_display, table1_frame, table1_latex
 from reports.build import build_report
-from reports.figures.fig1_training import fig1_training
-from reports.figures.fig2_success import GRID, fig2_success, seed_quantile_curves
-from reports.figures.fig3_payload import fig3_payload
 from reports.figures.plotting import method_color, method_label
 from reports.stats import t_band
-from reports.tables.table1_safety import table1_display, table1_frame, table1_latex
 from tests.reports.synthetic import frames, joined, smoke_specs, write_store
 
 BLUE = method_color("hierarchical")
@@ -77,7 +77,8 @@ def test_build__captions_in_html_sidecar_and_pdf_metadata(report):
         assert f"<figcaption>{caption[:40]}" in page.replace("&#x27;", "'")
         assert b"/Subject (" + caption.split("(")[0][:30].encode() in (report / f"{stem}.pdf").read_bytes()
         assert Image.open(report / f"{stem}.png").text["Description"] == caption
-    assert page.count("<figcaption>") == 4  # the paper's three figures and the leaderboard's
+    # the leaderboard's, the learning curves' and the paper's three figures
+    assert page.count("<figcaption>") == 5
 
 
 # ------------------------------------------------------------------ palette, labels, panels

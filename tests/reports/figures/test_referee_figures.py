@@ -12,9 +12,9 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.colors import to_rgb
 
-from reports.figures.fig1_training import fig1_training
-from reports.figures.fig2_success import MEAN_LW, SEED_LW, fig2_success, seed_quantile_curves
-from reports.figures.fig3_payload import fig3_payload
+from paper.figures.fig1_training import fig1_training
+from paper.figures.fig2_success import MEAN_LW, SEED_LW, fig2_success, seed_quantile_curves
+from paper.figures.fig3_payload import fig3_payload
 from reports.figures.plotting import method_label
 from reports.figures.seed_counts import counts_text, seed_counts
 from reports.figures.ticks import spaced_labels

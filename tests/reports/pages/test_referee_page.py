@@ -11,10 +11,11 @@ from html.parser import HTMLParser
 import pandas as pd
 import pytest
 
-from reports.claims.claims import Check, Claim
-from reports.claims.page import claims_frame
-from reports.pages.index import Entry, IndexData, index_html
-from reports.pages.index_claims import undecided_text, verdict_counts
+from paper.claims.claims import Check, Claim
+from paper.claims.page import claims_frame
+from paper.pages.front import ClaimsFront
+from paper.pages.index_claims import undecided_text, verdict_counts
+from reports.pages.index import Entry, IndexData, Part, index_html
 
 
 class _Page(HTMLParser):
@@ -81,12 +82,14 @@ def _page(wide_table: bool = False) -> str:
     wide = pd.DataFrame([[f"a long cell value {i}-{j} " * 2 for j in range(30)] for i in range(60)],
                         columns=[f"column {j}" for j in range(30)])
     entries = [
-        Entry("Fig. 1: training convergence", ("fig1.png",), ("a note",), image="fig1.png", caption="Fig. 1: x"),
         Entry("Summary of every configuration", ("summary.md",),
               tables=(("Summary", wide if wide_table else wide.iloc[:2, :3]),)),
-        Entry("Claims of Sec. IV", ("claims.md",), checks=claims_frame(claims)),
     ]
-    return index_html(IndexData("results/x", {"grid": "smoke", "git_sha": "abc"}, cells, entries, claims))
+    front = ClaimsFront(claims)
+    paper = Part("The paper", [
+        Entry("Fig. 1: training convergence", ("fig1.png",), ("a note",), image="fig1.png", caption="Fig. 1: x"),
+        Entry("Claims of Sec. IV", ("claims.md",), html_block=front.checks_block(claims_frame(claims)))], front)
+    return index_html(IndexData("results/x", {"grid": "smoke", "git_sha": "abc"}, cells, entries, [paper]))
 
 
 def test_index_html__toc_links_land_on_every_heading_and_claim():

@@ -1,0 +1,164 @@
+"""The claims page: ``paper.claims.claims`` results as a DataFrame (one row per check) and as
+Markdown, with the calibration table of the tests (``paper.claims.calibrate``) beside it.
+
+Pure functions; ``reports.build`` writes the files.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import pandas as pd
+
+from paper.claims.claims import Claim
+from paper.claims.verdicts import NOT_ENOUGH, VERDICTS
+
+CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "numbers", "test",
+                 "power", "power_note"]
+
+
+def claims_frame(claims: Sequence[Claim]) -> pd.DataFrame:
+    """One row per check: claim key, readable name, scope ("paper" or "run"),
+    configuration, execution mode, verdict, numbers, test, power (NaN for checks without
+    one) and its note (the stated effect, the seeds 80% power would need)."""
+    rows = [{"claim": c.key, "name": c.name, "scope": k.scope, "configuration": k.config,
+             "execution": k.execution, "verdict": k.verdict, "numbers": k.numbers, "test": k.test,
+             "power": k.power, "power_note": k.power_text}
+            for c in claims for k in c.checks]
+    return pd.DataFrame(rows, columns=CHECK_COLUMNS)
+
+
+def _by_mode(c: Claim, scope: str | None = None) -> str:
+    return "; ".join(f"{m}: {v}" for m, v in c.verdict_by_mode(scope).items() if m != "-")
+
+
+def claims_summary(claims: Sequence[Claim]) -> pd.DataFrame:
+    """One row per claim: key, name, verdict at the paper's configurations, the same per
+    execution mode ("argmax: supported; sample: inconclusive"), and the verdict at the
+    run's own configurations ("" when not built with ``--claims-at run``)."""
+    return pd.DataFrame([{"claim": c.key, "name": c.name, "verdict": c.verdict, "by_mode": _by_mode(c),
+                          "verdict_run": c.verdict_at("run") or ""} for c in claims],
+                        columns=["claim", "name", "verdict", "by_mode", "verdict_run"])
+
+
+def _esc(s: object) -> str:
+    return str(s).replace("|", "\\|")
+
+
+def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None) -> str:
+    """The calibration table: per test, scenario and seed count, the rate of
+    ``supported`` with its Monte-Carlo standard error, and the rate of ``contradicted``
+    (a column only when the calibration measured it)."""
+    meta = meta or {}
+    contra = "contradicted" in cal.columns
+    lines = ["# Calibration of the claim tests", "",
+             "Simulated tables with known truth pushed through the claims' own functions "
+             "(`bench calibrate`). *null*: the claim is false (at its boundary); the rate of "
+             "`supported` must be <= 5% + Monte-Carlo error. *effect*: the claim is true with the "
+             "stated effect; the rate is the power."
+             + (" Where the claim holds (effect) or sits at its boundary, the rate of `contradicted` "
+                "must be <= 5% + Monte-Carlo error too. A *family* is a whole claim over several "
+                "configurations and execution modes (its verdict, not one check)." if contra else ""), ""]
+    if "check" in cal.columns:
+        lines[2] = ("Every check of every statistical claim at its own seed counts and Bonferroni level "
+                    "(k = the claim's checks), and every claim as a whole, simulated on per-seed values "
+                    "drawn from the run's own spread (`bench calibrate`, paper/claims/calibrate_data.py): "
+                    "*resampled* from the claim's pooled standardized seed residuals (smoothed "
+                    "bootstrap), *normal* the stated parametric case, each group at its own observed "
+                    "s.d. *null*: the claim at its boundary (a whole claim: its first check at the "
+                    "boundary and the rest true, or every check at the boundary); the rates of "
+                    "`supported` and of `contradicted` must each be <= 5% + 2 MC s.e. *effect*: the "
+                    "stated effect; the rate of `supported` is the power, that of `contradicted` must "
+                    "stay within the limit.")
+    if meta:
+        lines += [", ".join(f"{k}: {v}" for k, v in meta.items()), ""]
+    data = "check" in cal.columns  # the calibration on a store's own spread (paper.claims.calibrate_data)
+    head = (["test", "check", "truth", "source", "seeds", "k", "sims", "rate supported", "MC s.e."] if data
+            else ["test", "truth", "scenario", "seeds", "sims", "rate supported", "MC s.e."])
+    head += (["rate contradicted", "MC s.e. ", "ok"] if data else ["rate contradicted", "ok"] if contra else ["ok"])
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for _, r in cal.iterrows():
+        fine = bool(r["null_ok"]) and (not contra or bool(r["contra_ok"]))
+        checked = r["truth"] == "null" or contra
+        ok = "" if not checked else ("yes" if fine else "**NO**")
+        if data:
+            cells = [r["test"], r["check"], r["truth"], r["source"], r["seeds"], r["k"], r["sims"],
+                     f"{r['rate']:.4f}", f"{r['mc_se']:.4f}", f"{r['contradicted']:.4f}", f"{r['contra_se']:.4f}", ok]
+        else:
+            cells = [r["test"], r["truth"], r["scenario"], r["seeds"], r["sims"], f"{r['rate']:.3f}",
+                     f"{r['mc_se']:.3f}"] + ([f"{r['contradicted']:.3f}"] if contra else []) + [ok]
+        lines.append("| " + " | ".join(_esc(x) for x in cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def claims_markdown(claims: Sequence[Claim], calibration_link: str | None = None) -> str:
+    """The claims page: a verdict table, then per claim the statement, the test and one
+    row per configuration and execution mode."""
+    own = [c for c in claims if c.home != "paper"]  # claims of the run's own methods (method_claims)
+    paper = [c for c in claims if c.home == "paper"]
+    run_scope = any(k.scope == "run" for c in paper for k in c.checks)
+    lines = ["# Claims of the paper's Sec. IV against this run", "",
+             "Verdicts: " + ", ".join(f"**{v}**" for v in VERDICTS) + ". Tests take the seed as "
+             "the unit (per-seed means, Welch / one-sample t, level 0.0125: a quarter of 0.05, the "
+             "level at which the calibration on this reproduction's own seed spread keeps both "
+             "errors <= 5%); fewer than 3 seeds on a "
+             "side is **not enough seeds**, whatever the data. A claim is supported when every "
+             "check is (each at 0.0125), and contradicted when one check is at 0.0125 / k, k being the "
+             "claim's number of checks (Bonferroni), so neither verdict is wrong more than 5% of "
+             "the time. Beside each check: its power, at its own seed counts and observed spread, to detect "
+             "a stated effect, and the seeds per side that 80% power would need; an inconclusive check "
+             "with power under 50% reads *inconclusive: this design could not have decided it*.", ""]
+    if calibration_link:
+        lines += [f"How often each test says *supported* when the claim is false, its power, and how "
+                  f"often it says *contradicted* when the claim holds: [calibration]({calibration_link}).", ""]
+    head = "| claim | name | verdict (paper configurations) | per execution mode |"
+    lines += [head + (" verdict (run configurations) |" if run_scope else ""),
+              "|---|---|---|---|" + ("---|" if run_scope else "")]
+    for c in paper:
+        row = f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
+        lines.append(row + (f" {c.verdict_at('run') or '-'} |" if run_scope else ""))
+    if own:
+        lines += ["", "## Methods of this run above each baseline", "",
+                  "Each method of the run that is neither the paper's method nor a baseline (its "
+                  "`paper_role`), checked against every baseline of the run at every configuration "
+                  "both ran, per execution mode: the same one-sided Welch t over per-seed means at "
+                  "0.0125, contradicted at 0.0125 / k over the claim's k checks, power beside each "
+                  "check, and calibrated with the paper's claims (the family `above_baselines`).", "",
+                  "| claim | name | verdict (run configurations) | per execution mode |", "|---|---|---|---|"]
+        lines += [f"| [{c.key}](#{c.key}) | {_esc(c.name)} | **{c.verdict}** | {_esc(_by_mode(c)) or '-'} |"
+                  for c in own]
+    for c in claims:
+        lines += ["", f"## {c.key}", "", f"**{_esc(c.name)}**", "",
+                  f"*{'Paper' if c.home == 'paper' else 'Claim'}:* {c.statement}", "",
+                  f"*Test:* {c.criterion}", "", f"**Verdict: {c.verdict}**", "",
+                  "| scope | configuration | execution | verdict | numbers | test | power |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {k.scope} | {_esc(k.config)} | {_esc(k.execution)} | {k.verdict_words} | "
+                  f"{_esc(k.numbers)} | {_esc(k.test)} | {_esc(k.power_text)} |" for k in c.checks]
+    return "\n".join(lines) + "\n"
+
+
+def claims_table_markdown(claims: Sequence[Claim]) -> str:
+    """The compact claims table the README's Reproduction section embeds
+    (``claims_table.md``): one row per checked configuration and execution mode at the
+    paper's configurations (claim, the paper's statement, configuration, mode, our numbers
+    with their 95% CI, verdict), the claim's name and statement on its first row only;
+    configurations without enough seeds are counted under the table instead of listed."""
+    lines = ["| claim | paper | configuration | execution | our numbers (95% CI) | verdict | power |",
+             "|---|---|---|---|---|---|---|"]
+    missing: dict[str, int] = {}
+    for c in claims:
+        first = True
+        for k in c.checks:
+            if k.scope != "paper":
+                continue
+            if k.verdict == NOT_ENOUGH:
+                missing[c.key] = missing.get(c.key, 0) + 1
+                continue
+            who = f"**{_esc(c.name)}** | {_esc(c.statement)}" if first else " | "  # once per claim
+            lines.append(f"| {who} | {_esc(k.config)} | {_esc(k.execution)} | {_esc(k.numbers)} | "
+                         f"**{k.verdict_words}** | {_esc(k.power_text)} |")
+            first = False
+    if missing:
+        lines += ["", "Not enough seeds yet (checks per claim): "
+                  + ", ".join(f"`{key}` {n}" for key, n in missing.items()) + "."]
+    return "\n".join(lines) + "\n"

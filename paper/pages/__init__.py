@@ -1,0 +1,1 @@
+"""The claims' verdicts and grouped checks on the report's index page."""
