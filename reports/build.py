@@ -5,7 +5,8 @@ The only function of ``reports`` that writes files. It reads the run's Parquet s
 ``<run>/report/`` (or ``bench report --out DIR``, e.g. for a read-only run folder), each
 atomically (temp file + rename, permissions from the umask), so an interrupted rebuild
 never leaves a half-written file; a full disk is one ``DiskFull`` line. Done cells whose
-rows are incomplete (bench/store/completeness.py) are listed among the store's problems.
+rows are incomplete (bench/store/completeness.py, the runner's rule) are listed among the
+store's problems (reports/data/store.py).
 Deterministic: bootstrap generators are seeded, so the same store gives the same numbers.
 
 The generic report, for any run and any method, comes first: the leaderboard
@@ -24,8 +25,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.store.completeness import incomplete_cells
-from bench.store.run_store import RunStore
 from bench.store.study_files import CONFIG_FILE, LINK_KEY, REPORT_PAGES, report_files
 from bench.store.study_files import REPORT_DIR as STUDY_REPORT_DIR
 from envs.atomic import temp_target
@@ -217,8 +216,6 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
     store = load_store(run_dir)
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / REPORT_DIR
     remove_stale_temp_files(out)
-    for cid, gap in incomplete_cells(RunStore(run_dir), store.cells).items():
-        store.problems.append(f"cell {cid} is done but its rows are incomplete: {gap}")
     if against is not None:
         store = merge_against(store, against)
     # Figures, Table I and the claims: each group's default variant only (reports.data.variants);

@@ -27,9 +27,9 @@ from typing import Any
 from bench.design.cells import Cell
 from bench.design.costs import cell_seconds
 from bench.design.grids import Grid
-from bench.store.completeness import expected_for_cell, shortfall, stored_rows
-from bench.store.run_store import RunStore, read_meta, read_table
-from bench.store.schema import EVAL_SCHEMA, SCHEMA_VERSION
+from bench.store.completeness import cell_rows, expected_for_cell
+from bench.store.run_store import RunStore, read_meta
+from bench.store.schema import SCHEMA_VERSION
 from envs.errors import BenchError
 
 
@@ -211,9 +211,9 @@ def _resume_state(store: RunStore, st: CellState) -> None:
     if ckpt is not None and ckpt.get("cell") != st.cell.canonical_json():
         raise BenchError(f"checkpoint {str(store.ckpt_path(st.cell_id))!r} belongs to another cell config")
     if meta is not None:
-        expected, stored = expected_for_cell(st.cell), stored_rows(store, st.cell_id)
-        gap = shortfall(expected, stored)
-        if not gap and eval_complete(store, st):
+        rows = cell_rows(store, st.cell_id, expected_for_cell(st.cell), st.modes, st.cell.eval_episodes)
+        gap = rows.gap
+        if not gap:
             st.phase, st.trained = "done", True
             st.wall_s = float(meta.get("wall_s", st.wall_s))
             st.peak_mem_mb = float(meta.get("peak_mem_mb", st.peak_mem_mb))
@@ -221,8 +221,7 @@ def _resume_state(store: RunStore, st: CellState) -> None:
             st.episodes_done = int(meta.get("train_episodes_done", st.episodes_done))
             st.eval_rows = {u: [] for u in st.eval_units()}
             return
-        gap = gap or "evaluation rows of the wrong modes or episodes"
-        if stored.train == expected.train and ckpt is not None and ckpt.get("finished"):
+        if rows.train_complete and ckpt is not None and ckpt.get("finished"):
             st.rerun = f"was done but {gap} stored; evaluating it again from its final checkpoint"
         else:
             st.rerun = f"was done but {gap} stored; training it again from the start"
@@ -236,15 +235,6 @@ def _resume_state(store: RunStore, st: CellState) -> None:
         st.wall_s = float(ckpt.get("wall_s", 0.0))
         st.peak_mem_mb = float(ckpt.get("peak_mem_mb", float("nan")))
         st.attempts = max(st.attempts, int(ckpt.get("attempts", 0)))
-
-
-def eval_complete(store: RunStore, st: CellState) -> bool:
-    """Whether the cell's eval file holds exactly one row per evaluation episode and
-    execution mode (a BenchError when the file is corrupt)."""
-    df = read_table(store.eval_path(st.cell_id), EVAL_SCHEMA).select(["execution", "episode"]).to_pandas()
-    want = {(m, e) for m in st.modes for e in range(st.cell.eval_episodes)}
-    have = list(zip(df["execution"].astype(str), df["episode"].astype(int), strict=True))
-    return len(have) == len(want) and set(have) == want
 
 
 def versions() -> dict[str, str]:

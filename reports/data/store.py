@@ -23,12 +23,13 @@ import pandas as pd
 import pyarrow as pa
 
 from bench.execute.plan import dict_changes
+from bench.store.completeness import incomplete_cells
 from bench.store.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, not_plain, owner_cell
 from bench.store.run_store import RunStore, read_table
 from bench.store.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from envs.errors import BenchError
 
-__all__ = ["CONFIG_COLUMNS", "Store", "execution_order", "fmt_p", "fmt_pct", "incomplete_evals", "load_store", "select",
+__all__ = ["CONFIG_COLUMNS", "Store", "execution_order", "fmt_p", "fmt_pct", "load_store", "select",
            "superseded_notes"]
 
 # The cell config columns joined onto every train and eval row.
@@ -116,23 +117,6 @@ def execution_order(modes: Iterable[object]) -> list[str]:
     return sorted({str(m) for m in modes}, key=lambda m: (*key(m), m))
 
 
-def incomplete_evals(cells: pd.DataFrame, evals: pd.DataFrame) -> list[str]:
-    """Problems of done cells with evaluation rows that lack a mode (``executions`` of
-    cells.parquet) or an episode in a mode: one line per cell and mode."""
-    have = evals.groupby(["cell_id", "execution"])["episode"].nunique().to_dict() if len(evals) else {}
-    with_rows = {cid for cid, _ in have}
-    out = []
-    for r in cells.itertuples(index=False):
-        if r.cell_id not in with_rows:
-            continue  # reported as "no evaluation rows"
-        for m in (x for x in str(getattr(r, "executions", "") or "").split(",") if x):
-            n = int(have.get((r.cell_id, m), 0))
-            if n < int(r.eval_episodes):
-                out.append(f"cell {r.cell_id} is done but has {n} of {int(r.eval_episodes)} "
-                           f"evaluation episodes in execution mode {m}")
-    return out
-
-
 def load_store(run_dir: Path | str) -> Store:
     """Read the store under ``run_dir``. No ``cells.parquet``, or a store of another schema
     version, is a ``BenchError``; anything else missing is listed in ``Store.problems``."""
@@ -173,9 +157,8 @@ def load_store(run_dir: Path | str) -> Store:
         cells.loc[cells["cell_id"].isin(damaged) & (cells["status"] == "done"), "status"] = "pending"
         done = cells[cells["status"] == "done"]
         train, evals = (df[df["cell_id"].isin(done["cell_id"])].reset_index(drop=True) for df in (train, evals))
-    for cid in sorted(set(done["cell_id"]) - set(evals["cell_id"])):
-        problems.append(f"cell {cid} is done but has no evaluation rows")
-    problems += incomplete_evals(done, evals)
+    problems += [f"cell {cid} is done but its rows are incomplete: {gap}"  # the runner's rule
+                 for cid, gap in incomplete_cells(rs, done).items()]
     problems += superseded_notes(run, cells)
     return Store(run, cells.reset_index(drop=True), train, evals, manifest, problems)
 

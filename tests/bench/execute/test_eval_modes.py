@@ -45,7 +45,8 @@ def test_plan__a_cell_missing_a_mode_is_reevaluated_and_the_report_lists_it(toy:
     part = ev[(ev.cell_id == victim) & (ev.execution != "sample@0.5")]
     store.write_eval(victim, part.to_dict("records"), {"wall_s": 1.0})
     problems = load_store(store.root).problems
-    assert problems == [f"cell {victim} is done but has 0 of 5 evaluation episodes in execution mode sample@0.5"]
+    assert problems == [f"cell {victim} is done but its rows are incomplete: 0 of 5 evaluation episodes in execution "
+                        "mode sample@0.5"]
     states, _ = plan_run(store, grid, fresh=False)
     st = {s.cell_id: s for s in states}
     assert st[victim].phase == "pending" and st[victim].trained and st[victim].has_checkpoint

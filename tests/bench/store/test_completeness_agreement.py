@@ -20,8 +20,9 @@ from bench.store.completeness import incomplete_cells
 from bench.store.run_store import RunStore
 from reports.data.store import load_store
 from tests.bench.conftest import toy_spec, write_finished_store
+from tests.bench.toy_method import TOY_PATH
 
-GRID = Grid("toygrid", "test", tuple(Cell.make(**toy_spec(seed=s)) for s in (0, 1)))
+GRID = Grid("toygrid", "test", tuple(Cell.make(**toy_spec(seed=s, method=TOY_PATH)) for s in (0, 1)))
 VICTIM = GRID.cells[0].cell_id
 
 
@@ -36,7 +37,7 @@ def _drop_train_part(store: RunStore) -> None:
 
 CASES: dict[str, tuple[Callable[[RunStore], None], str]] = {
     "intact": (lambda s: None, ""),
-    "a training part missing": (_drop_train_part, "6 of 8 training rows"),
+    "a training part missing": (_drop_train_part, "4 of 8 training rows"),
     "a mode missing": (lambda s: _rewrite_eval(s, lambda e: e[e.execution != "sample"]),
                        "0 of 5 evaluation episodes in execution mode sample"),
     "an episode missing": (lambda s: _rewrite_eval(s, lambda e: e[~((e.execution == "argmax") & (e.episode == 4))]),
@@ -55,14 +56,9 @@ CASES: dict[str, tuple[Callable[[RunStore], None], str]] = {
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from algorithms import registry
-    from tests.bench.toy_method import TOY_PATH
-
-    registry.register("toy", TOY_PATH)
     out = tmp_path_factory.mktemp("complete") / "run"
     write_finished_store(out, GRID)
-    yield out
-    registry.unregister("toy")
+    return out
 
 
 @pytest.mark.parametrize("case", list(CASES))

@@ -307,7 +307,9 @@ def test_completeness__a_done_cell_missing_eval_rows_is_evaluated_again_from_its
     assert stored_rows(store, cid).eval == 3
     st = {s.cell_id: s for s in plan_run(store, grid, fresh=False)[0]}[cid]
     assert (st.phase, st.trained, st.has_checkpoint) == ("pending", True, True)
-    assert st.rerun == "was done but 3 of 15 evaluation rows stored; evaluating it again from its final checkpoint"
+    assert st.rerun == ("was done but 3 of 5 evaluation episodes in execution mode argmax, 0 of 5 evaluation episodes "
+                        "in execution mode sample, 0 of 5 evaluation episodes in execution mode sample@0.5 stored; "
+                        "evaluating it again from its final checkpoint")
 
 
 def test_completeness__report_warns_naming_the_incomplete_cell(
