@@ -28,6 +28,26 @@ def test_records__numbered_one_after_another_with_a_decision_each():
         assert f"]({p.name})" in index, f"index does not list {p.name}"
 
 
+STATUS = re.compile(r"^\*Status: (accepted|superseded by \[?(\d{4})\]?[^*]*)\.\*$", re.M)
+
+
+def test_records__each_has_a_status_accepted_or_superseded_by_an_existing_record():
+    """A reader sees whether a record still holds: ``*Status: accepted.*`` or
+    ``*Status: superseded by NNNN.*`` (a link may follow the number), under its area line."""
+    numbers = {p.name[:4] for p in RECORDS}
+    for p in RECORDS:
+        found = STATUS.findall(p.read_text())
+        assert len(found) == 1, f"{p.name}: needs one line '*Status: accepted.*' or '*Status: superseded by NNNN.*'"
+        by = found[0][1]
+        assert not by or (by in numbers and by != p.name[:4]), f"{p.name}: superseded by a record that does not exist"
+
+
+def test_records__the_status_pattern_reads_both_forms():
+    assert STATUS.findall("x\n*Status: accepted.*\n") == [("accepted", "")]
+    assert STATUS.findall("*Status: superseded by [0007](0007-x.md).*") == [("superseded by [0007](0007-x.md)", "0007")]
+    assert STATUS.findall("*Status: maybe.*") == []
+
+
 def test_code__cites_decisions_by_number_and_every_number_exists():
     numbers = {p.name[:4] for p in RECORDS}
     for line in _code_lines():

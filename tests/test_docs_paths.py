@@ -10,8 +10,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = sorted([ROOT / "README.md", ROOT / "CONTRIBUTING.md",
                 *(p for p in (ROOT / "docs").rglob("*.md") if "findings" not in p.parts)])
-PATH = re.compile(r"(?<![\w./-])((?:bench|reports|algorithms|envs|studies|scripts|tests|examples)/[\w/.-]+?"
-                  r"\.(?:py|json|toml|sh|map))\b")
+PATH = re.compile(r"(?<![\w./-])((?:bench|reports|paper|algorithms|envs|studies|scripts|maintenance|tests|examples)"
+                  r"/[\w/.-]+?\.(?:py|json|toml|sh|map))\b")
 
 
 def test_named_paths__exist() -> None:

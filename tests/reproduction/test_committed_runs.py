@@ -172,7 +172,7 @@ def test_fig1a_five_seed_grid_file__adds_exactly_the_paper_grids_seeds_3_and_4()
 @pytest.mark.parametrize("name", [n for n in ("paper", "ablation", "full") if (ROOT / n / "manifest.json").is_file()])
 def test_manifest__every_run_record_is_complete_or_says_why_not(name: str) -> None:
     """Each record holds its commit, machine, end, wall time and cells, or names the missing
-    part in ``unrecorded`` with the reason (scripts/complete_run_records.py); only the last
+    part in ``unrecorded`` with the reason (maintenance/complete_run_records.py); only the last
     record may be open, a run under way when its state was committed."""
     from bench.store.meta_schema import unexplained_parts
 

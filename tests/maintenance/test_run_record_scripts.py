@@ -1,4 +1,4 @@
-"""scripts/complete_run_records.py and scripts/split_superseded_wall.py: the two one-off
+"""maintenance/complete_run_records.py and maintenance/split_superseded_wall.py: the two one-off
 repairs of committed run folders, and bench.store.meta_schema.unexplained_parts they answer to."""
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ from bench.store.schema import CELLS_SCHEMA
 
 
 def _script(name: str):
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).resolve().parents[2] / "scripts" / f"{name}.py")
+    path = Path(__file__).resolve().parents[2] / "maintenance" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

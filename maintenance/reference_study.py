@@ -1,6 +1,6 @@
 """Train the hierarchical method briefly and probe its reference layer (issue 18 item 2).
 
-Usage: python scripts/reference_study.py NAME '{"ref_hold": 8}' [--n 20] [--iters 100]
+Usage: python maintenance/reference_study.py NAME '{"ref_hold": 8}' [--n 20] [--iters 100]
 Writes one JSON line per probe to results/reference_study/NAME.jsonl (training entropy of
 mu per update, and ``probe_reference`` every --probe-every updates and at the end).
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from reference_probe import probe_reference  # scripts/reference_probe.py
+from reference_probe import probe_reference  # maintenance/reference_probe.py
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice

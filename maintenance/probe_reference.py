@@ -1,10 +1,10 @@
 """Probe the reference layer of trained hierarchical cells (issue 18: does r carry information?).
 
-    .venv/bin/python scripts/probe_reference.py reproduction/paper [CELL_ID ...] [--episodes 10]
+    .venv/bin/python maintenance/probe_reference.py reproduction/paper [CELL_ID ...] [--episodes 10]
 
 For every done hierarchical cell of the run (or the cells named) loads its checkpoint and
 prints one JSON line: the cell's N, p, seed, variant parameters, training episodes, and
-``scripts/reference_probe.py``'s ``probe_reference`` on evaluation scenarios (entropy of
+``maintenance/reference_probe.py``'s ``probe_reference`` on evaluation scenarios (entropy of
 mu, I(r; o), I(r; u_i | s), the share of the modal argmax r, success with argmax r vs a
 uniform r). Evaluation streams only; the checkpoint is not modified.
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 import torch
-from reference_probe import probe_reference  # scripts/reference_probe.py
+from reference_probe import probe_reference  # maintenance/reference_probe.py
 
 from algorithms.hierarchical.method import HierarchicalMethod
 from bench.design.cells import Cell

@@ -8,7 +8,7 @@ For each such cell whose row has no ``superseded_wall_s`` yet, this moves the ar
 ``superseded_wall_s`` in cells.parquet and in the eval file's metadata (which a resume reads
 back). A second run changes nothing.
 
-    .venv/bin/python scripts/split_superseded_wall.py reproduction/paper
+    .venv/bin/python maintenance/split_superseded_wall.py reproduction/paper
 
 Imports: bench.store only.
 """

@@ -5,10 +5,10 @@ or whose run was stopped before writing it (docs/results-schema.md, manifest.jso
 Each part is filled from the run's own data or its git history, and named in the record's
 ``reconstructed`` with its source; a part the data cannot give is named in ``unrecorded``
 with the reason and, where they exist, its bounds. A record is matched by (grid, started), so
-the copies that scripts/import_cells.py made in another run folder are completed too. Parts a
+the copies that maintenance/import_cells.py made in another run folder are completed too. Parts a
 record already holds are never changed; a second run changes nothing.
 
-    .venv/bin/python scripts/complete_run_records.py reproduction/paper reproduction/ablation reproduction/full
+    .venv/bin/python maintenance/complete_run_records.py reproduction/paper reproduction/ablation reproduction/full
 
 Imports: bench.store only.
 """

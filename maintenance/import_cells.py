@@ -2,7 +2,7 @@
 that a bigger grid reuses what a smaller one already trained (the full grid reuses the 84
 cells of the committed paper reproduction: same cell ids, same code).
 
-    .venv/bin/python scripts/import_cells.py --from reproduction/paper --to reproduction/full --grid full
+    .venv/bin/python maintenance/import_cells.py --from reproduction/paper --to reproduction/full --grid full
     .venv/bin/bench run --grid full --out reproduction/full      # trains only the rest
 
 Copies, never links: the two folders are published and rebuilt independently, and a link

@@ -18,8 +18,8 @@ reference that learned nothing is uniform, ignores the state, and acts on pi as 
 Pure measurement: evaluation streams only, the method's parameters are not touched. The
 probe runs ``ProbedHierarchical``, a subclass of the method (a copy of its weights) that
 records mu's inputs and log-probs in ``policy_forward`` and can draw r uniformly: the
-method itself carries no probe code. Imported by scripts/probe_reference.py and
-scripts/reference_study.py (run from the repository root: ``python scripts/...``).
+method itself carries no probe code. Imported by maintenance/probe_reference.py and
+maintenance/reference_study.py (run from the repository root: ``python maintenance/...``).
 """
 from __future__ import annotations
 

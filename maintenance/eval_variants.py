@@ -1,6 +1,6 @@
-"""Evaluate one checkpoint of scripts/reference_study.py under execution-time variants.
+"""Evaluate one checkpoint of maintenance/reference_study.py under execution-time variants.
 
-Usage: python scripts/eval_variants.py results/reference_study/NAME.pt '{"ref_hold": 10}' [--n 20]
+Usage: python maintenance/eval_variants.py results/reference_study/NAME.pt '{"ref_hold": 10}' [--n 20]
 The second argument is the training params of the checkpoint; each variant below only
 changes how the trained networks are executed (same scenarios and loss draws):
 messages predicted / oracle / last, fallback joint / per_robot, resample_on_fallback.
