@@ -1,4 +1,4 @@
-"""The robustness-matrix section of the report (``bench matrix``, issue 17; beyond the paper).
+"""The robustness-matrix section of the report (``bench matrix``; beyond the paper).
 
 From ``RUN/matrix/`` (bench/execute/matrix.py): success rate of every trained policy at other team
 sizes N', loss rates p' and loss models. Statistics: a seed's value is the mean over the

@@ -1,4 +1,4 @@
-"""``bench calibrate`` on the committed reproduction's own spread (issue 35, item 1).
+"""``bench calibrate`` on the committed reproduction's own spread.
 
 Every check of every statistical claim is simulated at its real seed counts (5 vs 3 where
 the store has them) and its real contradiction level 0.05 / k, and every claim as a whole

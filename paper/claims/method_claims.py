@@ -1,4 +1,4 @@
-"""Claims of the methods a run brings: "M above each baseline" (issue 31, item 3).
+"""Claims of the methods a run brings: "M above each baseline".
 
 For every method of the run that is neither the paper's method nor one of its baselines
 (``Method.paper_role`` "", e.g. a user's plugin; a method that cannot be resolved here counts

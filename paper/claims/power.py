@@ -1,5 +1,5 @@
 """Power of a claim check at its own seed counts and observed spread, and the seeds that
-80% power would need (issue 35, item 2).
+80% power would need.
 
 Every claim test that is a Welch / one-sample t on a linear contrast of per-seed means
 (``reports.stats.t_test``) has an exact power under normal seed values: the t statistic

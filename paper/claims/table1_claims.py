@@ -1,4 +1,4 @@
-"""Table I's statements beyond "no collisions" and "fewer than 8%" (Sec. IV, issue 35):
+"""Table I's statements beyond "no collisions" and "fewer than 8%" (Sec. IV):
 the collision rate at the paper's print precision, the mean candidates it prints, "the
 mean number of searches generally increases for larger teams" and "an admissible control
 can be identified within the normal safety search" (the fallback rate).

@@ -1,7 +1,7 @@
-"""Claim tests for Table I's statements that are bounds, values and trends (issue 35,
-item 3): a rate below a bound, a mean near the paper's printed value, a mean rising with
-team size. Per-seed arrays in, (verdict, numbers, test) out, like ``paper.claims.verdicts``;
-each a one-sample / Welch t over per-seed means (``reports.stats.t_test``).
+"""Claim tests for Table I's statements that are bounds, values and trends: a rate below
+a bound, a mean near the paper's printed value, a mean rising with team size. Per-seed
+arrays in, (verdict, numbers, test) out, like ``paper.claims.verdicts``; each a
+one-sample / Welch t over per-seed means (``reports.stats.t_test``).
 
 - ``check_below``: supported when the per-seed mean is significantly below ``bound``
   (at ``TEST_ALPHA``), contradicted when significantly above it (at ``contra_alpha``).

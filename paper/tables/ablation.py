@@ -1,4 +1,4 @@
-"""The ablation of the hierarchical method (``bench run --grid ablation``, issue 18).
+"""The ablation of the hierarchical method (``bench run --grid ablation``).
 
 Every done cell of the ``ablation`` grid (the ``grid`` column of cells.parquet; other
 grids' cells are never pooled in) is matched to a variant of

@@ -1,6 +1,6 @@
 """Readable replay frames: a captioned, legended picture of each step (``bench replay``).
 
-Issue #16 found 352 x 238 frames with a bitmap font and no legend. Here a frame is, top to
+Frames of 352 x 238 px with a bitmap font and no legend were unreadable. Here a frame is, top to
 bottom: a caption band (method, N, p, cell id, episode, execution mode; then the step's
 counters), the grid drawn by ``envs.render.render_rgb`` at ``replay_cell_px`` pixels per
 cell (at least ``MIN_WIDTH`` px wide: 6 px cells, 966 px, for the 63 x 161 MovingAI map)
