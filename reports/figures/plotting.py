@@ -6,9 +6,9 @@ state, no GUI backend; rendering uses Agg), styled with seaborn, sized for a pap
 index prints under it, e.g. which of the paper's configurations the run lacks) and a
 caption (configuration, seeds, episodes, smoothing, what the band is) that the index shows
 under the figure and ``reports.writers.save_figure`` stores as PDF metadata and a sidecar
-``.txt``. One colour and one label per method, as the method declares them
-(``Method.color``, ``Method.label()``), for every figure: "Hierarchical (ours)" is blue everywhere; several team sizes
-of one method are
+``.txt``. One colour, line style and legend rank per method from the report's method table
+(``reports.figures.styles``), and one label, the method's own (``Method.label()``), in
+every figure: "Hierarchical (ours)" is blue everywhere; several team sizes of one method are
 shades of that method's colour (``shades``), never another palette.
 """
 from __future__ import annotations
@@ -29,6 +29,7 @@ from matplotlib.typing import RcKeyType
 
 from algorithms.base import UNRANKED
 from algorithms.registry import available, find_method
+from reports.figures.styles import method_style_of
 
 COLUMN_IN = 3.5  # paper column width, inches
 FONT_PT = 7
@@ -41,7 +42,6 @@ RC: dict[RcKeyType, Any] = {
     "ytick.major.pad": 1.5, "axes.labelpad": 2.0, "axes.titlepad": 3.0,
     "pdf.fonttype": 42, "svg.fonttype": "none",
 }
-UNKNOWN_COLOR = (0.3, 0.3, 0.3)  # a method that cannot be resolved here (plugin not installed)
 
 
 @dataclass
@@ -65,15 +65,13 @@ def new_figure(height_in: float, width_in: float = COLUMN_IN) -> Figure:
 
 
 def method_color(method: str) -> tuple[float, float, float]:
-    """The colour a method declares (``Method.color``), grey if it cannot be resolved."""
-    cls = find_method(method)
-    return to_rgb(cls.color) if cls is not None else UNKNOWN_COLOR
+    """The method's colour in the report's method table (``reports.figures.styles``)."""
+    return to_rgb(method_style_of(method).color)
 
 
 def method_style(method: str) -> str:
-    """The line style a method declares (``Method.line_style``), solid if unresolved."""
-    cls = find_method(method)
-    return cls.line_style if cls is not None else "-"
+    """The method's line style in the report's method table."""
+    return method_style_of(method).line_style
 
 
 def method_label(method: str) -> str:
@@ -83,8 +81,9 @@ def method_label(method: str) -> str:
 
 
 def label_order(label: str) -> int:
-    """Legend and table position of a method label: ``Method.legend_rank`` of the registered
-    method with that label (the paper's method first, then the baselines), others last."""
+    """Legend and table position of a method label: the rank in the report's method table of
+    the registered method with that label (the paper's method first, then the baselines),
+    others last."""
     return _ranks().get(label, UNRANKED)
 
 
@@ -105,7 +104,7 @@ def _ranks() -> dict[str, int]:
     for name in available():
         cls = find_method(name)
         if cls is not None:
-            ranks.setdefault(cls.label(), cls.legend_rank)
+            ranks.setdefault(cls.label(), method_style_of(name).rank)
     return ranks
 
 
