@@ -4,7 +4,7 @@
 
 For every done hierarchical cell of the run (or the cells named) loads its checkpoint and
 prints one JSON line: the cell's N, p, seed, variant parameters, training episodes, and
-``maintenance/reference_probe.py``'s ``probe_reference`` on evaluation scenarios (entropy of
+``scripts/reference_probe.py``'s ``probe_reference`` on evaluation scenarios (entropy of
 mu, I(r; o), I(r; u_i | s), the share of the modal argmax r, success with argmax r vs a
 uniform r). Evaluation streams only; the checkpoint is not modified.
 """
@@ -17,7 +17,9 @@ from pathlib import Path
 
 import pandas as pd
 import torch
-from reference_probe import probe_reference  # maintenance/reference_probe.py
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from reference_probe import probe_reference  # noqa: E402  (scripts/reference_probe.py, a live probe library)
 
 from algorithms.hierarchical.method import HierarchicalMethod
 from bench.design.cells import Cell

@@ -9,12 +9,15 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
-from reference_probe import probe_reference  # maintenance/reference_probe.py
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from reference_probe import probe_reference  # noqa: E402  (scripts/reference_probe.py, a live probe library)
 
 from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice

@@ -18,7 +18,7 @@ argmax execution (``resample_on_fallback``) and the reference layer's open choic
 Each step reports the inter-group links delivered (``Decision.group_links``) and the
 filter's outcome to a ``Method.run`` observer (algorithms/common/observer.py). Probes that
 need the intermediates (mu's log-probs, the completed S-hat) subclass the method and
-override ``policy_forward`` or ``_receive`` (maintenance/reference_probe.py, the tests).
+override ``policy_forward`` or ``_receive`` (scripts/reference_probe.py, the tests).
 May import: algorithms.base, algorithms.common, algorithms.hierarchical (not reports, bench).
 """
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""Which commits trained a run's cells, when some were imported from another run (issue 49
-item 6): ``scripts/import_cells.py`` copies finished cells, and the manifest keeps the run
+"""Which commits trained a run's cells, when some were imported from another run:
+``maintenance/import_cells.py`` copied finished cells, and the manifest keeps the run
 records of the invocations that trained them (marked ``imported_from``) beside one record of
 the import (``cells_imported``). The commit of each cell is the ``git`` of the bench that
 finished it (cells.parquet ``versions_json``); a cell whose commit is none of this run's own
