@@ -81,7 +81,7 @@ class MethodParams(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
     # Parameters added after cells were stored whose default is the behaviour those cells ran
-    # with: a stored row without one is no change while it is at its default (decision 0275).
+    # with: a stored row without one is no change while it is at its default (decision 0216).
     added_later: ClassVar[tuple[str, ...]] = ()
 
     batch_episodes: int = Field(8, ge=1, description="episodes per training update (batched in one process)")

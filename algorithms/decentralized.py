@@ -149,7 +149,7 @@ class DecentralizedMethod(Method):
     line_style = "--"
     payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams
-    presets = {"tuned": Preset.unpublished("studies/definitions/decentralized.toml")}  # decision 0265
+    presets = {"tuned": Preset.unpublished("studies/definitions/decentralized.toml")}  # decision 0215
     params: DecentralizedParams
 
     def __init__(self, env, params=None, seed: int = 0) -> None:

@@ -226,7 +226,7 @@ class IC3NetMethod(Method):
     line_style = "-."
     payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams
-    presets = {"tuned": Preset.unpublished("studies/definitions/ic3net.toml")}  # decision 0265
+    presets = {"tuned": Preset.unpublished("studies/definitions/ic3net.toml")}  # decision 0215
     params: IC3NetParams
 
     def __init__(self, env, params=None, seed: int = 0) -> None:

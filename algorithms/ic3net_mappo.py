@@ -1,4 +1,4 @@
-"""IC3Net's update under ``protocol="mappo"`` (algorithms/common/ppo.py; docs/decisions/0206).
+"""IC3Net's update under ``protocol="mappo"`` (algorithms/common/ppo.py; docs/decisions/0201).
 
 The samples are (chunk, episode) pairs: the rollout keeps the LSTM state at the start of
 every ``detach_gap``-step chunk (``IC3NetState.chunk_hc``), so a minibatch of pairs is

@@ -10,7 +10,7 @@ values, so its id changes whenever the values do.
 
 A preset may be declared before its values exist (``Preset.unpublished``): the published
 study that will produce them is named, and selecting it is one clear error until then
-(docs/decisions/0265-what-tuned-means-before-the-studies.md). May import: envs.errors.
+(docs/decisions/0215-what-tuned-means-before-the-studies.md). May import: envs.errors.
 """
 from __future__ import annotations
 

@@ -174,7 +174,7 @@ def _learning_curves(train: pd.DataFrame, out: Path) -> Entry:
 
 
 def _training_diagnostics(train: pd.DataFrame, out: Path) -> list[Entry]:
-    """Runs whose train rows hold the diagnostics (docs/decisions/0205): their figure."""
+    """Runs whose train rows hold the diagnostics (docs/decisions/0200): their figure."""
     diag = training_diagnostics(train)
     if diag is None:
         return []

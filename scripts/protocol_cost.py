@@ -2,7 +2,7 @@
 
 Both protocols of one method on the same configuration in one process, alternating update
 by update so machine load hits both alike; prints rollout and update seconds and the ratio
-of the totals (decision 0206):
+of the totals (decision 0201):
 
     OMP_NUM_THREADS=1 .venv/bin/python scripts/protocol_cost.py decentralized --n 40
 """

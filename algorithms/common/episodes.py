@@ -100,7 +100,7 @@ EVAL_METRICS = (
     "payload_dec_per_step", "steps",
 )
 
-# The metrics MAPF researchers read, as POGEMA defines them (docs/decisions/0259): CSR, sum of
+# The metrics MAPF researchers read, as POGEMA defines them (docs/decisions/0212): CSR, sum of
 # costs and makespan of one-shot episodes, throughput of lifelong ones (NaN where they do not
 # apply). Added after the first committed stores: an older eval file reads them as NaN.
 MAPF_METRICS = ("csr", "sum_of_costs", "makespan", "throughput")
@@ -171,7 +171,7 @@ class EpisodeStats:
         return rows
 
     def _mapf(self, b: int, done: np.ndarray) -> dict[str, float]:
-        """``MAPF_METRICS`` of episode ``b`` (POGEMA's definitions, docs/decisions/0259):
+        """``MAPF_METRICS`` of episode ``b`` (POGEMA's definitions, docs/decisions/0212):
         a robot's cost is the number of steps until it first stood on its goal (0 if it
         started there), the episode's length if it never did; sum of costs and makespan are
         their sum and maximum, CSR is 1 when every robot arrived; throughput is goals

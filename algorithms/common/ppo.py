@@ -2,7 +2,7 @@
 
 ``protocol = "paper"`` (the default) is the paper's trainer (trainer.py), bit for bit.
 ``protocol = "mappo"`` (MAPPO, Yu et al. 2022; CleanRL's ppo.py) trains the same policies
-on the same rollouts with (docs/decisions/0205..0210):
+on the same rollouts with (docs/decisions/0201):
 
 * ``RobotCritic``: a centralized critic on the same global state X_t (and t / T) that
   predicts, per robot, the value of that robot's own reward terms (progress, goal,

@@ -1,5 +1,5 @@
 """The hierarchical method's update under ``protocol="mappo"`` (algorithms/common/ppo.py;
-docs/decisions/0206).
+docs/decisions/0201).
 
 The protocol's per-robot critic gives GAE advantages per robot; the two levels learn from
 the credit their structure allows:

@@ -108,7 +108,7 @@ class HierarchicalMethod(Method):
     payload_model = ("scalars transmitted per step on the inter-group links, delivered or lost: (Z - 1) N d_m "
                      "on the complete group graph, fewer on a sparser one (Sec. III-A)")
     Params = HierarchicalParams
-    presets = PRESETS  # "tuned": decision 0265
+    presets = PRESETS  # "tuned": decision 0215
     params: HierarchicalParams
 
     def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:
@@ -149,7 +149,7 @@ class HierarchicalMethod(Method):
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
         # Shared parameters stack too (``stack_view``), but bench run and the grid's cost
-        # estimates keep stacking per-group configurations only (docs/decisions/0220).
+        # estimates keep stacking per-group configurations only (docs/decisions/0202).
         return not cls.parse_params(params).share_params  # type: ignore[attr-defined]  # Params is HierarchicalParams
 
     @classmethod

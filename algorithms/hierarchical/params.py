@@ -13,7 +13,7 @@ from algorithms.base import LearnedParams
 from algorithms.presets import Preset
 
 # Named presets beside the paper's defaults (algorithms/presets.py): "tuned" is the winner
-# of the published study studies/definitions/hierarchical.toml, not run yet (decision 0265).
+# of the published study studies/definitions/hierarchical.toml, not run yet (decision 0215).
 PRESETS = {"tuned": Preset.unpublished("studies/definitions/hierarchical.toml")}
 
 

@@ -36,7 +36,7 @@ from envs.scenarios import main_region
 MAX_HORIZON = limit("horizon")
 
 # Fields added after the first committed stores: left out of the canonical JSON while at
-# their default, so every cell that does not set them keeps its id (docs/decisions/0256).
+# their default, so every cell that does not set them keeps its id (docs/decisions/0209).
 LATER_FIELDS = ("delay", "delay_model", "task", "preset")
 
 # Cell fields handed to a method when (and only when) its Params declares them.

@@ -10,7 +10,7 @@ for N, a method's default ``safety_filter``) keep the grid's value: set them too
 override changes N or the method.
 
 A run directory records its overrides in manifest.json (``overrides``), and a resumed run
-must give the same ones (docs/decisions/0230): cells of two override sets never mix in one
+must give the same ones (docs/decisions/0203): cells of two override sets never mix in one
 run directory unnoticed.
 """
 from __future__ import annotations
@@ -116,7 +116,7 @@ def describe_overrides(overrides: Mapping[str, Mapping[str, Any]]) -> str:
 
 def check_resume_overrides(manifest: Mapping[str, Any] | None, overrides: Mapping[str, Any], out: str) -> None:
     """Refuse (BenchError) to continue a run directory made with other overrides: its cells
-    and these would mix in one run (docs/decisions/0230). A directory without a manifest
+    and these would mix in one run (docs/decisions/0203). A directory without a manifest
     (new) or made before overrides existed (no key: none) is checked like any other."""
     if manifest is None:
         return

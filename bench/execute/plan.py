@@ -135,7 +135,7 @@ def params_changes(stored_json: str, cell: Cell) -> list[str]:
     params = cell.method_params()
     now = params.model_dump(mode="json")  # as stored in params_json
     # A parameter its Params declares added later, absent from the stored row, is no change
-    # while at its default: the cell ran its default behaviour (docs/decisions/0275).
+    # while at its default: the cell ran its default behaviour (docs/decisions/0216).
     defaults = type(params).model_fields
     for key in set(params.added_later) - set(old):
         if now.get(key) == defaults[key].default:

@@ -1,7 +1,7 @@
 """MLflow logger: a SQLite tracking store at ``RUN/tracking/mlflow/mlflow.db``, MLflow's
 recommended local backend (``mlflow ui --backend-store-uri sqlite:///RUN/tracking/mlflow/mlflow.db``;
 ``mlflow.set_tracking_uri`` with that URI, then ``mlflow.search_runs``; no environment
-variable needed; docs/decisions/0231), experiment = the grid's name, one run per cell.
+variable needed; docs/decisions/0204), experiment = the grid's name, one run per cell.
 
 The run is named by method, N, p, seed and cell id (``CellInfo.run_name``; tag ``cell_id``)
 and carries the cell's config as params; metrics ``train.<metric>`` per update (step = episodes trained) and

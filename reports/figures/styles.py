@@ -57,7 +57,7 @@ def _declared(cls: type[Method]) -> Style | None:
         return None
     warnings.warn(f"method {cls.__name__}: color, line_style and legend_rank on the Method class are deprecated; "
                   f"register a Style in the entry-point group {STYLE_ENTRY_POINT_GROUP!r} "
-                  "(docs/decisions/0241)", DeprecationWarning, stacklevel=3)
+                  "(docs/decisions/0207)", DeprecationWarning, stacklevel=3)
     return Style(str(attrs["color"]), str(attrs["line_style"]), int(attrs["legend_rank"]))
 
 

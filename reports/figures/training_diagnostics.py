@@ -1,4 +1,4 @@
-"""Training diagnostics per update (docs/decisions/0205): what moved in training.
+"""Training diagnostics per update (docs/decisions/0200): what moved in training.
 
 One panel per diagnostic the train rows carry (``diag_*`` columns and the collision rate):
 policy entropy (solid: the robot-level control policy; dashed: the hierarchical reference),

@@ -1,5 +1,5 @@
 """CSR, sum of costs, makespan and throughput of EpisodeStats rows, as POGEMA defines them
-(docs/decisions/0259), against hand-counted episodes; older eval files read them as NaN."""
+(docs/decisions/0212), against hand-counted episodes; older eval files read them as NaN."""
 from __future__ import annotations
 
 import math

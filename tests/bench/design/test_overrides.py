@@ -1,5 +1,5 @@
 """bench run --set / --axis (bench/design/overrides.py): overrides of every cell, one-line
-errors naming the option, and the resume rule (docs/decisions/0230)."""
+errors naming the option, and the resume rule (docs/decisions/0203)."""
 from __future__ import annotations
 
 import json

@@ -510,7 +510,7 @@ def test_changed_default__a_field_the_stored_row_lacks_and_many_cells_in_one_mes
 def test_params_changes__a_parameter_added_later_is_a_change_only_off_its_default() -> None:
     cell = Cell.make(method="decentralized", n_robots=8, loss_p=0.2, layout="tiny")
     stored = cell.method_params().model_dump(mode="json")
-    del stored["protocol"]  # a cell trained before the parameter existed (decision 0275)
+    del stored["protocol"]  # a cell trained before the parameter existed (decision 0216)
     assert params_changes(json.dumps(stored), cell) == []
     mappo = Cell.make(method="decentralized", n_robots=8, loss_p=0.2, layout="tiny", params={"protocol": "mappo"})
     assert params_changes(json.dumps(stored), mappo) == ["protocol: (absent) -> \"mappo\""]
