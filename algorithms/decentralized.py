@@ -122,46 +122,52 @@ class DecentralizedActor(nn.Module):
         return lin0, lin1, lin2
 
     def rollout_logits(self, obs: torch.Tensor, mask: torch.Tensor,
-                       hidden_out: torch.Tensor | None = None) -> torch.Tensor:
+                       hidden_out: tuple[torch.Tensor, torch.Tensor] | None = None) -> torch.Tensor:
         """``forward`` without autograd: the same ops, ReLU and the mask applied in place on
         fresh intermediates, no module-call overhead (bit-identical;
-        tests/algorithms/test_baseline_fast_paths.py). With ``hidden_out`` (e.g. a rollout
-        buffer row) the first hidden layer's activations are copied there for the update
+        tests/algorithms/test_baseline_fast_paths.py). With ``hidden_out`` (e.g. two rollout
+        buffer rows) both hidden layers' activations are copied there for the update
         (``logits_from_hidden``)."""
         lin0, lin1, lin2 = self.layers()
         x = F.linear(obs, lin0.weight, lin0.bias).relu_()
         if hidden_out is not None:
-            hidden_out.copy_(x)
+            hidden_out[0].copy_(x)
         x = F.linear(x, lin1.weight, lin1.bias).relu_()
+        if hidden_out is not None:
+            hidden_out[1].copy_(x)
         logits = F.linear(x, lin2.weight, lin2.bias)
         if self.path is not None:
             logits = self.path(obs, logits)
         return logits.masked_fill_(~torch.as_tensor(mask, dtype=torch.bool), -1e9)
 
     def logits_from_hidden(self, obs: torch.Tensor, hidden: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        """``forward`` from the first hidden layer's activations kept by the rollout
-        (``hidden`` = ReLU(lin0(obs)), a leaf that requires grad): the same ops from the
-        second layer on, so autograd gives the same gradients of every later parameter and
-        of ``hidden``; ``first_layer_backward`` then gives lin0's (no re-forward of lin0)."""
-        _, lin1, lin2 = self.layers()
-        logits = lin2(torch.relu(lin1(hidden)))
+        """``forward`` from the last hidden layer's activations kept by the rollout
+        (``hidden`` = ReLU(lin1(ReLU(lin0(obs)))), a leaf that requires grad): the same ops
+        from there on, so autograd gives the same gradients of lin2, the action path and
+        ``hidden``; ``hidden_backward`` then gives lin1's and lin0's (no re-forward)."""
+        logits = self.layers()[2](hidden)
         if self.path is not None:
             logits = self.path(obs, logits)
         return masked_logits(logits, mask)
 
-    def first_layer_backward(self, obs: torch.Tensor, hidden: torch.Tensor) -> None:
-        """Accumulate lin0's gradients from ``hidden.grad`` as autograd's ReLU and addmm
-        backward would (threshold_backward on the ReLU output, grad^T obs for the weight,
-        the row sum for the bias; obs (rows, F) row-major), so the sum over chunks is the
-        same float sequence as a full backward (scripts/train_hashes.py)."""
-        lin0 = self.layers()[0]
-        assert hidden.grad is not None
-        grad = torch.ops.aten.threshold_backward(hidden.grad, hidden.detach(), 0)
-        for param, g in ((lin0.weight, grad.t().mm(obs)), (lin0.bias, grad.sum(0))):
-            if param.grad is None:
-                param.grad = g
-            else:
-                param.grad += g
+    def hidden_backward(self, obs: torch.Tensor, hidden: tuple[torch.Tensor, torch.Tensor]) -> None:
+        """Accumulate lin1's and lin0's gradients from ``hidden[1].grad`` as autograd's ReLU
+        and addmm backward would: threshold_backward on the ReLU output, grad^T input for
+        the weight, the row sum for the bias, grad W for the layer's input (all row-major,
+        as in the re-forward), so the sum over chunks is the same float sequence as a full
+        backward (scripts/train_hashes.py)."""
+        lin0, lin1, _ = self.layers()
+        grad = hidden[1].grad
+        assert grad is not None
+        for lin, out, inp in ((lin1, hidden[1], hidden[0]), (lin0, hidden[0], obs)):
+            grad = torch.ops.aten.threshold_backward(grad, out.detach(), 0)
+            for param, g in ((lin.weight, grad.t().mm(inp)), (lin.bias, grad.sum(0))):
+                if param.grad is None:
+                    param.grad = g
+                else:
+                    param.grad += g
+            if lin is lin1:
+                grad = grad.mm(lin.weight.detach())
 
 
 @dataclass
@@ -215,7 +221,8 @@ class DecentralizedMethod(Method):
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "actions": ((n,), np.int64), "active": ((n,), bool), **critic_shapes(n),
                 **({"robot_reward": ((n,), np.float32)} if self.mappo
-                   else {"hidden0": ((n, p.hidden), np.float32)}),  # the actor's first layer
+                   else {"hidden0": ((n, p.hidden), np.float32),  # the actor's activations
+                         "hidden1": ((n, p.hidden), np.float32)}),
             })
         state = DecentralizedState(AllToAllBoard(core, loss, p.patch_radius),
                                    PatchExtractor(core, p.patch_radius), buffer, ~core.ended,
@@ -243,7 +250,8 @@ class DecentralizedMethod(Method):
         mask = np.empty(core.pos.shape + (N_ACTIONS,), dtype=bool) if buf is None else buf.row("mask")
         action_mask_into(core, mask)
         with torch.inference_mode():  # rollouts never backpropagate (the update recomputes)
-            hidden = None if buf is None or "hidden0" not in buf.data else torch.from_numpy(buf.row("hidden0"))
+            hidden = None if buf is None or "hidden0" not in buf.data else \
+                (torch.from_numpy(buf.row("hidden0")), torch.from_numpy(buf.row("hidden1")))
             logits = self.actor.rollout_logits(torch.from_numpy(obs), torch.from_numpy(mask), hidden)
             actions = choice(logits).numpy()
         state.running = ~core.ended
@@ -302,7 +310,8 @@ class DecentralizedMethod(Method):
             data = buf.data[key][: buf.t]
             return np.take(data.reshape(active.size, *data.shape[3:]), sel, axis=0)
 
-        obs, act_mask, hidden = rows_of("obs"), rows_of("mask"), rows_of("hidden0")
+        obs, act_mask = rows_of("obs"), rows_of("mask")
+        hidden0, hidden1 = rows_of("hidden0"), rows_of("hidden1")
         actions = torch.from_numpy(rows_of("actions"))
         weight = np.take(np.broadcast_to(adv.numpy()[..., None], active.shape).reshape(-1), sel) / float(n)
         weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32))
@@ -311,15 +320,16 @@ class DecentralizedMethod(Method):
         actor_total, entropy_total = 0.0, 0.0
         for lo in range(0, rows, p.chunk_rows):
             sl = slice(lo, lo + p.chunk_rows)
-            # The rollout's first-layer activations instead of lin0's re-forward (bit for bit).
-            obs_t, hidden_t = torch.from_numpy(obs[sl]), torch.from_numpy(hidden[sl]).requires_grad_()
+            # The rollout's hidden activations instead of a re-forward (bit for bit).
+            obs_t = torch.from_numpy(obs[sl])
+            kept = (torch.from_numpy(hidden0[sl]), torch.from_numpy(hidden1[sl]).requires_grad_())
             logp_all = torch.log_softmax(self.actor.logits_from_hidden(
-                obs_t, hidden_t, torch.from_numpy(act_mask[sl])), dim=-1)
+                obs_t, kept[1], torch.from_numpy(act_mask[sl])), dim=-1)
             logp = logp_all.gather(-1, actions[sl, None]).squeeze(-1)
             entropy = -(logp_all.exp() * logp_all).sum(-1)
             loss = -(weight_t[sl] * logp).sum() - p.entropy_coef * entropy.sum() / max(rows, 1)
             loss.backward()
-            self.actor.first_layer_backward(obs_t, hidden_t)
+            self.actor.hidden_backward(obs_t, kept)
             actor_total += float(-(weight_t[sl] * logp.detach()).sum())
             entropy_total += float(entropy.detach().sum())
         probe = self.kl_probe(obs, act_mask)

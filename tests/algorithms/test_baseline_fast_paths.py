@@ -126,9 +126,9 @@ def test_decentralized_actor__rollout_path_equals_the_autograd_path_bit_for_bit(
 
 
 
-def test_decentralized_actor__kept_first_layer_gives_the_re_forward_gradients_bit_for_bit() -> None:
-    """The update's gradients from the rollout's kept first-layer activations
-    (``logits_from_hidden`` + ``first_layer_backward``) equal autograd's through a full
+def test_decentralized_actor__kept_activations_give_the_re_forward_gradients_bit_for_bit() -> None:
+    """The update's gradients from the rollout's kept hidden activations
+    (``logits_from_hidden`` + ``hidden_backward``) equal autograd's through a full
     re-forward, summed over several chunks (rows of a (B, N) rollout batch, gathered)."""
     from algorithms.decentralized import DecentralizedActor
 
@@ -138,12 +138,12 @@ def test_decentralized_actor__kept_first_layer_gives_the_re_forward_gradients_bi
         actor.path.weight.normal_()
     obs = torch.rand(4, 3, 50, 142)  # (T, B, N, F): one rollout step per t
     mask = torch.rand(4, 3, 50, 5) > 0.3
-    hidden = torch.empty(4, 3, 50, 64)
+    hidden = torch.empty(2, 4, 3, 50, 64)
     with torch.inference_mode():
         for t in range(4):
-            actor.rollout_logits(obs[t], mask[t], hidden[t])
+            actor.rollout_logits(obs[t], mask[t], (hidden[0, t], hidden[1, t]))
     rows = torch.rand(4, 3, 50) < 0.8
-    o, m, h = obs[rows], mask[rows], hidden[rows]
+    o, m, h0, h1 = obs[rows], mask[rows], hidden[0][rows], hidden[1][rows]
     weight = torch.randn(o.shape[0])
 
     def grads(kept: bool) -> list[torch.Tensor]:
@@ -151,13 +151,13 @@ def test_decentralized_actor__kept_first_layer_gives_the_re_forward_gradients_bi
         for lo in range(0, o.shape[0], 97):  # uneven chunks
             sl = slice(lo, lo + 97)
             if kept:
-                leaf = h[sl].clone().requires_grad_()
-                logits = actor.logits_from_hidden(o[sl], leaf, m[sl])
+                kept = (h0[sl], h1[sl].clone().requires_grad_())
+                logits = actor.logits_from_hidden(o[sl], kept[1], m[sl])
             else:
                 logits = actor(o[sl], m[sl])
             (weight[sl] * torch.log_softmax(logits, -1).amax(-1)).sum().backward()
             if kept:
-                actor.first_layer_backward(o[sl], leaf)
+                actor.hidden_backward(o[sl], kept)
         return [q.grad.clone() for q in actor.parameters()]
 
     for plain, fast in zip(grads(False), grads(True), strict=True):
