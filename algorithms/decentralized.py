@@ -15,8 +15,10 @@ received from all other robots over lossy all-to-all links, without the group hi
   A_t = G_t - V(X_t) (eq:advantage), actor loss -A_t sum_i log pi(u_t^i | o_t^i) and
   critic loss (V - G)^2 (eq:losses), Adam (``critic_update``, ``clip_and_step``).
   Rollouts run under no_grad into a
-  ``RolloutBuffer``; the update is one batched forward (chunked over robot-steps only to
-  bound memory: the gradient is the same);
+  ``RolloutBuffer``, which also keeps the actor's two hidden activations (paper protocol);
+  the update backpropagates from them over the active robot-steps (chunked only to bound
+  memory: the gradient is the same), with no re-forward of the MLP, bit for bit
+  (docs/decisions/0280);
 * payload N (N - 1) d_m scalars per step (Sec. III-A, C_dec);
 * ``safety_filter=True`` runs the hierarchical method's filter (Algorithm 1,
   eq:safety_conditions) with every robot its own group, on the received (possibly stale)
