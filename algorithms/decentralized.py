@@ -18,7 +18,7 @@ received from all other robots over lossy all-to-all links, without the group hi
   ``RolloutBuffer``, which also keeps the actor's two hidden activations (paper protocol);
   the update backpropagates from them over the active robot-steps (chunked only to bound
   memory: the gradient is the same), with no re-forward of the MLP, bit for bit
-  (docs/decisions/0280);
+  (docs/decisions/0217);
 * payload N (N - 1) d_m scalars per step (Sec. III-A, C_dec);
 * ``safety_filter=True`` runs the hierarchical method's filter (Algorithm 1,
   eq:safety_conditions) with every robot its own group, on the received (possibly stale)
