@@ -95,7 +95,7 @@ def _unusable_files(ref: Store) -> list[str]:
     """What ``load_store`` left out of ``ref`` for a file, each naming it: a damaged or
     misplaced file, a done cell's absent eval file (D17: a refusal names its file)."""
     out = [p.removeprefix("skipped ") for p in ref.problems if p.startswith("skipped ")]
-    no_rows = re.compile(r"cell ([0-9a-f]{12}) is done but has no evaluation rows")
+    no_rows = re.compile(r"cell ([0-9a-f]{12}) is done but its rows are incomplete: (.*, )?no evaluation rows")
     for p in ref.problems:
         m = no_rows.fullmatch(p)
         if m and not (ref.run_dir / "eval" / f"{m[1]}.parquet").is_file():

@@ -70,7 +70,7 @@ def _broken_copy(src: Path, dst: Path, how: str) -> Path:
 
 
 @pytest.mark.parametrize(("args", "message"), [
-    (["run", "--grid", "nope"], "'nope' is not one of"),
+    (["run", "--grid", "nope"], "unknown grid 'nope'"),
     (["run"], "give exactly one of --grid"),
     (["run", "--grid-file", "{bad_method}"], "unknown method 'qmix'"),
     (["run", "--grid-file", "{bad_value}"], "n_robots"),
