@@ -262,7 +262,7 @@ class Method(ABC):
     def _check_payload(self, payload: np.ndarray | float) -> None:
         """BenchError unless ``payload`` is finite, or NaN throughout for a method whose
         payload is not modelled (``payload_not_modelled``): an inf or a stray NaN would be
-        stored as NaN without a word (issue 52, D16)."""
+        stored as NaN without a word (D16)."""
         p = np.asarray(payload, dtype=np.float64)
         if np.isfinite(p).all() or (self.payload_not_modelled and np.isnan(p).all()):
             return

@@ -312,7 +312,7 @@ def eval_(
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
-    if method is not None:  # a misspelled name is one line before torch and Ray load (issue 51 item 6)
+    if method is not None:  # a misspelled name is one line before torch and Ray load
         from algorithms.registry import available, is_path, method_class
 
         if not is_path(method) and method not in available():
@@ -571,7 +571,7 @@ PERF_SUITES = {
     "pibt": ("bench.perf.pibt", "run_pibt_suite"),
     "train": ("bench.perf.methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
     "peers": ("bench.perf.peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
-    "cli": ("bench.perf.cli", "run_cli_suite"),  # wall time of commands that do not train (issue 51)
+    "cli": ("bench.perf.cli", "run_cli_suite"),  # wall time of commands that do not train
 }
 
 

@@ -2,7 +2,7 @@
 
 The names below load their module on first use (PEP 562), so importing a light module such
 as ``envs.errors`` does not pay for the core and SciPy (commands that do not simulate stay
-fast; issue 51 item 6).
+fast).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Train one learned cell for a few updates and print its per-update diagnostics (issue 54).
+"""Train one learned cell for a few updates and print its per-update diagnostics.
 
 A small, quick probe of training dynamics: the method, N, p, seed and method parameters of
 a cell (the paper's map, horizon and batch unless given), trained for ``--updates`` updates

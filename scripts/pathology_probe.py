@@ -1,4 +1,4 @@
-"""Probe the hierarchical method's two pathologies on one short training run (issue 47 item 3).
+"""Probe the hierarchical method's two pathologies on one short training run.
 
     .venv/bin/python scripts/pathology_probe.py NAME '{"ref_hold": 10}' [--n 40] [--iters 60]
 

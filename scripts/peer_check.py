@@ -1,4 +1,4 @@
-"""Peer check of the mappo protocol (issue 54): TorchRL's MAPPO (the interop recipe,
+"""Peer check of the mappo protocol: TorchRL's MAPPO (the interop recipe,
 tests/interop/recipe_torchrl.py) and ours at the same number of environment steps on one
 small configuration; prints the share of robots that reach their goal with sampled actions.
 

@@ -17,7 +17,7 @@ BASELINE_TESTS = ("tests/algorithms/test_ic3net.py tests/algorithms/test_decentr
                   "tests/algorithms/common/test_trainer.py")
 PLANTS: dict[str, tuple[str, str, str, str]] = {
     # name: (file, old, new, tests)
-    # issue 11: the trainer bugs that once passed the whole suite
+    # the trainer bugs that once passed the whole suite
     "ic3_no_baseline": (IC3, "adv = crit.adv[..., None].expand_as(active)",
                         "adv = crit.returns[..., None].expand_as(active)", BASELINE_TESTS),
     "ic3_values_not_denormalized": (IC3, "(self.policy.value_norm.denormalize(values)\n", "(values\n",
@@ -28,7 +28,7 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
     "dec_critic_frozen": (DEC, "critic_update(self.critic, self.critic_opt,",
                           "critic_update(self.critic, torch.optim.SGD(self.critic.parameters(), lr=0.0),",
                           BASELINE_TESTS),
-    # issue 18: the hierarchical method and its filter
+    # the hierarchical method and its filter
     "leak": (METHOD, "own = robot_features(core, state.patch, gs.groups)",
              "own = robot_features(core, state.patch, None)", "tests/algorithms/hierarchical"),
     "truth": (METHOD, "return rollout_step(self.predictor, pred, link_msgs, avail, own_msgs)",
@@ -55,7 +55,7 @@ PLANTS: dict[str, tuple[str, str, str, str]] = {
     "no_vs_changed": (FILTER, "        ok &= (c1[gg, r, a] - vs_changed == 0).all(-1)",
                       "        ok &= (c1[gg, r, a] == 0).all(-1)",
                           "tests/algorithms/hierarchical/test_safety_filter.py"),
-    # issue 12: the speed changes (deviation 2 over pairs i < j, the shared critic step)
+    # the speed changes (deviation 2 over pairs i < j, the shared critic step)
     "level2_clean_j": (FILTER, "clean_j = clean[:, ju, iu]", "clean_j = clean[:, iu, ju]",
                        "tests/algorithms/hierarchical/test_safety_filter.py"),
     "level2_swap": (FILTER, "(ni == ps[:, ju, None, None]) & (nj == ps[:, iu, None, None])",

@@ -1,4 +1,4 @@
-"""Training cost of protocol = "mappo" against "paper" (issue 54: at most 1.3x per env-step).
+"""Training cost of protocol = "mappo" against "paper" (at most 1.3x per env-step).
 
 Both protocols of one method on the same configuration in one process, alternating update
 by update so machine load hits both alike; prints rollout and update seconds and the ratio

@@ -1,5 +1,5 @@
 """Record the SHA-256 of every stored file of a committed run that has none yet, marked as
-added later (issue 49 item 6, docs/decisions/0197): reproduction/paper and
+added later (docs/decisions/0197): reproduction/paper and
 reproduction/ablation predate checksums, and reproduction/full's imported cells and the
 files of its first parts were written before its bench recorded them.
 

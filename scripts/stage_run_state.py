@@ -1,4 +1,4 @@
-"""Stage a committed run folder's resumable state in git (issue 13: long runs continue on
+"""Stage a committed run folder's resumable state in git (long runs continue on
 any fresh clone).
 
     .venv/bin/python scripts/stage_run_state.py reproduction/paper [--dry-run]

@@ -66,7 +66,7 @@ def fingerprints(method: str, params: dict, layout: str, n: int, on_goal: str) -
     env = EnvConfig.make(n_robots=n, layout=layout, horizon=60, loss_p=0.3, groups=min(4, n), on_goal=on_goal)
     m = method_class(method)(env, {"batch_episodes": 4, "eval_chunk": 3, **params}, seed=3)
     rows = [row for _ in range(3) for row in m.train_iteration()]
-    for row in rows:  # wall times vary; the diagnostics (issue 54) are read-outs, not training
+    for row in rows:  # wall times vary; the diagnostics are read-outs, not training
         for key in ("wall_s", *DIAGNOSTIC_COLUMNS):
             row.pop(key, None)
     drop_later_metrics(rows)

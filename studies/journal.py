@@ -1,4 +1,4 @@
-"""An Optuna journal file that survives a full disk and an interrupted write (issue 37, D1).
+"""An Optuna journal file that survives a full disk and an interrupted write (D1).
 
 Optuna's ``JournalFileBackend`` appends one JSON record a line. A write cut short (full
 disk, a killed process) leaves a torn last line; Optuna's reader skips a torn *last* line,

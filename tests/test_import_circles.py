@@ -1,4 +1,4 @@
-"""No import circle among the project's modules (issue 32): a module never imports, directly
+"""No import circle among the project's modules: a module never imports, directly
 or through others, a module that imports it back. The import graph is grimp's (installed
 with import-linter); imports under ``if TYPE_CHECKING:`` count too, since a circle hidden
 behind them is still a circle in the design. Package-level contracts (layers, no upward

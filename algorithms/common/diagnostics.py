@@ -1,4 +1,4 @@
-"""Training diagnostics per update: what a learning curve alone cannot tell (issue 54).
+"""Training diagnostics per update: what a learning curve alone cannot tell.
 
 Every learned method's ``update`` adds these ``diag_*`` numbers to the losses it returns;
 ``Method.finish_iteration`` copies them onto the update's episode rows, the store keeps

@@ -25,7 +25,7 @@ Rates = dict[str, dict[str, dict[int, float]]]
 # Effective agent-steps (robots x environment steps, the upper bound above) per second
 # of one worker at the observed N, for training and evaluation; other N interpolate
 # piecewise linearly (clamped). OBSERVED on the committed reproduction's done cells
-# (reproduction/full since 2026-12-06: the paper's budgets, 1-2 workers on the 2-core x86_64
+# (reproduction/full: the paper's budgets, 1-2 workers on the 2-core x86_64
 # VM, wall time, on the commits its manifest lists; the cells it trained itself, seed-stacked
 # by 3 and scaled back to one seed by stack_gain, and the cells it copied from
 # reproduction/paper where it trained none at that method and N): the median per (method, N)
@@ -35,8 +35,8 @@ Rates = dict[str, dict[str, dict[int, float]]]
 # box's (0.5-2x between cells of one configuration run at different times), so an
 # estimate is good to about a factor of 2; `bench grids --rates-from RUN` estimates with
 # your own run's. Methods the reproduction has not finished a cell of fall back to
-# FALLBACK_RATES: PIBT (no training) at its `bench perf --suite pibt` rate of 2026-11-22.
-# Before 2026-12-02 the training rates were evaluation rates times measured speed-ups,
+# FALLBACK_RATES: PIBT (no training) at its `bench perf --suite pibt` rate.
+# Earlier the training rates were evaluation rates times measured speed-ups,
 # which undercounted a paper cell 2-4x (docs/decisions/0096).
 RATES_FILE = Path(__file__).with_name("cost_rates.json")
 FALLBACK_RATES: Rates = {
@@ -77,7 +77,7 @@ MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 
 # Seed stacking (`bench run --stack-seeds`, hierarchical only): per-cell training speed-up
-# of 3 seeds in one worker over one, MEASURED with `bench perf --suite train` on 2026-12-02
+# of 3 seeds in one worker over one, MEASURED with `bench perf --suite train`
 # (8 episodes x 200 steps per update, MovingAI map, CPU time, medians of 3 rounds):
 # 1.47x at N = 40, 1.22x at N = 100. Other stack sizes follow the model the measurement
 # fits: a share x of a cell's training is the rollout's fixed per-step cost, which S seeds

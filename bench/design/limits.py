@@ -1,4 +1,4 @@
-"""Upper bounds on every count a user can type, each with its reason (issue 37, D4; SPEC 7).
+"""Upper bounds on every count a user can type, each with its reason (D4, SPEC 7).
 
 A count without a bound is accepted and then fails far from where it was typed: an
 ``eval_episodes = 10**12`` grid file held the driver at 4 GB after a minute. The bounds are

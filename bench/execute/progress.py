@@ -141,7 +141,7 @@ class RichProgress:
 
 def make_progress(verbose: bool = False) -> Progress:
     """Rich on an interactive terminal, plain lines on CI or when stderr is redirected:
-    quiet ones unless ``verbose`` (every event, as before issue 38)."""
+    quiet ones unless ``verbose`` (every event)."""
     if os.environ.get("CI", "").lower() in ("1", "true", "yes") or not sys.stderr.isatty():
         return LogProgress() if verbose else QuietLogProgress()
     return RichProgress()

@@ -221,7 +221,7 @@ class _Run:
 
     def _close_run_record(self) -> None:
         """The manifest's entry of this run gets its end, wall time and cells finished
-        (issue 13: commit, machine and wall time of each part of a long run)."""
+        (commit, machine and wall time of each part of a long run)."""
         manifest = self.store.read_manifest()
         runs = manifest.get("runs") if manifest else None
         if manifest is None or not runs or runs[-1].get("started") != self.run_record["started"]:

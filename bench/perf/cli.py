@@ -1,4 +1,4 @@
-"""Turn-around of the command line when it does not train (issue 51 item 6): wall seconds of
+"""Turn-around of the command line when it does not train: wall seconds of
 ``bench --help``, ``bench grids``, one-line errors, a refused ``--against`` and a 10-episode
 ``bench eval`` at N = 8, each a fresh process (what a user waits for), median of ``repeats``.
 

@@ -1,4 +1,4 @@
-"""How close a method's training is to what this machine's arithmetic allows (issue 38).
+"""How close a method's training is to what this machine's arithmetic allows.
 
 ``matmul_profile`` runs one training iteration of a method under the torch profiler
 (``with_flops``) and sums the floating-point operations of its matrix products (``aten::mm``,

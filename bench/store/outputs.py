@@ -1,5 +1,5 @@
 """Output paths a user names (``--out`` of ``bench report`` and ``bench replay``) never
-replace a file the bench did not write (issue 37, D7/D9; SPEC 7).
+replace a file the bench did not write (D7/D9, SPEC 7).
 
 * ``report --out DIR``: DIR may be new, empty, or a report folder the bench built (its
   ``index.md`` starts with ``# Report: ``); an existing file, or a folder holding other

@@ -79,7 +79,7 @@ METRIC_FIELDS = [
 ]
 LOSS_COLUMNS = ("actor_loss", "critic_loss", "predictor_loss")  # the losses of a training row
 
-# One row per cell x training episode; the per-update diagnostics (issue 54) come last:
+# One row per cell x training episode; the per-update diagnostics come last:
 # a train file written before them reads them as NaN (ADDED_TRAIN_COLUMNS).
 TRAIN_SCHEMA = pa.schema(
     [pa.field("cell_id", pa.string(), nullable=False), pa.field("episode", pa.int64(), nullable=False)]

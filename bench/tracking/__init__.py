@@ -1,4 +1,4 @@
-"""Experiment tracking for ``bench run --log tensorboard,mlflow,wandb`` (issue 38).
+"""Experiment tracking for ``bench run --log tensorboard,mlflow,wandb``.
 
 Each logger is a ``bench.tracking.observers.RunObserver`` in a module of its own; this module
 names them, checks that the chosen ones can be imported (before a run writes anything),

@@ -1,4 +1,4 @@
-"""What a method author meets first (issue 51): ``choice()`` output is a valid ``Decision``,
+"""What a method author meets first: ``choice()`` output is a valid ``Decision``,
 a backward pass through rollout tensors names the inference-mode rule, and a plugin that
 redefines a shared learned-method parameter is warned."""
 from __future__ import annotations

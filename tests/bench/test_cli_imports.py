@@ -1,4 +1,4 @@
-"""Commands that do not train or simulate do not import torch or Ray (issue 51 item 6): help
+"""Commands that do not train or simulate do not import torch or Ray: help
 and the one-line errors of user mistakes answer in about a second. Each case runs in a fresh
 interpreter (an earlier import would hide a later one)."""
 from __future__ import annotations

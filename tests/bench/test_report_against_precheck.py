@@ -1,5 +1,5 @@
-"""``bench report --against`` compares the two runs' cell lists before it reads any row
-(issue 51 item 6): a mismatch of settings or configurations is refused from cells.parquet."""
+"""``bench report --against`` compares the two runs' cell lists before it reads any row:
+a mismatch of settings or configurations is refused from cells.parquet."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -335,7 +335,7 @@ def test_write_gif__rejects_empty_frames(tmp_path):
         write_gif([], tmp_path / "x.gif")
 
 
-# --------------------------------------------------- wrappers need (issue 15)
+# --------------------------------------------------- wrappers need
 def test_warehouse_v0__robot_starting_on_its_goal_is_in_reset_and_ends_at_first_step():
     layout = from_ascii("@@@@@\n@...@\n@...@\n@@@@@", "box")
     env = parallel_env(n_robots=2, layout=layout, horizon=10)

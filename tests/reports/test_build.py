@@ -179,7 +179,7 @@ def test_build_report__corrupt_file_is_skipped_and_reported(tmp_path):
     victim.write_bytes(b"not parquet")
     md = (build_report(tmp_path) / "index.md").read_text()
     assert f"skipped eval/{victim.name}" in md
-    # issue 37: the cell counts as not done until `bench run --repair` recomputes it
+    # the cell counts as not done until `bench run --repair` recomputes it
     assert f"damaged file eval/{victim.name}: unreadable" in md and "--repair" in md
 
 

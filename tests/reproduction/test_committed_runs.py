@@ -1,4 +1,4 @@
-"""The committed reproduction runs (issue 13): what is in git is what the current code means.
+"""The committed reproduction runs: what is in git is what the current code means.
 
 ``reproduction/paper`` is the ``paper`` grid, ``reproduction/ablation`` the ``ablation`` grid and
 ``reproduction/full`` the ``full`` grid, run part-way across sessions. Every cell they hold must still be a cell of
@@ -23,7 +23,7 @@ from bench.store.run_store import RunStore
 
 ROOT = Path(__file__).resolve().parents[2] / "reproduction"
 RUNS = [name for name in ("paper", "ablation", "full") if (ROOT / name / "cells.parquet").is_file()]
-# The full grid's report is committed once the run has finished (issue 33); paper and
+# The full grid's report is committed once the run has finished; paper and
 # ablation must always have theirs.
 REPORTED = [name for name in RUNS if name != "full" or (ROOT / name / "report").is_dir()]
 

@@ -1,4 +1,4 @@
-"""The quick start installs what it needs (issue 51 item 3): ``make smoke`` sets up the runtime
+"""The quick start installs what it needs: ``make smoke`` sets up the runtime
 only, ``make test`` (and CI's ``make setup``) add the dev extra, and the package metadata
 uses the SPDX license form, so setuptools prints no deprecation banner.
 A fresh ``make smoke`` venv measured 73 packages, 1.9 GB (README); this checks the recipe."""

@@ -1,5 +1,5 @@
 """The published tuning protocol as committed definition files: one protocol for the three
-learned methods, the spaces issue 47 lists, tuning seeds disjoint from every published grid's,
+learned methods, the spaces the tuning protocol lists, tuning seeds disjoint from every published grid's,
 cost estimates, and one tiny study of the real hierarchical method run end to end."""
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 LEARNED = ("hierarchical", "decentralized", "ic3net")
-# what issue 47 asks each study to cover (the policy's learning rate under the standard
+# what the tuning protocol asks each study to cover (the policy's learning rate under the standard
 # protocol is ppo_lr; lr acts only under the paper's)
 COVERS = {"hierarchical": {"ref_size", "search_radius", "c_max", "share_params", "fallback",
                            "resample_on_fallback", "ppo_lr", "entropy_coef"},

@@ -1,4 +1,4 @@
-"""The study journal survives a full disk and a torn write (issue 37, D1): appends are
+"""The study journal survives a full disk and a torn write (D1): appends are
 all-or-nothing, and a torn record (a cut last line, or a torn prefix glued to the next
 record, as older versions left it) is dropped on open with one line saying what was kept."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The per-update training diagnostics (issue 54): every learned method reports them, they
+"""The per-update training diagnostics: every learned method reports them, they
 measure what they say, and a train file written before them still reads."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The mappo training protocol (algorithms/common/ppo.py, issue 54)."""
+"""The mappo training protocol (algorithms/common/ppo.py)."""
 from __future__ import annotations
 
 import pytest

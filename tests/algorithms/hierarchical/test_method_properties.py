@@ -1,4 +1,4 @@
-"""The paper's structural claims checked on the whole method, step by step (issue 18).
+"""The paper's structural claims checked on the whole method, step by step.
 
 Each test targets a change that left every other test green: the local policy seeing
 other groups' robots (Proposition 1), ground-truth or last-received messages standing in

@@ -1,4 +1,4 @@
-"""The hierarchical method's named variants (issue 18 item 3; docs/decisions/0118).
+"""The hierarchical method's named variants (docs/decisions/0118).
 
 Each variant departs from one line of the paper; each test checks that it does what its
 name says and that the default is untouched. Runtime: about 10 s.

@@ -1,4 +1,4 @@
-"""Every count a user types has an upper bound with its reason (issue 37, D4), and the
+"""Every count a user types has an upper bound with its reason (D4), and the
 bounds change no cell id."""
 from __future__ import annotations
 

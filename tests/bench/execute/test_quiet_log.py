@@ -1,5 +1,5 @@
 """Without a terminal a run logs one line per finished or failed cell and a periodic summary;
---verbose prints every event (issue 38)."""
+--verbose prints every event."""
 from __future__ import annotations
 
 import io

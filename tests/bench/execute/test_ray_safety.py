@@ -1,4 +1,4 @@
-"""Ray exposure and ends of a run (SPEC 7, issue 14): the embedded Ray listens on loopback
+"""Ray exposure and ends of a run (SPEC 7): the embedded Ray listens on loopback
 only, the token file is private, a join refused for authentication says so, a lost head
 node and SIGTERM each end with one line and a resumable store. The token tests are fast;
 the rest start Ray (slow-marked; ~2 min together on 2 shared cores)."""

@@ -1,4 +1,4 @@
-"""SIGTERM stops every command like `bench run` (issue 37, D5/D10): one line, exit 143, no
+"""SIGTERM stops every command like `bench run` (D5/D10): one line, exit 143, no
 temp file left. One subprocess runs the CLI four times; each command sends itself SIGTERM
 at a fixed point (no timing): in the middle of an atomic write of the report, and in the
 body of tune, matrix and replay. On 738e05e the process died of the signal (or, after

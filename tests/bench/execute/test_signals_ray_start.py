@@ -1,4 +1,4 @@
-"""A SIGTERM while Ray starts (issue 52): exit 143 and one line, as after start-up. The
+"""A SIGTERM while Ray starts: exit 143 and one line, as after start-up. The
 command sends itself SIGTERM from inside the real ``ray.init``, after Ray installed its own
 handler and before the node starts (no timing): on 13e50ee Ray's handler answered with
 ``sys.exit(15)``, no line."""

@@ -1,4 +1,4 @@
-"""Never lose or touch what is not ours (SPEC 7, issue 14): --fresh deletes only bench
+"""Never lose or touch what is not ours (SPEC 7): --fresh deletes only bench
 files, run names are plain names, a full disk or a read-only run folder is one line, files
 follow the umask, done cells are checked complete, bad cells and maps are refused.
 All fast (no Ray): each case runs the CLI in-process or the store directly."""

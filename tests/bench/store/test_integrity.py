@@ -1,4 +1,4 @@
-"""Integrity of stored results (issue 37: D2 bit rot, D3 misplaced files, D8 manifest types,
+"""Integrity of stored results (D2 bit rot, D3 misplaced files, D8 manifest types,
 D11 a way forward): every damaged or misplaced file is named in one line with the command
 that repairs it; nothing is written before that. Fast: stores written in-process, no Ray
 (the repair itself, which recomputes cells, is in test_repair.py)."""

@@ -1,5 +1,5 @@
 """Output paths never replace what the bench did not write, and written files follow the
-umask (issue 37, D7 report --out, D9 replay --out and GIF permissions)."""
+umask (D7 report --out, D9 replay --out and GIF permissions)."""
 from __future__ import annotations
 
 import os

@@ -1,4 +1,4 @@
-"""``bench run --repair`` on an embedded 2-CPU Ray (issue 37, D2/D3/D11): a flipped bit in a
+"""``bench run --repair`` on an embedded 2-CPU Ray (D2/D3/D11): a flipped bit in a
 stored Parquet file or a swapped eval file is moved to superseded/repair-<time>/ and only
 its cell is recomputed, with the same numbers; every other stored file stays byte for byte."""
 from __future__ import annotations

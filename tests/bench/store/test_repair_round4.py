@@ -1,4 +1,4 @@
-"""``bench run --repair`` on an embedded 2-CPU Ray for the damage issue 52 added (D12 a file
+"""``bench run --repair`` on an embedded 2-CPU Ray for the damage round four added (D12 a file
 where eval/ belongs, D18 a link to an edited copy, D22 a deleted checksums.json): the link
 or file itself moves to superseded/repair-<time>/ (its target is never touched), the cells
 are recomputed with the same numbers, and the run is verifiable again."""

@@ -1,4 +1,4 @@
-"""Figures a referee accepts (issue 35, item 6): per-panel y-scales where ranges differ,
+"""Figures a referee accepts (item 6): per-panel y-scales where ranges differ,
 colours and line styles that tell lines apart, a readable Fig. 2 (per-seed curves thin,
 the mean bold, six panels per figure), tick labels that never collide, captions that name
 the seeds of each configuration, and Fig. 3(b) never calling the payload formula measured."""

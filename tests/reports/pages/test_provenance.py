@@ -1,4 +1,4 @@
-"""reports/pages/provenance.py (issue 49 item 6): a run with imported cells says which commits
+"""reports/pages/provenance.py: a run with imported cells says which commits
 trained them; a run without an import gets no section."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""index.html for a referee (issue 35, item 6): a table of contents whose links land on
+"""index.html for a referee (item 6): a table of contents whose links land on
 headings, a layout that uses the window with tables scrolling inside their own box, and
 the claims' checks grouped so that undecided ("not enough seeds") checks take one line."""
 from __future__ import annotations
