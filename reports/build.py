@@ -53,6 +53,8 @@ from reports.tables.leaders import (
     per_method_display,
     per_method_frame,
 )
+from reports.tables.mapf import CAPTION as MAPF_CAPTION
+from reports.tables.mapf import mapf_display, mapf_frame, mapf_markdown
 from reports.tables.progress import progress_markdown
 from reports.tables.robustness import ROBUSTNESS_CAPTION, robustness_display, robustness_frame, robustness_markdown
 from reports.tables.success_table import success_markdown
@@ -205,6 +207,17 @@ def _summary(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> Entry:
                  tables=(("Summary of every configuration. " + SUMMARY_CAPTION, summary_display(summary)),))
 
 
+def _mapf(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> list[Entry]:
+    """The MAPF metrics (reports/tables/mapf.py), only for a store whose eval rows hold them."""
+    frame = mapf_frame(evals, cells)
+    if frame.empty:
+        return []
+    write_text(out / "mapf.md", mapf_markdown(frame))
+    write_text(out / "mapf.csv", frame.to_csv(index=False))
+    return [Entry("MAPF metrics: CSR, sum of costs, makespan; throughput of lifelong tasks",
+                  ("mapf.md", "mapf.csv"), tables=((MAPF_CAPTION, mapf_display(frame)),))]
+
+
 def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_at: str = "paper",
                  against: Path | str | None = None) -> Path:
     """Rebuild the report (default ``<run_dir>/report/``, else ``out_dir``) from the store;
@@ -229,7 +242,8 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
             "(reports/data/variants.py): they have their own rows in the summary and success tables "
             "and are left out of the figures, Table I and the claims")
     entries = [_leaderboard(evals, out), _learning_curves(train, out), *_training_diagnostics(train, out),
-               _robustness(train, evals, out), _summary(store.eval, store.cells, out)]
+               _robustness(train, evals, out), _summary(store.eval, store.cells, out),
+               *_mapf(store.eval, store.cells, out)]
     studies, studies_note = _study_entries(Path(run_dir), out, store.problems)
     entries += studies
     entries += matrix_entries(run_dir, out)  # RUN/matrix/ (bench matrix)

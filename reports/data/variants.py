@@ -46,6 +46,13 @@ def _defaults(method: str) -> dict[str, str]:
     return {k: json.dumps(f.default, sort_keys=True) for k, f in fields.items() if not f.is_required()}
 
 
+def _unset(key: str, settings: dict[str, str]) -> bool:
+    """A configuration setting left at null (e.g. ``delay`` of a cell without a delay) or
+    absent is its default: the cell is the group's default variant in that key (a lifelong
+    run's delay-0 cells beside its delay-2 cells; docs/decisions/0218)."""
+    return settings.get(key, "null") == "null"
+
+
 def cell_variants(cells: pd.DataFrame) -> pd.Series:
     """cell_id -> variant label ("" for a group's default variant; see the module doc)."""
     labels: dict[str, str] = {}
@@ -58,7 +65,7 @@ def cell_variants(cells: pd.DataFrame) -> pd.Series:
         varying = [k for k in keys if len({s.get(k) for s in settings.values()}) > 1]
         for cid, s in settings.items():
             labels[cid] = ", ".join(f"{k}={json.loads(s[k]) if k in s else None}" for k in varying
-                                    if k not in defaults or s.get(k) != defaults[k])
+                                    if (k not in defaults or s.get(k) != defaults[k]) and not _unset(k, s))
     return pd.Series(labels, dtype=object)
 
 

@@ -46,6 +46,8 @@ from reports.figures.plotting import (
     ranked_legend,
 )
 from reports.stats import cut_interval, mean_ci
+from reports.tables.mapf import is_lifelong
+from reports.tables.summary import fmt_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
@@ -66,8 +68,13 @@ def seed_scores(evals: pd.DataFrame, metric: str = "success_rate") -> pd.DataFra
 def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
     """One row per (N, p, execution mode, method): seeds, success mean and 95% CI over
     seeds, and rank (1 = highest mean) among the methods of that configuration and mode
-    (a planner's ``planner`` mode ranks with every learned mode)."""
+    (a planner's ``planner`` mode ranks with every learned mode). A lifelong run
+    (``reports.tables.mapf.is_lifelong``) also gets throughput, its mean and 95% CI over
+    seeds, and ranks by it (docs/decisions/0218)."""
+    lifelong = is_lifelong(evals)
     scores = seed_scores(evals)
+    if lifelong:
+        scores = scores.merge(seed_scores(evals, "throughput"))
     rows = []
     for (n, p, mode, method), g in scores.groupby(["n_robots", "loss_p", "execution", "method"], sort=True):
         mean, lo, hi = mean_ci(g["success_rate"].to_numpy(), LEVEL)
@@ -75,8 +82,14 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
         rows.append({"n_robots": int(n), "loss_p": float(p), "execution": mode, "method": method,
                      "label": method_label(method), "seeds": len(g), "success": mean,
                      "success_lo": lo, "success_hi": hi})
+        if lifelong:
+            mean, lo, hi = mean_ci(g["throughput"].to_numpy(), LEVEL)
+            lo, hi = cut_interval(lo, hi, 0.0, np.inf)
+            rows[-1].update(throughput=mean, throughput_lo=lo, throughput_hi=hi)
     out = pd.DataFrame(rows, columns=["n_robots", "loss_p", "execution", "method", "label", "seeds",
-                                      "success", "success_lo", "success_hi"])
+                                      "success", "success_lo", "success_hi"]
+                       + (["throughput", "throughput_lo", "throughput_hi"] if lifelong else []))
+    key = "throughput" if lifelong else "success"
     if out.empty:
         return out.assign(rank=pd.Series(dtype="int64"))
     out["rank"] = 0
@@ -85,7 +98,7 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
         planners = g[g["execution"] == PLANNER]
         for k, mode in enumerate(learned_modes):
             mine = g[g["execution"] == mode] if mode != PLANNER else g.iloc[:0]
-            ranks = pd.concat([mine, planners])["success"].rank(ascending=False, method="min").fillna(0)
+            ranks = pd.concat([mine, planners])[key].rank(ascending=False, method="min").fillna(0)
             for idx in mine.index.tolist() + (planners.index.tolist() if k == 0 else []):
                 out.at[idx, "rank"] = int(ranks[idx])
     order = {m: i for i, m in enumerate(execution_order(out["execution"]))}
@@ -204,6 +217,13 @@ def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one, so success (robots at their "
+                 "goal at the end) says little; throughput (goals reached per step) is the score. Both: the mean "
+                 "over seeds of per-seed means, [95% Student t CI over seeds]; rank 1 = highest mean throughput "
+                 "among the methods at that configuration and mode (a planner's one mode ranks with every "
+                 "learned mode).")
+
+
 def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFrame, safety: pd.DataFrame) -> str:
     """The leaderboard page: per configuration, aggregates, pairwise improvement, safety."""
     def pct(v: float) -> str:
@@ -218,10 +238,19 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
              "configuration and mode (a planner's one mode ranks with every learned mode).", ""]
     if board.empty:
         return "\n".join(lines + ["No evaluated cell yet.", ""])
-    lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
-    for r in board.itertuples(index=False):
-        lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                     f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+    if "throughput" in board:  # a lifelong run ranks by throughput (docs/decisions/0218)
+        lines[-2] = LIFELONG_NOTE
+        lines += ["| N | p | execution | method | seeds | throughput (goals/step) [95% CI] | success [95% CI] | rank |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in board.itertuples(index=False):
+            lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
+                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} | "
+                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+    else:
+        lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
+        for r in board.itertuples(index=False):
+            lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
+                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
     lines += ["", "## Across configurations", "",
               "Interquartile mean (rliable) of the seed x configuration success matrix over the "
               "configurations every method covers, [95% stratified bootstrap CI: seeds resampled "
@@ -260,6 +289,8 @@ def leaderboard_display(board: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame()
 
     def cell(r: pd.Series) -> str:
+        if "throughput" in r:  # a lifelong run: its score (docs/decisions/0218)
+            return f"{fmt_ci(r['throughput'], r['throughput_lo'], r['throughput_hi'], 'num')} ({int(r['rank'])})"
         lo = "" if not np.isfinite(r["success_lo"]) else f" [{100 * r['success_lo']:.1f}, {100 * r['success_hi']:.1f}]"
         return f"{100 * r['success']:.1f}%{lo} ({int(r['rank'])})"
 

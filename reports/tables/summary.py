@@ -47,9 +47,9 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
 def metric_range(metric: str) -> tuple[float, float]:
     """The values ``metric`` can take: [0, 1] for a rate, [0, inf) for counts and payloads,
     else unbounded; a CI is shown cut at them (``reports.stats.cut_interval``)."""
-    if metric.endswith("_rate"):
+    if metric.endswith("_rate") or metric == "csr":
         return 0.0, 1.0
-    if metric.startswith(("payload", "mean_candidates", "predictor_error")):
+    if metric.startswith(("payload", "mean_candidates", "predictor_error", "sum_of_costs", "makespan", "throughput")):
         return 0.0, float("inf")
     return float("-inf"), float("inf")
 
