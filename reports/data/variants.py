@@ -23,6 +23,7 @@ from typing import Any
 import pandas as pd
 
 from algorithms.registry import find_method
+from bench.design.cells import LATER_FIELDS
 
 GROUP = ("method", "n_robots", "loss_p")
 NOT_A_VARIANT = frozenset({"seed", "method", "n_robots", "loss_p", "params"})  # group keys, the seed, raw overrides
@@ -47,10 +48,11 @@ def _defaults(method: str) -> dict[str, str]:
 
 
 def _unset(key: str, settings: dict[str, str]) -> bool:
-    """A configuration setting left at null (e.g. ``delay`` of a cell without a delay) or
-    absent is its default: the cell is the group's default variant in that key (a lifelong
-    run's delay-0 cells beside its delay-2 cells; docs/decisions/0218)."""
-    return settings.get(key, "null") == "null"
+    """A cell field added later (``LATER_FIELDS``: e.g. ``delay``), which a cell stores only
+    when it departs from the default (docs/decisions/0209), is at its default where absent:
+    the cell is the group's default variant in that key (a lifelong run's delay-0 cells
+    beside its delay-2 cells; docs/decisions/0218). Any other absent setting is named."""
+    return key in LATER_FIELDS and key not in settings
 
 
 def cell_variants(cells: pd.DataFrame) -> pd.Series:
