@@ -18,6 +18,7 @@ from matplotlib.axes import Axes
 from reports.data.store import fmt_p, select
 from reports.figures.plotting import (
     Built,
+    fitted_legend,
     label_order,
     method_color,
     method_label,
@@ -124,8 +125,7 @@ def learning_curves(train: pd.DataFrame) -> Built:
             fig.supxlabel("training episode")
         handles, labels = ranked_legend([a for row in axes for a in row])
         if handles:
-            fig.legend(handles, labels, loc="outside upper center", ncol=min(len(handles), 4), frameon=False,
-                       handlelength=2.5)
+            fitted_legend(fig, handles, labels, "outside upper center", handlelength=2.5)
     return Built(fig, [], _caption(drawn, methods, len(configs)))
 
 

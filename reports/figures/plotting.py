@@ -17,7 +17,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any
+from typing import Any, Literal
 
 import matplotlib
 import numpy as np
@@ -25,6 +25,7 @@ import seaborn as sns
 from matplotlib.axes import Axes
 from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 from matplotlib.typing import RcKeyType
 
 from algorithms.base import UNRANKED
@@ -97,6 +98,21 @@ def ranked_legend(axes: Iterable[Axes]) -> tuple[list[Any], list[str]]:
             handles.setdefault(lab, h)
     labels = sorted(handles, key=label_order)
     return [handles[lab] for lab in labels], labels
+
+def fitted_legend(fig: Figure, handles: Sequence[Any], labels: Sequence[str],
+                  loc: Literal["outside lower center", "outside upper center"],
+                  max_cols: int = 4, **kwargs: Any) -> Legend:
+    """``fig.legend`` in at most ``max_cols`` columns, fewer when a row of entries would be
+    wider than the figure: a legend wider than its figure is cut at the image's edges (the
+    smoke report's success_vs_n showed "PI" of PIBT). A legend that fits keeps its columns,
+    so a figure that was not clipped is drawn as before."""
+    for ncol in range(min(len(labels), max_cols), 0, -1):
+        legend = fig.legend(handles, labels, loc=loc, ncol=ncol, frameon=False, **kwargs)
+        if ncol == 1 or legend.get_window_extent().width <= fig.bbox.width:
+            return legend
+        legend.remove()
+    raise ValueError("fitted_legend needs at least one label")
+
 
 @lru_cache(maxsize=1)
 def _ranks() -> dict[str, int]:

@@ -5,12 +5,14 @@ lacks (cells not done, failed with their error) and the run's manifest (versions
 commit, command).
 
 In ``index.html`` a table of contents (``reports.pages.layout``) links every section and
-entry; the content uses the window's width; every figure has its caption beside or under
-it and every table is an HTML table with a caption, written by pandas' ``Styler.to_html``
-with every cell escaped, in a box that scrolls when the table is wider or longer than the
-window. An entry may add its own HTML block (``Entry.html_block``, e.g. a section's checks
-grouped per claim). Every link is relative to the report folder and stays inside it (no
-``..``), so a copied report folder keeps working."""
+entry; the content uses the window's width; every figure is shown at its natural size up
+to the column's width, links to its full-size image and has its caption beside or under
+it; every table is an HTML table with a caption, written by pandas' ``Styler.to_html``
+with every cell escaped, its cells wrapping to fit the column, in a box that scrolls only
+when the table is still wider, or longer than the box. An entry may add its own HTML
+block (``Entry.html_block``, e.g. a section's checks grouped per claim). Every link is
+relative to the report folder and stays inside it (no ``..``), so a copied report folder
+keeps working."""
 from __future__ import annotations
 
 import html
@@ -196,8 +198,9 @@ def _entries_html(entries: list[Entry], anchor: Anchors, toc: TocItems, prefix: 
         parts.append(f"<h3 id='{e(uid)}'>{e(en.title)}</h3>")
         if en.image:
             cap = f"<figcaption>{e(en.caption)}</figcaption>" if en.caption else ""
-            parts.append(f"<div class='figrow'><figure><img src='{e(en.image)}' alt='{e(en.title)}' width='700'>"
-                         f"</figure><div class='side'>{cap}<p>Files: {links}</p>{notes}</div></div>")
+            img = f"<a href='{e(en.image)}'><img src='{e(en.image)}' alt='{e(en.title)}'></a>"
+            parts.append(f"<div class='figrow'><figure>{img}</figure>"
+                         f"<div class='side'>{cap}<p>Files: {links}</p>{notes}</div></div>")
         else:
             parts.append(f"<p>Files: {links}</p>")
         if en.html_block is not None:

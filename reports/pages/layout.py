@@ -1,11 +1,13 @@
 """The look of ``index.html``: a table of contents beside a content column that uses the
-window, and tables that fit or scroll inside their own box.
+window, figures at their natural size up to the column's width, and tables whose cells
+wrap so that they fit the column (scrolling inside their own box only as a last resort).
 
 Pure helpers for ``reports.pages.index``: ``PAGE_CSS``; ``Anchors`` (deterministic, unique
 element ids from headings); ``toc_html`` (the nested list of links to those ids);
 ``html_table`` (a frame of display strings as an escaped ``<table>``) and
-``scroll_box`` (a table wrapped in a box that scrolls both ways, header row sticky, so a
-wide or long table never widens or stretches the page).
+``scroll_box`` (a table wrapped in a box that scrolls when the table is still wider than
+the column once its cells wrap, or longer than the box, header row sticky, so a wide or
+long table never widens or stretches the page).
 """
 from __future__ import annotations
 
@@ -16,8 +18,10 @@ from collections.abc import Sequence
 import pandas as pd
 
 # The TOC is a sticky side column on a wide window and a block on top of a narrow one.
-# Figures keep their natural width (700 px, the PNG's) with the caption and notes beside
-# them when the window has room.
+# Figures keep their natural width (the PNG's: 700 px for a paper column, 1400-2040 px
+# for the many-panel ones) up to the column's width, with the caption and notes beside them
+# when the window has room, else under them; each links to its full-size image. Table
+# cells wrap (issue 51: wide tables hid columns in a scroll box at 1400 px).
 PAGE_CSS = """*{box-sizing:border-box}body{font-family:system-ui,sans-serif;margin:0;line-height:1.4;
 display:grid;grid-template-columns:16rem minmax(0,1fr)}
 nav.toc{position:sticky;top:0;align-self:start;max-height:100vh;overflow-y:auto;padding:1em;
@@ -31,9 +35,9 @@ table{border-collapse:collapse;margin:0}td,th{border:1px solid #ccc;padding:2px 
 font-size:90%;vertical-align:top;text-align:left}thead th{position:sticky;top:0;background:#f3f3f3}
 caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
 .box{max-width:100%;max-height:40em;overflow:auto;margin:.5em 0 1em 0}
-.box td{white-space:nowrap}.box.wrap td{white-space:normal;max-width:40em}td code{word-break:break-all}
+.box td{max-width:40em}td code{word-break:break-all}
 .figrow{display:flex;flex-wrap:wrap;gap:.5em 2em;align-items:flex-start}
-figure{margin:.5em 0;max-width:100%}img{max-width:100%;height:auto;border:1px solid #eee}
+figure{margin:.5em 0;max-width:100%}img{display:block;max-width:100%;height:auto;border:1px solid #eee}
 .side{flex:1 1 18em;max-width:48em}figcaption,.side p,.side li{font-size:90%;color:#333}
 .supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
 .not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
@@ -69,8 +73,9 @@ def toc_html(sections: Sequence[tuple[str, str, Sequence[tuple[str, str]]]]) -> 
 
 
 def scroll_box(table: str, wrap: bool = False) -> str:
-    """``table`` (HTML) inside a box that scrolls when the table is wider or longer; cells
-    stay on one line (rows short, the box scrolls sideways) unless ``wrap`` (long text)."""
+    """``table`` (HTML) inside a box that scrolls when the table is longer than the box, or
+    wider than the column even with its cells wrapped; ``wrap`` (long text, e.g. the
+    manifest) is kept as a class for callers, every cell wraps."""
     return f"<div class='box{' wrap' if wrap else ''}'>{table}</div>"
 
 

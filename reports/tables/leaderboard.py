@@ -36,6 +36,7 @@ from scipy import stats as sps
 from reports.data.store import execution_order, fmt_p
 from reports.figures.plotting import (
     Built,
+    fitted_legend,
     label_order,
     method_color,
     method_label,
@@ -334,7 +335,7 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                 if j == 0:
                     ax.set_ylabel("success rate")
         handles, labels = ranked_legend(axes.flat)  # every method of any panel once
-        fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 4), frameon=False)
+        fitted_legend(fig, handles, labels, "outside lower center")
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
