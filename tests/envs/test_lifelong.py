@@ -17,7 +17,7 @@ from envs.layouts import load_layout
 from envs.tasks import task_cells
 from envs.warehouse_v0 import parallel_env
 
-MAP = "../shared/maps/warehouse-10-20-10-2-1.map"
+MAP = "warehouse-10-20-10-2-1"  # the bundled copy of the MovingAI map (docs/decisions/0013)
 
 
 def test_task_cells__pickups_by_shelves_stations_on_the_open_ends():
