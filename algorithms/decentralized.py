@@ -355,7 +355,8 @@ class DecentralizedMethod(Method):
         ``credit``), then the clipped surrogate over every active robot-step."""
         p = self.params
         assert isinstance(self.critic, RobotCritic)
-        crit = mappo_critic(self.critic, self.critic_opt, buf, p)
+        gen = update_generator(self.seed, self.iterations)
+        crit = mappo_critic(self.critic, self.critic_opt, buf, p, gen=gen)
         active = buf.data["active"][: buf.t]
         sel = torch.from_numpy(np.flatnonzero(active))
         obs = torch.from_numpy(buf.data["obs"][: buf.t].reshape(active.size, -1))
@@ -371,7 +372,6 @@ class DecentralizedMethod(Method):
             return logp, entropy, torch.ones_like(logp)
 
         out = ppo_actor_update(PPOBatch(len(sel), log_probs, adv), self.actor_opt, p.ppo_epochs,
-                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
-                               update_generator(self.seed, self.iterations))
+                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
         return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
                 "diag_wait_share": wait_share(buf.data["actions"][: buf.t], active)}

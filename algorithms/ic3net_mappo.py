@@ -37,7 +37,8 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
     close an import circle with algorithms/ic3net.py)."""
     p, buf = method.params, state.buffer
     assert buf is not None and method.critic_opt is not None
-    crit = mappo_critic(critic, method.critic_opt, buf, p)
+    gen = update_generator(method.seed, method.iterations)
+    crit = mappo_critic(critic, method.critic_opt, buf, p, gen=gen)
     gap = p.detach_gap
     data = {k: _chunked(buf.tensor(k), gap) for k in ("obs", "mask", "links", "alive", "actions", "gates")}
     active = _chunked(buf.tensor("active"), gap).to(torch.float32)  # (C, gap, B, N)
@@ -72,8 +73,7 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
 
     advantages = per_sample(pick(adv, pairs_c, pairs_b))
     out = ppo_actor_update(PPOBatch(c * b, log_probs, advantages), method.optimizer, p.ppo_epochs,
-                           p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
-                           update_generator(method.seed, method.iterations))
+                           p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
     t_used = buf.t
     act = buf.data["active"][:t_used]
     return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],

@@ -41,6 +41,7 @@ class Suite(str, Enum):
     train = "train"
     peers = "peers"
     cli = "cli"
+    protocol = "protocol"
     all = "all"
 
 
@@ -572,6 +573,7 @@ PERF_SUITES = {
     "train": ("bench.perf.methods", "run_train_suite"),  # env-steps/s per cell, N = 40 and 100; matmul FLOP/s
     "peers": ("bench.perf.peers", "run_peers_suite"),  # ours against TorchRL's MAPPO, N = 40 and 100
     "cli": ("bench.perf.cli", "run_cli_suite"),  # wall time of commands that do not train
+    "protocol": ("bench.perf.protocol", "run_protocol_suite"),  # mappo's cost per env-step against the paper's
 }
 
 

@@ -53,6 +53,8 @@ class MAPPOParams(Protocol):
     @property
     def ppo_epochs(self) -> int: ...
     @property
+    def ppo_minibatches(self) -> int: ...
+    @property
     def max_grad_norm(self) -> float: ...
 
 
@@ -110,28 +112,35 @@ def gae(rewards: torch.Tensor, values: torch.Tensor, running: torch.Tensor, gamm
 
 def fit_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, states: torch.Tensor, t_frac: torch.Tensor,
                targets_of: Callable[[torch.Tensor], torch.Tensor], running: torch.Tensor, epochs: int,
-               max_grad_norm: float) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
-    """``epochs`` Adam steps of the critic on per-robot value targets over the running steps,
-    in ValueNorm units. The first forward gives the values before any step (denormalized,
-    detached); ``targets_of(values)`` turns them into the targets (T, B, N), which update the
-    ValueNorm statistics before the first step. Returns the values, the targets, and the
-    last loss and gradient norm."""
-    mask = running.to(torch.float32)[..., None]
-    pred = critic(states, t_frac)
-    values = critic.value_norm.denormalize(pred.detach())
+               max_grad_norm: float, minibatches: int = 1, gen: torch.Generator | None = None,
+               ) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
+    """``epochs`` x ``minibatches`` Adam steps of the critic on per-robot value targets over
+    the running steps, in ValueNorm units (MAPPO fits the critic on the actor's minibatches:
+    as many steps as the actor at the cost of one full pass per epoch). The values before
+    any step come from one forward pass (denormalized, no gradient); ``targets_of(values)``
+    turns them into the targets (T, B, N), which update the ValueNorm statistics before the
+    first step. The minibatches are (t, b) steps shuffled by ``gen`` (``None`` with one
+    minibatch: the whole batch, in order). Returns the values, the targets, and the last
+    loss and gradient norm."""
+    with torch.no_grad():
+        values = critic.value_norm.denormalize(critic(states, t_frac))
     targets = targets_of(values)
-    mask = mask.expand_as(targets)
+    mask = running.to(torch.float32)[..., None].expand_as(targets)
     critic.value_norm.update(targets, mask)
     norm_targets = critic.value_norm.normalize(targets)
-    n = mask.sum().clamp_min(1.0)
+    rows = running.numel()
+    flat_states, flat_t = states.reshape(rows, *states.shape[2:]), t_frac.reshape(rows)
+    flat_targets, flat_mask = norm_targets.reshape(rows, -1), mask.reshape(rows, -1)
     loss, grad_norm = torch.zeros(()), float("nan")
-    for epoch in range(epochs):
-        if epoch:
-            pred = critic(states, t_frac)
-        loss = (((pred - norm_targets) ** 2) * mask).sum() / n
-        optimizer.zero_grad()
-        loss.backward()
-        grad_norm = clip_and_step(optimizer, max_grad_norm)
+    for _ in range(epochs):
+        order = torch.arange(rows) if gen is None else torch.randperm(rows, generator=gen)
+        for ix in order.chunk(max(1, minibatches)):
+            m = flat_mask[ix]
+            pred = critic(flat_states[ix], flat_t[ix])
+            loss = (((pred - flat_targets[ix]) ** 2) * m).sum() / m.sum().clamp_min(1.0)
+            optimizer.zero_grad()
+            loss.backward()
+            grad_norm = clip_and_step(optimizer, max_grad_norm)
     return values, targets, {"critic_loss": float(loss.detach()), "diag_critic_grad_norm": grad_norm}
 
 
@@ -146,11 +155,19 @@ class PPOBatch:
     episodes...), and ``log_probs(index)`` -> (log-probabilities (K, S), entropies (K, S),
     weights (K, S)) of the index's samples under the current parameters, S ratios per sample
     (1 for a robot's action; a method may give several, e.g. the reference and the robots of
-    a group-step), weights 1 where a ratio counts. ``advantages`` (rows, S) per ratio."""
+    a group-step), weights 1 where a ratio counts. ``advantages`` (rows, S) per ratio.
+
+    ``levels`` (S,) optional: the level of each ratio column (0, 1, ...) where the columns
+    hold policies whose advantages differ in scale (a group's summed return beside a robot's);
+    each level's advantages are normalized on their own and its entropy and KL reported
+    under ``level_names`` (``""``: ``diag_entropy``, ``diag_kl``; ``"ref"``:
+    ``diag_entropy_ref``, ``diag_kl_ref``). Without it every column is one level."""
 
     rows: int
     log_probs: Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor, torch.Tensor]]
     advantages: torch.Tensor
+    levels: torch.Tensor | None = None
+    level_names: tuple[str, ...] = ("",)
 
 
 def update_generator(seed: int, iteration: int) -> torch.Generator:
@@ -158,27 +175,39 @@ def update_generator(seed: int, iteration: int) -> torch.Generator:
     return torch.Generator().manual_seed(int(np.random.SeedSequence([seed, 54, iteration]).generate_state(1)[0]))
 
 
+def _normalized(adv: torch.Tensor, w: torch.Tensor, onehot: torch.Tensor) -> torch.Tensor:
+    """Advantages (K, S) normalized to mean 0 and std 1 over the counted ratios (w > 0) of
+    each level; ``onehot`` (S, L) maps columns to levels."""
+    n = (w.sum(0) @ onehot).clamp_min(1.0)  # (L,)
+    mean = ((adv * w).sum(0) @ onehot) / n
+    centred = adv - mean @ onehot.T
+    std = torch.sqrt((((centred * w) ** 2).sum(0) @ onehot) / n).clamp_min(1e-6)
+    return centred / (std @ onehot.T)
+
+
 def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: int, minibatches: int,
                      clip: float, entropy_coef: float, max_grad_norm: float, gen: torch.Generator,
                      ) -> dict[str, float]:
     """The clipped surrogate -min(rho A, clip(rho, 1 -+ eps) A) - c H over ``epochs`` x
-    ``minibatches`` Adam steps; A normalized per minibatch over the counted ratios.
-    Returns the mean actor loss, entropy, approximate KL (mean of (rho - 1) - log rho over
-    the last epoch), clip fraction and the last gradient norm."""
+    ``minibatches`` Adam steps; A normalized per minibatch over the counted ratios of each
+    level (``PPOBatch.levels``). Returns the mean actor loss, per level the mean entropy and
+    the approximate KL (mean of (rho - 1) - log rho over the last epoch), the clip fraction
+    and the last gradient norm."""
+    cols = batch.advantages.shape[1]
+    levels = torch.zeros(cols, dtype=torch.long) if batch.levels is None else batch.levels
+    onehot = torch.nn.functional.one_hot(levels, len(batch.level_names)).to(torch.float32)  # (S, L)
     with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
         old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
-    totals = {"actor_loss": 0.0, "entropy": 0.0}
-    kl_sum = clipped = counted = 0.0
-    grad_norm, steps = float("nan"), 0
+    loss_sum, steps, grad_norm = 0.0, 0, float("nan")
+    ent_sum = torch.zeros(len(batch.level_names))
+    kl_sum, counted = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))
+    clipped = 0.0
     for epoch in range(epochs):
         perm = torch.randperm(batch.rows, generator=gen)
         for ix in perm.chunk(max(1, minibatches)):
             logp, ent, w = batch.log_probs(ix)
-            adv = batch.advantages[ix]
+            adv = _normalized(batch.advantages[ix], w, onehot)
             n = w.sum().clamp_min(1.0)
-            mean = (adv * w).sum() / n
-            std = torch.sqrt((((adv - mean) * w) ** 2).sum() / n).clamp_min(1e-6)
-            adv = (adv - mean) / std
             log_ratio = logp - old[ix]
             ratio = log_ratio.exp()
             surrogate = torch.minimum(ratio * adv, ratio.clamp(1 - clip, 1 + clip) * adv)
@@ -187,16 +216,20 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
             loss.backward()
             grad_norm = clip_and_step(optimizer, max_grad_norm)
             steps += 1
-            totals["actor_loss"] += float(loss.detach())
-            totals["entropy"] += float(((ent * w).sum() / n).detach())
-            if epoch == epochs - 1:
-                with torch.no_grad():
-                    kl_sum += float((((ratio - 1) - log_ratio) * w).sum())
+            loss_sum += float(loss.detach())
+            with torch.no_grad():
+                ent_sum += ((ent * w).sum(0) @ onehot) / (w.sum(0) @ onehot).clamp_min(1.0)
+                if epoch == epochs - 1:
+                    kl_sum += (((ratio - 1) - log_ratio) * w).sum(0) @ onehot
                     clipped += float((((ratio - 1).abs() > clip).float() * w).sum())
-                    counted += float(w.sum())
-    return {"actor_loss": totals["actor_loss"] / max(steps, 1), "diag_entropy": totals["entropy"] / max(steps, 1),
-            "diag_kl": kl_sum / max(counted, 1.0), "clip_fraction": clipped / max(counted, 1.0),
-            "diag_grad_norm": grad_norm}
+                    counted += w.sum(0) @ onehot
+    out = {"actor_loss": loss_sum / max(steps, 1), "clip_fraction": clipped / max(float(counted.sum()), 1.0),
+           "diag_grad_norm": grad_norm}
+    for i, name in enumerate(batch.level_names):
+        suffix = f"_{name}" if name else ""
+        out[f"diag_entropy{suffix}"] = float(ent_sum[i]) / max(steps, 1)
+        out[f"diag_kl{suffix}"] = float(kl_sum[i]) / max(float(counted[i]), 1.0)
+    return out
 
 
 @dataclass
@@ -213,11 +246,14 @@ class MAPPOCritic:
 
 
 def mappo_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, buf: RolloutBuffer,
-                 p: MAPPOParams, t_frac: torch.Tensor | None = None) -> MAPPOCritic:
+                 p: MAPPOParams, t_frac: torch.Tensor | None = None, gen: torch.Generator | None = None,
+                 ) -> MAPPOCritic:
     """The critic half of a ``mappo`` update on a rollout buffer holding ``critic``,
     ``t_frac`` (``critic_inputs``) and ``robot_reward`` (T, B, N): values before the step,
     GAE advantages and targets, then ``fit_critic``. ``t_frac`` (T, B): t / T where the
-    buffer does not store it."""
+    buffer does not store it. ``gen`` (``update_generator``) shuffles the critic's
+    ``ppo_minibatches`` minibatches; without it the critic takes one full-batch step per
+    epoch."""
     states = buf.tensor("critic")
     t_frac = buf.tensor("t_frac") if t_frac is None else t_frac
     rewards = buf.tensor("robot_reward")
@@ -234,6 +270,6 @@ def mappo_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, buf: Rol
         return targets
 
     values, targets, fit = fit_critic(critic, optimizer, states, t_frac, targets_of, running, p.ppo_epochs,
-                                      p.max_grad_norm)
+                                      p.max_grad_norm, p.ppo_minibatches if gen is not None else 1, gen)
     losses = {**critic_diagnostics(values, targets, running), **fit}
     return MAPPOCritic(adv, values, rewards, running, losses)

@@ -13,7 +13,7 @@ The samples are the running (t, b) steps; each carries Z reference ratios (where
 and Z n local ratios (controlled robots), on the stored references and proposed controls
 (the policy gradient is on the sampled outputs, the filter part of the transition, as in
 the paper update). The GRU predictors keep their own supervised update.
-May import: algorithms.common, algorithms.hierarchical (policies, training).
+May import: algorithms.common, algorithms.hierarchical (messages, policies, training).
 """
 from __future__ import annotations
 
@@ -23,11 +23,27 @@ import torch
 from algorithms.common.diagnostics import wait_share
 from algorithms.common.ppo import PPOBatch, RobotCritic, gae, mappo_critic, ppo_actor_update, update_generator
 from algorithms.common.trainer import RolloutBuffer
+from algorithms.hierarchical.messages import GroupStructure
 from algorithms.hierarchical.policies import group_major, policy_forward
 from algorithms.hierarchical.training import Learner
 from envs.actions import WAIT
 
-__all__ = ["mappo_policy_update"]
+__all__ = ["mappo_policy_update", "ratio_advantages"]
+
+
+def ratio_advantages(gs: GroupStructure, group_adv: torch.Tensor, robot_adv: torch.Tensor, local_credit: str,
+                     ) -> torch.Tensor:
+    """The advantage of every ratio of M samples, (M, Z + Z n): mu of group z takes its
+    group's advantage ``group_adv`` (M, Z); pi's factor of slot j of group z takes the same
+    group advantage (``local_credit = "group"``: the joint-Wait fallback stops a group's
+    robots together, so a robot's own terms miss what its proposal costs the others) or its
+    robot's entry of ``robot_adv`` (M, N) (``"credit"``: the shared ``credit``)."""
+    m = group_adv.shape[0]
+    if local_credit == "group":
+        local = group_adv[:, :, None].expand(-1, -1, gs.n_slots)  # (M, Z, n)
+    else:
+        local = group_major(gs, robot_adv.numpy(), fill=0.0).permute(1, 0, 2)  # (M, Z, n)
+    return torch.cat([group_adv, local.reshape(m, -1)], dim=1)
 
 
 def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iteration: int) -> dict[str, float]:
@@ -39,7 +55,8 @@ def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iterati
     running = buf.running[:t_used]
     t_frac = torch.from_numpy(
         np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy())
-    crit = mappo_critic(learner.critic, learner.opt_critic, buf, p, t_frac)
+    gen = update_generator(seed, iteration)
+    crit = mappo_critic(learner.critic, learner.opt_critic, buf, p, t_frac, gen)
 
     def sum_group(x: torch.Tensor) -> torch.Tensor:  # (T, B, N) -> (T, B, Z): summed over each group's robots
         per_slot = gs.gather(x.reshape(-1, x.shape[-1]).numpy(), fill=0.0)
@@ -47,9 +64,8 @@ def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iterati
 
     group_adv, _ = gae(sum_group(crit.rewards), sum_group(crit.values), crit.running, p.gamma, p.gae_lambda)
     tt, bb = np.nonzero(running)
-    robot_adv = group_major(gs, crit.robot_adv[tt, bb].numpy(), fill=0.0)  # (Z, M, n)
     z = gs.n_groups
-    advantages = torch.cat([group_adv[tt, bb], robot_adv.permute(1, 0, 2).reshape(len(tt), -1)], dim=1)
+    advantages = ratio_advantages(gs, group_adv[tt, bb], crit.robot_adv[tt, bb], p.local_credit)
 
     def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         r_t, r_b = tt[ix.numpy()], bb[ix.numpy()]
@@ -71,9 +87,10 @@ def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iterati
 
         return flat(lp_r, lp_u), flat(ent_r, ent_u), flat(decided.float(), mask.float())
 
-    out = ppo_actor_update(PPOBatch(len(tt), log_probs, advantages), learner.opt_policy, p.ppo_epochs,
-                           p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
-                           update_generator(seed, iteration))
+    levels = torch.cat([torch.zeros(z, dtype=torch.long), torch.ones(z * gs.n_slots, dtype=torch.long)])
+    batch = PPOBatch(len(tt), log_probs, advantages, levels, ("ref", ""))  # each level normalized on its own
+    out = ppo_actor_update(batch, learner.opt_policy, p.ppo_epochs, p.ppo_minibatches, p.ppo_clip, p.entropy_coef,
+                           p.max_grad_norm, gen)
     assert advantages.shape[1] == z + z * gs.n_slots
-    return {**crit.losses, **out, "entropy_local": out["diag_entropy"],
+    return {**crit.losses, **out, "entropy_local": out["diag_entropy"], "entropy_ref": out["diag_entropy_ref"],
             "diag_wait_share": wait_share(d["proposed"][tt, bb], d["controlled"][tt, bb])}

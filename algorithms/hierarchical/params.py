@@ -5,7 +5,7 @@ read it without importing each other. May import: algorithms.base, algorithms.pr
 """
 from __future__ import annotations
 
-from typing import Literal
+from typing import ClassVar, Literal
 
 from pydantic import Field
 
@@ -19,6 +19,8 @@ PRESETS = {"tuned": Preset.unpublished("studies/definitions/hierarchical.toml")}
 
 class HierarchicalParams(LearnedParams):
     """Hyperparameters of the hierarchical method (defaults: docs/decisions/0101-0118, 0126)."""
+
+    added_later: ClassVar[tuple[str, ...]] = (*LearnedParams.added_later, "local_credit")
 
     batch_episodes: int = Field(8, ge=1, description="episodes per update, batched in one process")
     ref_size: int = Field(8, ge=1, description="|R_z|, size of the abstract reference space")
@@ -47,6 +49,9 @@ class HierarchicalParams(LearnedParams):
     ref_entropy_coef: float | None = Field(
         None, ge=0, description="entropy bonus on mu (None: entropy_coef)")
     ref_embed_scale: float = Field(0.5, ge=0, description="init std of the reference embedding in pi")
+    local_credit: Literal["group", "credit"] = Field(
+        "group", description="mappo: the credit of pi's per-robot factors: their group's advantage "
+        "(the joint-Wait fallback couples a group's robots) or the shared `credit` (robot or team)")
     ref_advantage: Literal["team", "group"] = Field(
         "team", description="advantage weighing log mu(r^z): the team's (eq:advantage) or group z's "
         "own return minus its share n_z/N of V")

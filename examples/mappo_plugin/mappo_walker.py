@@ -79,7 +79,8 @@ class MappoWalker(Method):
         p, buf = self.params, state.buffer
         if p.protocol != "mappo" or buf is None:
             raise ValueError("mappo_walker learns with protocol = 'mappo' only")
-        crit = mappo_critic(self.critic, self.critic_opt, buf, p)  # GAE advantages (T, B, N)
+        gen = update_generator(self.seed, self.iterations)  # this update's minibatch shuffling
+        crit = mappo_critic(self.critic, self.critic_opt, buf, p, gen=gen)  # GAE advantages (T, B, N)
         active = buf.tensor("active").reshape(-1)
         rows = torch.nonzero(active).squeeze(-1)  # the robot-steps that count
         obs = buf.tensor("obs").reshape(-1, self.n_obs)[rows]
@@ -93,6 +94,5 @@ class MappoWalker(Method):
 
         advantages = crit.robot_adv.reshape(-1)[rows][:, None]
         out = ppo_actor_update(PPOBatch(len(rows), log_probs, advantages), self.actor_opt, p.ppo_epochs,
-                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm,
-                               update_generator(self.seed, self.iterations))
+                               p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
         return {**crit.losses, **out}

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 import torch
 
-from algorithms.common.ppo import RobotCritic, gae, robot_rewards
+from algorithms.common.ppo import PPOBatch, RobotCritic, fit_critic, gae, ppo_actor_update, robot_rewards
 from algorithms.registry import method_class
 from envs.config import EnvConfig
 
@@ -65,3 +65,80 @@ def test_hierarchical_mappo_trains_both_levels() -> None:
     m.train_iteration()
     assert any(not torch.equal(a, b) for a, b in zip(ref, m.reference.parameters(), strict=True))  # type: ignore[attr-defined]
     assert any(not torch.equal(a, b) for a, b in zip(loc, m.local.parameters(), strict=True))  # type: ignore[attr-defined]
+
+
+def _surrogate_grads(adv: torch.Tensor, levels: torch.Tensor | None, names: tuple[str, ...] = ("",),
+                     ) -> tuple[torch.Tensor, dict[str, float]]:
+    """The gradient of one surrogate step (lr 0, no entropy) of two independent logit
+    columns, and the step's output row."""
+    torch.manual_seed(0)
+    theta = torch.zeros(adv.shape[1], 3, requires_grad=True)
+    actions = torch.randint(0, 3, adv.shape)
+
+    def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        logp_all = torch.log_softmax(theta, -1).expand(len(ix), -1, -1)
+        logp = logp_all.gather(-1, actions[ix, :, None]).squeeze(-1)
+        return logp, -(logp_all.exp() * logp_all).sum(-1), torch.ones_like(logp)
+
+    opt = torch.optim.SGD([theta], lr=0.0)
+    out = ppo_actor_update(PPOBatch(adv.shape[0], log_probs, adv, levels, names), opt, 1, 1, 0.2, 0.0, 1e9,
+                           torch.Generator().manual_seed(0))
+    assert theta.grad is not None
+    return theta.grad.clone(), out
+
+
+def test_ppo_levels_are_normalized_on_their_own() -> None:
+    """A level whose advantages are 100 times larger (a group's summed return beside a
+    robot's) does not shrink the other level's normalized advantages."""
+    adv = torch.randn(64, 2, generator=torch.Generator().manual_seed(1))
+    scaled = adv * torch.tensor([100.0, 1.0])
+    grad_sep, out = _surrogate_grads(scaled, torch.tensor([0, 1]), ("ref", ""))
+    grad_same, _ = _surrogate_grads(adv, torch.tensor([0, 1]), ("ref", ""))
+    assert torch.allclose(grad_sep, grad_same, atol=1e-6)  # invariant to each level's scale
+    grad_joint, _ = _surrogate_grads(scaled, None)
+    assert grad_joint[1].abs().sum() < 0.1 * grad_sep[1].abs().sum()  # one level: the small one fades
+    assert {"diag_entropy", "diag_entropy_ref", "diag_kl", "diag_kl_ref"} <= out.keys()
+
+
+def test_fit_critic_takes_epochs_times_minibatches_steps() -> None:
+    critic = RobotCritic(8)
+    opt = torch.optim.SGD(critic.parameters(), lr=0.0)
+    steps = []
+    opt.step = lambda *a, **k: steps.append(1)  # type: ignore[method-assign]
+    states, t_frac, running = torch.rand(6, 2, 3, 6), torch.rand(6, 2), torch.ones(6, 2, dtype=torch.bool)
+    before = critic.value_norm.denormalize(critic(states, t_frac).detach())
+    values, targets, _ = fit_critic(critic, opt, states, t_frac, lambda v: v + 1.0, running, 3, 1.0, 4,
+                                    torch.Generator().manual_seed(0))
+    assert len(steps) == 12
+    assert torch.allclose(values, before)  # the values before any step give the targets
+    assert torch.allclose(targets, values + 1.0)
+
+
+def test_hierarchical_mappo_reports_each_level() -> None:
+    env = EnvConfig.make(n_robots=6, layout="tiny", horizon=12, loss_p=0.3, groups=2, on_goal="stay")
+    m = method_class("hierarchical")(env, {"batch_episodes": 2, "protocol": "mappo"}, seed=1)
+    row = m.train_iteration()[0]
+    for key in ("diag_entropy", "diag_entropy_ref", "diag_kl", "diag_kl_ref"):
+        assert row[key] == row[key], key  # not NaN
+    assert row["diag_entropy_ref"] <= float(torch.log(torch.tensor(float(m.params.ref_size)))) + 1e-5  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("local_credit", ["group", "credit"])
+def test_hierarchical_ratio_advantages__group_or_own_credit(local_credit: str) -> None:
+    """mu of group z and (local_credit="group") every robot of group z learn from group z's
+    advantage; with "credit" each robot from its own."""
+    from algorithms.hierarchical.mappo import ratio_advantages
+    from algorithms.hierarchical.messages import group_structure
+
+    gs = group_structure(EnvConfig.make(n_robots=5, layout="tiny", horizon=4, loss_p=0.0, groups=2))
+    group_adv = torch.tensor([[1.0, -2.0], [3.0, 4.0]])  # (M = 2, Z = 2)
+    robot_adv = torch.arange(10, dtype=torch.float32).reshape(2, 5)  # (M, N)
+    out = ratio_advantages(gs, group_adv, robot_adv, local_credit)
+    z, n = gs.n_groups, gs.n_slots
+    assert out.shape == (2, z + z * n)
+    assert torch.equal(out[:, :z], group_adv)
+    local = out[:, z:].reshape(2, z, n)
+    for g in range(z):
+        for j, robot in enumerate(gs.members[g][gs.slot_valid[g]]):
+            want = group_adv[:, g] if local_credit == "group" else robot_adv[:, robot]
+            assert torch.equal(local[:, g, j], want)
