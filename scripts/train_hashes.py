@@ -3,7 +3,8 @@
 For each configuration below (every learned method and the variants whose code paths differ:
 shared parameters, the per-robot fallback and resampling, oracle messages with a held
 reference, several update chunks, the group advantage, the baselines' safety filter and
-per-robot trainer, both layouts and both ``on_goal`` rules), train 3 updates of 4 episodes
+per-robot trainer, both layouts and both ``on_goal`` rules; the mappo protocol of each
+method), train 3 updates of 4 episodes
 of 60 steps at p = 0.3 from seed 3, then evaluate one chunk in argmax, sample and
 sample@0.5. Prints, per configuration, 12 hex digits of SHA-256 over the training rows
 (without wall times and the ``diag_*`` diagnostics, which only read the update), over the
@@ -45,6 +46,11 @@ CASES: list[tuple[str, dict, str, int, str]] = [  # method, params, layout, N, o
     ("decentralized", {"safety_filter": True}, "tiny", 6, "stay"),
     ("ic3net", {}, MAP, 24, "remove"),
     ("ic3net", {"baseline": "per_robot", "optimizer": "rmsprop"}, "tiny", 6, "stay"),
+    # protocol = "mappo" (a published run trains under it: reproduction/probe-mappo)
+    ("hierarchical", {"protocol": "mappo"}, MAP, 24, "remove"),
+    ("hierarchical", {"protocol": "mappo", "local_credit": "credit", "ppo_epochs": 2}, "tiny", 6, "stay"),
+    ("decentralized", {"protocol": "mappo"}, MAP, 24, "remove"),
+    ("ic3net", {"protocol": "mappo", "credit": "team"}, MAP, 24, "remove"),
 ]
 FIELDS = ("train", "params", "eval")
 
