@@ -222,7 +222,7 @@ class DecentralizedMethod(Method):
             buffer = RolloutBuffer(env.horizon, b, {
                 "obs": ((n, self.n_obs), np.float32), "mask": ((n, N_ACTIONS), bool),
                 "actions": ((n,), np.int64), "active": ((n,), bool), **critic_shapes(n),
-                **({"robot_reward": ((n,), np.float32)} if self.mappo
+                **({"robot_reward": ((n,), np.float32), "logp": ((n,), np.float32)} if self.mappo
                    else {"hidden0": ((n, p.hidden), np.float32),  # the actor's activations
                          "hidden1": ((n, p.hidden), np.float32)}),
             })
@@ -256,6 +256,9 @@ class DecentralizedMethod(Method):
                 (torch.from_numpy(buf.row("hidden0")), torch.from_numpy(buf.row("hidden1")))
             logits = self.actor.rollout_logits(torch.from_numpy(obs), torch.from_numpy(mask), hidden)
             actions = choice(logits).numpy()
+            if buf is not None and "logp" in buf.data:  # mappo: the rollout policy's log-probs
+                buf.row("logp")[...] = torch.log_softmax(logits, -1).gather(
+                    -1, torch.from_numpy(actions)[..., None]).squeeze(-1).numpy()
         state.running = ~core.ended
         if buf is not None:
             store_critic_inputs(buf, core, self.env.horizon)
@@ -363,6 +366,7 @@ class DecentralizedMethod(Method):
         masks = torch.from_numpy(buf.data["mask"][: buf.t].reshape(active.size, -1))
         actions = torch.from_numpy(buf.data["actions"][: buf.t].reshape(-1))
         adv = crit.robot_adv.reshape(-1)[sel][:, None]
+        old = torch.from_numpy(buf.data["logp"][: buf.t].reshape(-1))[sel][:, None]
 
         def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
             rows = sel[ix]
@@ -371,7 +375,7 @@ class DecentralizedMethod(Method):
             entropy = -(logp_all.exp() * logp_all).sum(-1, keepdim=True)
             return logp, entropy, torch.ones_like(logp)
 
-        out = ppo_actor_update(PPOBatch(len(sel), log_probs, adv), self.actor_opt, p.ppo_epochs,
+        out = ppo_actor_update(PPOBatch(len(sel), log_probs, adv, old_log_probs=old), self.actor_opt, p.ppo_epochs,
                                p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
         return {**crit.losses, **out, "grad_norm": out["diag_grad_norm"], "entropy": out["diag_entropy"],
                 "diag_wait_share": wait_share(buf.data["actions"][: buf.t], active)}

@@ -161,13 +161,18 @@ class PPOBatch:
     hold policies whose advantages differ in scale (a group's summed return beside a robot's);
     each level's advantages are normalized on their own and its entropy and KL reported
     under ``level_names`` (``""``: ``diag_entropy``, ``diag_kl``; ``"ref"``:
-    ``diag_entropy_ref``, ``diag_kl_ref``). Without it every column is one level."""
+    ``diag_entropy_ref``, ``diag_kl_ref``). Without it every column is one level.
+
+    ``old_log_probs`` (rows, S) optional: the rollout policy's log-probabilities, kept by the
+    rollout (MAPPO's stored action log-probs); without them ``ppo_actor_update`` recomputes
+    them with one forward pass before its first step."""
 
     rows: int
     log_probs: Callable[[torch.Tensor], tuple[torch.Tensor, torch.Tensor, torch.Tensor]]
     advantages: torch.Tensor
     levels: torch.Tensor | None = None
     level_names: tuple[str, ...] = ("",)
+    old_log_probs: torch.Tensor | None = None
 
 
 def update_generator(seed: int, iteration: int) -> torch.Generator:
@@ -196,8 +201,10 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
     cols = batch.advantages.shape[1]
     levels = torch.zeros(cols, dtype=torch.long) if batch.levels is None else batch.levels
     onehot = torch.nn.functional.one_hot(levels, len(batch.level_names)).to(torch.float32)  # (S, L)
-    with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
-        old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
+    old = batch.old_log_probs
+    if old is None:
+        with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
+            old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
     loss_sum, steps, grad_norm = 0.0, 0, float("nan")
     ent_sum = torch.zeros(len(batch.level_names))
     kl_sum, counted = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))

@@ -142,3 +142,24 @@ def test_hierarchical_ratio_advantages__group_or_own_credit(local_credit: str) -
         for j, robot in enumerate(gs.members[g][gs.slot_valid[g]]):
             want = group_adv[:, g] if local_credit == "group" else robot_adv[:, robot]
             assert torch.equal(local[:, g, j], want)
+
+
+def test_decentralized_mappo_keeps_the_rollout_log_probs() -> None:
+    """The rollout's stored log-probabilities are those of the stored actions under the
+    rollout policy (the ratio's denominator), as the update would recompute them."""
+    from algorithms.common.execution import ActionChoice
+
+    env = EnvConfig.make(n_robots=6, layout="tiny", horizon=12, loss_p=0.3, groups=2, on_goal="stay")
+    m = method_class("decentralized")(env, {"batch_episodes": 2, "protocol": "mappo"}, seed=1)
+    with torch.inference_mode():
+        state, _ = m.run(m.train_batch(), ActionChoice.train(m.torch_gen))
+    buf = state.buffer
+    t = buf.t
+    obs = torch.from_numpy(buf.data["obs"][:t].reshape(-1, buf.data["obs"].shape[-1]))
+    mask = torch.from_numpy(buf.data["mask"][:t].reshape(-1, buf.data["mask"].shape[-1]))
+    actions = torch.from_numpy(buf.data["actions"][:t].reshape(-1))
+    with torch.no_grad():
+        want = torch.log_softmax(m.actor(obs, mask), -1).gather(-1, actions[:, None]).squeeze(-1)  # type: ignore[attr-defined]
+    got = torch.from_numpy(buf.data["logp"][:t].reshape(-1))
+    assert torch.isfinite(got).all() and (got < 0).any()
+    assert torch.allclose(got, want, atol=1e-5)
