@@ -267,7 +267,7 @@ class IC3NetMethod(Method):
                 "links": ((n, n), bool), "alive": ((), np.int64), "active": ((n,), bool),
                 "actions": ((n,), np.int64), "gates": ((n,), np.int64),
                 **(critic_shapes(n) if self.central else {"values": ((n,), np.float32)}),
-                **({"robot_reward": ((n,), np.float32)} if self.mappo else {}),
+                **({"robot_reward": ((n,), np.float32), "logp": ((n,), np.float32)} if self.mappo else {}),
             })
         return IC3NetState(PatchExtractor(core, p.patch_radius), loss, buffer,
                            self.policy.initial_state(b, n), np.zeros((b, n), dtype=bool),
@@ -322,6 +322,8 @@ class IC3NetMethod(Method):
                 torch.from_numpy(alive_n), state.hc)
             actions = choice(logits).numpy()
             gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
+            if buf is not None and "logp" in buf.data:  # mappo: the rollout policy's log-probs
+                buf.row("logp")[...] = self.rollout_log_probs(logits, gate_logits, actions, gates).numpy()
         if p.gate != "learned":
             gates = np.full_like(gates, int(p.gate == "open"))
         state.gate = gates.astype(bool)
@@ -337,6 +339,16 @@ class IC3NetMethod(Method):
             buf.add(alive=alive_n, actions=actions, gates=gates, active=alive & state.running[:, None],
                     **baseline)
         return Decision(actions=actions, payload=payload, robot_links=links)
+
+    def rollout_log_probs(self, logits: torch.Tensor, gate_logits: torch.Tensor, actions: np.ndarray,
+                          gates: np.ndarray) -> torch.Tensor:
+        """log pi of the sampled control, plus that of the sampled gate where the gate is
+        learned (what the mappo update's ratio divides by; ic3net_mappo.py)."""
+        logp = torch.log_softmax(logits, dim=-1).gather(-1, torch.from_numpy(actions)[..., None]).squeeze(-1)
+        if self.params.gate == "learned" and self.params.communicate:
+            logp = logp + torch.log_softmax(gate_logits, dim=-1).gather(
+                -1, torch.from_numpy(gates)[..., None]).squeeze(-1)
+        return logp
 
     def observe(self, batch: EpisodeBatch, state: IC3NetState, result: Any) -> None:
         state.collided = result.collision

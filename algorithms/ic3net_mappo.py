@@ -72,7 +72,8 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
         return per_sample(logp), per_sample(entropy), per_sample(pick(active, ci, bi))
 
     advantages = per_sample(pick(adv, pairs_c, pairs_b))
-    out = ppo_actor_update(PPOBatch(c * b, log_probs, advantages), method.optimizer, p.ppo_epochs,
+    old = per_sample(pick(_chunked(buf.tensor("logp"), gap), pairs_c, pairs_b))  # the rollout's, kept
+    out = ppo_actor_update(PPOBatch(c * b, log_probs, advantages, old_log_probs=old), method.optimizer, p.ppo_epochs,
                            p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
     t_used = buf.t
     act = buf.data["active"][:t_used]

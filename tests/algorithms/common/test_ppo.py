@@ -163,3 +163,25 @@ def test_decentralized_mappo_keeps_the_rollout_log_probs() -> None:
     got = torch.from_numpy(buf.data["logp"][:t].reshape(-1))
     assert torch.isfinite(got).all() and (got < 0).any()
     assert torch.allclose(got, want, atol=1e-5)
+
+
+@pytest.mark.parametrize(("method", "module"), [("decentralized", "algorithms.decentralized"),
+                                                ("ic3net", "algorithms.ic3net_mappo")])
+def test_kept_rollout_log_probs_equal_the_recomputed_ones(method: str, module: str,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """The update with the rollout's kept log-probabilities trains bit for bit as the one
+    that recomputes them (a kept log-prob missing a term, e.g. IC3Net's gate, moves the ratio)."""
+    import importlib
+    from dataclasses import replace
+
+    env = EnvConfig.make(n_robots=6, layout="tiny", horizon=12, loss_p=0.3, groups=2, on_goal="stay")
+    params = {"batch_episodes": 2, "protocol": "mappo"}
+
+    def losses() -> list[float]:
+        m = method_class(method)(env, params, seed=1)
+        return [r["actor_loss"] for _ in range(2) for r in m.train_iteration()]
+
+    kept = losses()
+    monkeypatch.setattr(importlib.import_module(module), "PPOBatch",
+                        lambda *a, **k: replace(PPOBatch(*a, **k), old_log_probs=None))
+    assert kept == losses()
