@@ -13,7 +13,7 @@ The generic report, for any run and any method, comes first: the leaderboard
 (leaderboard.{md,csv}, its aggregates, safety_all_methods.csv, leaders.{md,csv},
 success_vs_n, success_vs_p, performance_profiles), the learning curves of every learned
 method (learning_curves), the robustness of training (robustness.{md,csv}), the summary
-(summary.{md,csv}, success_by_mode.md, progress.md), linked studies and the robustness
+(summary.{md,csv}, success_by_mode.md, progress.md), every seed (seeds.{md,csv}), linked studies and the robustness
 matrix (reports/matrix.py). Then each registered section that applies to the run
 (``reports.sections``; e.g. the paper wing's Fig. 1-3, Table I, ablation and claims), and
 index.md, index.html.
@@ -56,7 +56,14 @@ from reports.tables.leaders import (
 from reports.tables.mapf import CAPTION as MAPF_CAPTION
 from reports.tables.mapf import mapf_display, mapf_frame, mapf_markdown
 from reports.tables.progress import progress_markdown
-from reports.tables.robustness import ROBUSTNESS_CAPTION, robustness_display, robustness_frame, robustness_markdown
+from reports.tables.robustness import (
+    ROBUSTNESS_CAPTION,
+    robustness_display,
+    robustness_frame,
+    robustness_markdown,
+    seeds_frame,
+    seeds_markdown,
+)
 from reports.tables.success_table import success_markdown
 from reports.tables.summary import SUMMARY_CAPTION, SUMMARY_HEAD, summary_display, summary_frame, summary_markdown
 from reports.writers import copy_file, save_figure, write_text
@@ -186,12 +193,16 @@ def _training_diagnostics(train: pd.DataFrame, out: Path) -> list[Entry]:
                   image="training_diagnostics.png", caption=diag.caption)]
 
 
-def _robustness(train: pd.DataFrame, evals: pd.DataFrame, out: Path) -> Entry:
-    """Collapsed seeds and falling returns per learned method and N (reports/tables/robustness.py)."""
-    frame = robustness_frame(train, evals)
+def _robustness(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Series, out: Path) -> Entry:
+    """Collapsed seeds and falling returns per learned method, variant and N, and every
+    seed's success (reports/tables/robustness.py); every variant in its own rows."""
+    frame = robustness_frame(train, evals, variants)
     write_text(out / "robustness.md", robustness_markdown(frame))
     write_text(out / "robustness.csv", frame.to_csv(index=False))
-    return Entry("Robustness of training", ("robustness.md", "robustness.csv"),
+    seeds = seeds_frame(train, evals, variants)
+    write_text(out / "seeds.md", seeds_markdown(seeds))
+    write_text(out / "seeds.csv", seeds.to_csv(index=False))
+    return Entry("Robustness of training", ("robustness.md", "robustness.csv", "seeds.md", "seeds.csv"),
                  tables=((ROBUSTNESS_CAPTION, robustness_display(frame)),) if len(frame) else ())
 
 
@@ -249,7 +260,7 @@ def build_report(run_dir: Path | str, out_dir: Path | str | None = None, claims_
             "(reports/data/variants.py): they have their own rows in the summary and success tables "
             "and are left out of the figures, Table I and the claims")
     entries = [_leaderboard(evals, out), _learning_curves(train, out), *_training_diagnostics(train, out),
-               _robustness(train, evals, out), _summary(store.eval, store.cells, out),
+               _robustness(store.train, store.eval, variants, out), _summary(store.eval, store.cells, out),
                *_mapf(store.eval, store.cells, out)]
     studies, studies_note = _study_entries(Path(run_dir), out, store.problems)
     entries += studies
