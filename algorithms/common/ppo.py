@@ -11,10 +11,12 @@ on the same rollouts with (docs/decisions/0201):
   credit and team credit. It predicts ``ValueNorm``-normalized returns.
 * ``gae``: GAE(lambda) with discount ``gamma`` on per-robot (``credit="robot"``), per-group
   (the hierarchical reference) or team rewards, terminal at the episode's end.
-* ``fit_critic``: ``ppo_epochs`` full-batch Adam steps on the normalized per-robot returns.
+* ``fit_critic``: ``ppo_epochs`` x ``ppo_minibatches`` Adam steps on the normalized
+  per-robot returns, on the actor's minibatch count (docs/decisions/0220).
 * ``ppo_actor_update``: the clipped surrogate over ``ppo_epochs`` epochs of
   ``ppo_minibatches`` shuffled minibatches, advantages normalized per minibatch (mean and
-  std), an entropy bonus, the global gradient-norm clip; the old log-probabilities are the
+  std; each level apart where a method's ratios come from policies at different scales,
+  ``PPOBatch.levels``), an entropy bonus, the global gradient-norm clip; the old log-probabilities are the
   rollout policy's, recomputed once before the first step.
 
 A method (a plugin too, docs/training-protocols.md) supplies only what is its own: which
@@ -206,7 +208,7 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
         with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
             old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
     loss_sum, steps, grad_norm = 0.0, 0, float("nan")
-    ent_sum = torch.zeros(len(batch.level_names))
+    ent_sum, ent_steps = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))
     kl_sum, counted = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))
     clipped = 0.0
     for epoch in range(epochs):
@@ -225,7 +227,9 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
             steps += 1
             loss_sum += float(loss.detach())
             with torch.no_grad():
-                ent_sum += ((ent * w).sum(0) @ onehot) / (w.sum(0) @ onehot).clamp_min(1.0)
+                level_n = w.sum(0) @ onehot  # counted ratios per level in this minibatch
+                ent_sum += ((ent * w).sum(0) @ onehot) / level_n.clamp_min(1.0)
+                ent_steps += (level_n > 0).float()
                 if epoch == epochs - 1:
                     kl_sum += (((ratio - 1) - log_ratio) * w).sum(0) @ onehot
                     clipped += float((((ratio - 1).abs() > clip).float() * w).sum())
@@ -234,7 +238,7 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
            "diag_grad_norm": grad_norm}
     for i, name in enumerate(batch.level_names):
         suffix = f"_{name}" if name else ""
-        out[f"diag_entropy{suffix}"] = float(ent_sum[i]) / max(steps, 1)
+        out[f"diag_entropy{suffix}"] = float(ent_sum[i]) / max(float(ent_steps[i]), 1.0)
         out[f"diag_kl{suffix}"] = float(kl_sum[i]) / max(float(counted[i]), 1.0)
     return out
 
