@@ -493,3 +493,33 @@ def test_matrix__a_file_written_before_the_delay_axis_reads_as_delay_0(toy: str,
     df = _frame(run)
     mine = df[df.cell_id == path.parent.name]
     assert (mine.eval_delay == 0).all() and (mine.delay_model == "fixed").all() and mine.throughput.isna().all()
+
+
+def test_report__delay_matrix_section(ageprobe: str, delay_run: Path, tmp_path: Path) -> None:
+    """A lifelong matrix over delay: scored by throughput, a score(d') figure, d and d' in
+    the table, a sentence per trained delay; the loss figures hold d' = d."""
+    import shutil
+
+    from reports.build import build_report
+    from reports.matrix import THROUGHPUT, degradation, matrix_table, own_delay, score_of
+
+    run = tmp_path / "run"
+    shutil.copytree(delay_run, run)
+    run_matrix(run, ps=[0.2, 0.5], models=["bernoulli"], delays=[0, 2, 3], episodes=2, use_ray=False)
+    df = _frame(run)
+    assert score_of(df) is THROUGHPUT
+    out = build_report(run)
+    for name in ("matrix_delay.png", "matrix_delay.pdf", "matrix_heatmaps.png", "matrix.md", "matrix.csv"):
+        assert (out / name).stat().st_size > 0
+    md = (out / "matrix.md").read_text()
+    assert "| method | N | p | d | N' | p' | loss | d' | mode | throughput | 95% CI | seeds |" in md
+    assert "Trained at N=4, p=0.2, d=2 and evaluated at a fixed delay d'=3 (p'=0.2, Bernoulli, N'=4): " in md
+    assert "Trained at N=4, p=0.2, d=0 and evaluated at p'=0.5 (Bernoulli, N'=4, same delay): " in md
+    assert "of its throughput" in md
+    assert "Robustness matrix: throughput(d') per trained delay" in (out / "index.md").read_text()
+    csv = pd.read_csv(out / "matrix.csv")
+    assert set(zip(csv.train_delay, csv.eval_delay)) == {(t, e) for t in (0.0, 2.0) for e in (0.0, 2.0, 3.0)}
+    table = matrix_table(df)
+    mine = own_delay(table)
+    assert len(mine) and (mine.eval_delay == mine.train_delay).all() and len(mine) < len(table)
+    degradation(table, THROUGHPUT)  # draws from the d' = d slice only (no error on mixed delays)
