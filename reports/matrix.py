@@ -122,7 +122,9 @@ def _loss_label(model: str, burst: float) -> str:
     return "Bernoulli" if model == "bernoulli" else f"Gilbert-Elliott b={burst:g}"
 
 
-def _condition_label(n: int, p: float, d: float, model: str, delays: bool) -> str:
+def _condition_label(key: tuple[Any, ...], delays: bool) -> str:
+    """'40,0.2' or with delays '40,0.2,d2' for a heatmap key (N, p) or (N, p, d, model)."""
+    n, p, d, model = tuple(key) + (0.0, "fixed")[len(key) - 2:]
     return f"{n},{p:g}" + (f",d{delay_label(d, model)}" if delays else "")
 
 
@@ -151,18 +153,13 @@ def heatmaps(table: pd.DataFrame, score: Score = SUCCESS) -> Built:
                 if not math.isnan(v):
                     ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=5,
                             color="white" if v < 0.5 * top else "black")
-            ax.set_xticks(range(wide.shape[1]), [_condition_label(*_padded(k), delays) for k in wide.columns],
+            ax.set_xticks(range(wide.shape[1]), [_condition_label(k, delays) for k in wide.columns],
                           rotation=90)
-            ax.set_yticks(range(wide.shape[0]), [_condition_label(*_padded(k), delays) for k in wide.index])
+            ax.set_yticks(range(wide.shape[0]), [_condition_label(k, delays) for k in wide.index])
             what = "N,p,d x evaluated N',p',d'" if delays else "N,p x evaluated N',p'"
             ax.set_title(f"{method_label(method)}: {score.kept} (trained {what})")
             ax.grid(False)
     return Built(fig, ["mean over seeds; headline mode (argmax, planner for PIBT); Bernoulli loss"])
-
-
-def _padded(key: tuple[Any, ...]) -> tuple[Any, ...]:
-    """A heatmap row or column key (N, p) or (N, p, d, model) as (N, p, d, model)."""
-    return tuple(key) + (0.0, "fixed")[len(key) - 2:]
 
 
 def _band(ax: Axes, g: pd.DataFrame, label: str, color: Any, style: str = "-", x: str = "eval_p",

@@ -145,7 +145,7 @@ def conditions(ns: Sequence[int], ps: Sequence[float], models: Sequence[str], bu
     """The grid N' x p' x (Bernoulli, GE per burst) x delay settings (``delay_settings``).
     Gilbert-Elliott only for 0 < p' < 1: at p' = 0 or 1 its chain is constant, the same
     channel as Bernoulli."""
-    out = []
+    out: list[Condition] = []
     for n in ns:
         for p in ps:
             for m in models:
@@ -429,14 +429,15 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
     ``use_ray=False`` runs the same worker code in this process (tests, one core)."""
     t0 = time.monotonic()
     run = Path(run)
-    axes = dict(ns=ns, ps=ps, models=models, bursts=bursts, episodes=episodes, delays=delays,
-                delay_models=delay_models)
-    _, _, units, skipped = plan_units(run, **axes)
+    def plan() -> tuple[list[Cell], list[Condition], list[Unit], int]:
+        return plan_units(run, ns, ps, models, bursts, episodes, delays, delay_models)
+
+    _, _, units, skipped = plan()
     store = RunStore(run)
     lock = store.lock()
     try:
         if _check_matrix_files(store, repair):  # moved aside: those units are to do again
-            _, _, units, skipped = plan_units(run, **axes)
+            _, _, units, skipped = plan()
         states: dict[str, dict[str, Any] | None] = {}
         support: dict[tuple[str, int, str], str] = {}
         todo: list[Unit] = []

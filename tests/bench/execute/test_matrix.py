@@ -518,7 +518,8 @@ def test_report__delay_matrix_section(ageprobe: str, delay_run: Path, tmp_path: 
     assert "of its throughput" in md
     assert "Robustness matrix: throughput(d') per trained delay" in (out / "index.md").read_text()
     csv = pd.read_csv(out / "matrix.csv")
-    assert set(zip(csv.train_delay, csv.eval_delay)) == {(t, e) for t in (0.0, 2.0) for e in (0.0, 2.0, 3.0)}
+    crossed = {(t, e) for t in (0.0, 2.0) for e in (0.0, 2.0, 3.0)}
+    assert set(zip(csv.train_delay, csv.eval_delay, strict=True)) == crossed
     table = matrix_table(df)
     mine = own_delay(table)
     assert len(mine) and (mine.eval_delay == mine.train_delay).all() and len(mine) < len(table)
