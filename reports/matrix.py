@@ -5,8 +5,8 @@ sizes N', loss rates p', loss models and message delays d'. The score is the suc
 or for a lifelong matrix (every 'ok' row has a throughput) the throughput in goals per step
 (``Score``). Statistics: a seed's value is the mean over the condition's K paired episodes;
 the table and bands give the mean over seeds with a Student t 95% interval (reports/stats.py
-``mean_ci``; one seed: no interval). Figures use the headline mode (argmax; planner for
-PIBT); the table lists every mode.
+``mean_ci``, cut at 0 and, for a rate, 1: ``cut_interval``; one seed: no interval). Figures
+use the headline mode (argmax; planner for PIBT); the table lists every mode.
 
 Outputs: matrix_heatmaps (train condition x eval condition, Bernoulli loss, per method),
 matrix_degradation (score(p') at the training N and delay, one line per trained p),
@@ -32,14 +32,16 @@ from matplotlib.axes import Axes
 from algorithms.common.execution import HEADLINE, PLANNER
 from reports.figures.plotting import (
     Built,
+    fitted_legend,
     label_order,
     method_label,
     new_figure,
     paper_style,
     placeholder,
+    ranked_legend,
 )
 from reports.pages.index import Entry
-from reports.stats import mean_ci
+from reports.stats import cut_interval, mean_ci
 from reports.writers import save_figure, write_text
 
 KEYS = ["method", "train_n", "train_p", "train_delay", "train_delay_model", "eval_n", "eval_p", "loss_model",
@@ -90,6 +92,7 @@ def matrix_table(df: pd.DataFrame, score: Score | None = None) -> pd.DataFrame:
     rows = []
     for key, g in seed_values(df, score).groupby(KEYS):
         m, lo, hi = mean_ci(g[score.metric].to_numpy())
+        lo, hi = cut_interval(lo, hi, 0.0, 1.0 if score.rate else np.inf)  # a rate, or a count per step
         rows.append({**dict(zip(KEYS, key, strict=True)), score.column: m, "lo": lo, "hi": hi, "seeds": len(g)})
     return pd.DataFrame(rows, columns=KEYS + [score.column, "lo", "hi", "seeds"])
 
@@ -219,6 +222,7 @@ def delay_degradation(table: pd.DataFrame, score: Score = SUCCESS) -> Built:
             return Built(fig, ["no data"])
         trained = sorted(set(map(tuple, t[["train_delay", "train_delay_model"]].to_numpy().tolist())))
         colors = dict(zip(trained, sns.color_palette("mako", len(trained)), strict=True))
+        several = len(t.drop_duplicates(["train_n", "train_p"])) > 1
         for ax, method in zip(axes, methods, strict=True):
             mine = t[t["method"] == method]
             for (n, p, d, dm, model), g in mine.groupby(
@@ -227,14 +231,15 @@ def delay_degradation(table: pd.DataFrame, score: Score = SUCCESS) -> Built:
                     zero = mine[(mine["train_n"] == n) & (mine["train_p"] == p) & (mine["train_delay"] == d)
                                 & (mine["train_delay_model"] == dm) & (mine["eval_delay"] == 0)]
                     g = pd.concat([zero, g])
-                label = (f"N={n}, p={p:g}, trained d={delay_label(d, dm)}"
+                label = (f"trained d={delay_label(d, dm)}" + (f" (N={n}, p={p:g})" if several else "")
                          + (", geometric d'" if model == "geometric" else ""))
                 _band(ax, g, label, colors[(d, dm)], "--" if model == "geometric" else "-", x="eval_delay",
                       column=score.column)
             ax.set_title(method_label(method))
             ax.set_xlabel("evaluation mean message delay d' (steps)")
             _score_axis(ax, score)
-            ax.legend(loc="best", frameon=True, framealpha=0.8)
+        handles, labels = ranked_legend(axes)  # one legend below the panels: bands fill the axes
+        fitted_legend(fig, handles, labels, "outside lower center", max_cols=2)
     return Built(fig, ["N' = training N, p' = training p, Bernoulli loss; band: t 95% interval over seeds"])
 
 
