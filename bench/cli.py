@@ -459,6 +459,10 @@ def matrix(
         help="bernoulli and/or gilbert_elliott (repeat; default both)."),
     burst: list[float] = typer.Option([], "--burst",
         help="Mean burst length of gilbert_elliott loss, steps (repeat; default 4 16)."),
+    delay: list[float] = typer.Option([], "--delay",
+        help="Evaluation mean message delay d', steps (repeat; default: the delays the run's cells trained at)."),
+    delay_model: list[str] = typer.Option([], "--delay-model",
+        help="fixed and/or geometric (repeat; default: the run's delayed cells' models, else fixed)."),
     episodes: int | None = typer.Option(None, "--episodes",
         help="Evaluation episodes per condition and mode (default: the run's eval_episodes)."),
     workers: int | None = typer.Option(None, "--workers", min=1,
@@ -470,8 +474,8 @@ def matrix(
              "units again (without it such a matrix is refused, naming the file)."),
 ) -> None:
     """Robustness matrix: evaluate every trained checkpoint at other team sizes N', loss
-    rates p' and bursty (Gilbert-Elliott) loss, on scenarios shared by every method, into
-    RUN/matrix/. Rerunning skips the (cell, condition) units already written."""
+    rates p', bursty (Gilbert-Elliott) loss and message delays d', on scenarios shared by
+    every method, into RUN/matrix/. Rerunning skips the (cell, condition) units already written."""
     from bench.design.limits import check_count
     from bench.execute.matrix import run_matrix
 
@@ -479,7 +483,8 @@ def matrix(
     check_count("--workers", "workers", workers)
     for size in n:
         check_count("--n", "n_robots", size)
-    s = run_matrix(run, n, p, loss_model, burst, episodes, workers, address, repair=repair)
+    s = run_matrix(run, n, p, loss_model, burst, episodes, workers, address, repair=repair, delays=delay,
+                   delay_models=delay_model)
     typer.echo(f"matrix: {s.units} units ({s.skipped} already done, {s.written} evaluated, "
                f"{s.unsupported} unsupported) in {s.wall_s:.1f} s -> {s.out / 'matrix'}")
     for unit, error in s.failed.items():

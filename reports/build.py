@@ -153,24 +153,30 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]
     captions = []
-    for stem, built in (("success_vs_n", success_figure(board, "n_robots")),
-                        ("success_vs_p", success_figure(board, "loss_p")),
-                        ("performance_profiles", profile_figure(evals))):
+    figures = [("success_vs_n", success_figure(board, "n_robots")),
+               ("success_vs_p", success_figure(board, "loss_p")),
+               ("performance_profiles", profile_figure(evals))]
+    lifelong = "throughput" in board  # a lifelong run's score (docs/decisions/0218)
+    if lifelong:
+        figures.insert(0, ("throughput_vs_n", success_figure(board, "n_robots", "throughput")))
+    for stem, built in figures:
         save_figure(built.fig, out / stem, built.caption)
         files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
         captions.append(built.caption)
+    score = ("Throughput (goals reached per step) per configuration and execution mode" if lifelong
+             else "Success rate per configuration and execution mode")
     return Entry("Leaderboard: every method of the run", tuple(files),
                  tables=(("Per learned method and mode: how many of the configurations it shares with another "
                           "learned method it leads (by a margin whose 95% Welch CI over seeds excludes 0), and its "
                           "success minus the best planner's where one ran (range of the means; at how many the CI "
                           "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
-                         ("Success rate per configuration and execution mode: mean over seeds [95% CI over seeds] "
+                         (f"{score}: mean over seeds [95% CI over seeds] "
                           "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
                           "columns of every method: leaderboard.md.", leaderboard_display(board)),
                          ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
                           "the runner-up (the margin's 95% Welch CI over seeds excludes 0, or not; pointwise). "
                           "Counts and the distance to the planners: leaders.md.", leaders_display(leaders))),
-                 image="success_vs_n.png", caption=captions[0])
+                 image=f"{figures[0][0]}.png", caption=captions[0])
 
 
 def _learning_curves(train: pd.DataFrame, out: Path) -> Entry:

@@ -2,16 +2,22 @@
 
 The paper trains and evaluates a policy at the same team size N and loss rate p with
 i.i.d. loss (Sec. IV). ``bench matrix --run DIR`` evaluates each done cell's checkpoint
-at other conditions: team sizes N', mean loss probabilities p' and loss models
-(Bernoulli, and Gilbert-Elliott bursts of mean length b with the same mean p', envs/channel.py
-``LossProcess``), in every execution mode of the cell (argmax, sample, sample@T; planner).
+at other conditions: team sizes N', mean loss probabilities p', loss models (Bernoulli,
+and Gilbert-Elliott bursts of mean length b with the same mean p', envs/channel.py
+``LossProcess``) and message delays d' (fixed or geometric, envs/channel.py ``DelayLine``;
+default: the delays the run's cells trained at), in every execution mode of the cell
+(argmax, sample, sample@T; planner). The channel axis is one product: every loss setting
+at every delay setting (``delay_settings``); a delay of 0 has no model, as Bernoulli loss has
+no burst length.
 
 Pairing (docs/decisions/0100): the evaluation seed of a condition is
 a hash of its layout and N' alone, never of the cell, and every unit is evaluated in
 chunks of ``MATRIX_CHUNK`` episodes whatever the method's ``eval_chunk``. So episode k at
 N' has the same starts and goals for every method, training condition, training seed,
 p' and loss model (the ``scenario`` column is equal), and its loss draws come from the
-same uniforms (their link sets differ by architecture: Z x Z groups vs N x N robots).
+same uniforms (their link sets differ by architecture: Z x Z groups vs N x N robots). The
+delays are drawn from the channel's own child generator, so the loss draws of a condition
+are those of its delay-0 twin as well.
 
 Layout of N': a run whose cells share one layout keeps it; otherwise the layout the run's
 cells trained at N' used (one per N, e.g. 'auto' presets); a run with several layouts and
@@ -23,7 +29,9 @@ reason, as are checkpoints whose parameters do not load into the method built at
 Storage: ``DIR/matrix/<cell_id>/<condition>.parquet`` per (cell, condition) unit, written
 atomically once all its chunks are in (``MATRIX_SCHEMA``: the eval metrics plus the
 training and evaluation conditions). A rerun skips every unit whose file is complete
-(K episodes x modes rows, or one 'unsupported' row); evaluation chunks
+(K episodes x modes rows, or one 'unsupported' row); a condition at delay 0 keeps the file
+name it had before the delay axis (a matrix file written then lacks the delay and MAPF
+columns and reads as delay 0 with NaN MAPF metrics, ``ADDED_MATRIX_COLUMNS``); evaluation chunks
 (bench/execute/worker.py ``CellWorker.eval_chunk``) run through the one executor
 (bench/execute/executor.py: fan-out, retries and restarts as for ``bench run``).
 """
@@ -48,13 +56,14 @@ from bench.execute.plan import cell_spec, params_changes
 from bench.execute.worker import CellWorker, build_method
 from bench.store.completeness import expected_rows
 from bench.store.run_store import RunStore, read_meta, read_table, write_table
-from bench.store.schema import METRIC_FIELDS, rows_to_table
-from envs.config import EnvConfig, bursty_loss_error
+from bench.store.schema import ADDED_EVAL_COLUMNS, METRIC_FIELDS, rows_to_table
+from envs.config import EnvConfig, bursty_loss_error, delay_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
 
 LOSS_MODELS = ("bernoulli", "gilbert_elliott")
+DELAY_MODELS = ("fixed", "geometric")
 DEFAULT_P = (0.0, 0.2, 0.4, 0.6, 0.8)
 DEFAULT_BURSTS = (4.0, 16.0)
 MATRIX_CHUNK = 10  # episodes per evaluation chunk of every unit (pairing across methods)
@@ -72,62 +81,87 @@ MATRIX_SCHEMA = pa.schema(
      pa.field("episode", pa.int64(), nullable=False), pa.field("execution", pa.string()),
      pa.field("scenario", pa.string())]
     + METRIC_FIELDS
+    + [pa.field("train_delay", pa.float64()), pa.field("train_delay_model", pa.string()),
+       pa.field("eval_delay", pa.float64()), pa.field("delay_model", pa.string())]
+    + [pa.field(name, pa.float64()) for name in ADDED_EVAL_COLUMNS]  # the MAPF metrics (throughput)
 )
+# Columns added after the first matrix files: a file without them is a delay-0 matrix
+# (the only delay before the axis existed) whose MAPF metrics were not kept (NaN).
+ADDED_MATRIX_COLUMNS: dict[str, Any] = {"train_delay": 0.0, "train_delay_model": "fixed", "eval_delay": 0.0,
+                                        "delay_model": "fixed", **ADDED_EVAL_COLUMNS}
 
 
 @dataclass(frozen=True)
 class Condition:
-    """One evaluation condition: team size N', mean loss p', loss model, burst length, layout.
-    ``burst_length`` is NaN for Bernoulli loss (it has none)."""
+    """One evaluation condition: team size N', mean loss p', loss model, burst length, layout,
+    mean delay d' and delay model. ``burst_length`` is NaN for Bernoulli loss (it has none);
+    ``delay_model`` is "fixed" at d' = 0 (no delay has no model)."""
 
     n: int
     p: float
     loss_model: str
     burst_length: float
     layout: str
+    delay: float = 0.0
+    delay_model: str = "fixed"
 
     @property
     def key(self) -> str:
-        """File stem, e.g. 'n8-p0.2-bernoulli' or 'n8-p0.2-ge-b16'."""
-        if self.loss_model == "bernoulli":
-            return f"n{self.n}-p{self.p:g}-bernoulli"
-        return f"n{self.n}-p{self.p:g}-ge-b{self.burst_length:g}"
+        """File stem, e.g. 'n8-p0.2-bernoulli', 'n8-p0.2-ge-b16', 'n8-p0.2-bernoulli-d2' or
+        'n8-p0.2-bernoulli-d2-geometric' (at d' = 0 the stem it had before the delay axis)."""
+        loss = "bernoulli" if self.loss_model == "bernoulli" else f"ge-b{self.burst_length:g}"
+        delay = "" if self.delay == 0 else f"-d{self.delay:g}" + ("" if self.delay_model == "fixed" else "-geometric")
+        return f"n{self.n}-p{self.p:g}-{loss}{delay}"
 
     @property
     def seed(self) -> int:
         """Evaluation seed: a hash of the layout and N' only (never of the cell), so every
         method, training condition and seed sees the same scenarios here, and so do all
-        p' and loss models at this N': the channel then draws the same uniforms, so
+        p', loss models and delays at this N': the channel then draws the same uniforms, so
         Bernoulli losses are nested across p' (common random numbers, envs/channel.py)."""
         text = json.dumps(["matrix", self.layout, self.n])
         return int(hashlib.sha256(text.encode()).hexdigest()[:8], 16) % (2**31)
 
     def env(self, cell: Cell) -> EnvConfig:
-        """The cell's environment at this condition (its Z, horizon, on_goal kept)."""
+        """The cell's environment at this condition (its Z, horizon, on_goal, task kept)."""
         base = cell.to_env_config().model_dump()
-        base.update(n_robots=self.n, loss_p=self.p, loss_model=self.loss_model, layout=self.layout)
+        base.update(n_robots=self.n, loss_p=self.p, loss_model=self.loss_model, layout=self.layout,
+                    delay=self.delay, delay_model=self.delay_model)
         if not math.isnan(self.burst_length):
             base["burst_length"] = self.burst_length
         return EnvConfig.make(**base)
 
 
+def delay_settings(delays: Sequence[float], models: Sequence[str]) -> list[tuple[float, str]]:
+    """The delay axis: every d' > 0 under every delay model, d' = 0 once (no delay has no
+    model: it is (0, "fixed")), in the order given."""
+    out = [(0.0, "fixed") if d == 0 else (float(d), m) for d in delays for m in models]
+    return list(dict.fromkeys(out))
+
+
 def conditions(ns: Sequence[int], ps: Sequence[float], models: Sequence[str], bursts: Sequence[float],
-               layout_of: Callable[[int], str]) -> list[Condition]:
-    """The grid N' x p' x (Bernoulli, GE per burst). Gilbert-Elliott only for 0 < p' < 1:
-    at p' = 0 or 1 its chain is constant, the same channel as Bernoulli."""
-    out = []
+               layout_of: Callable[[int], str],
+               delays: Sequence[tuple[float, str]] = ((0.0, "fixed"),)) -> list[Condition]:
+    """The grid N' x p' x (Bernoulli, GE per burst) x delay settings (``delay_settings``).
+    Gilbert-Elliott only for 0 < p' < 1: at p' = 0 or 1 its chain is constant, the same
+    channel as Bernoulli."""
+    out: list[Condition] = []
     for n in ns:
         for p in ps:
             for m in models:
                 if m == "bernoulli":
-                    out.append(Condition(n, p, m, math.nan, layout_of(n)))
+                    losses = [(m, math.nan)]
                 elif 0.0 < p < 1.0:
-                    out.extend(Condition(n, p, m, float(b), layout_of(n)) for b in bursts)
+                    losses = [(m, float(b)) for b in bursts]
+                else:
+                    continue
+                out.extend(Condition(n, p, model, b, layout_of(n), d, dm) for model, b in losses for d, dm in delays)
     return out
 
 
 def check_arguments(ns: Iterable[int], ps: Iterable[float], models: Iterable[str],
-                    bursts: Iterable[float], episodes: int | None) -> None:
+                    bursts: Iterable[float], episodes: int | None, delays: Iterable[float] = (),
+                    delay_models: Iterable[str] = ()) -> None:
     """BenchError naming the first bad argument."""
     for n in ns:
         if int(n) < 1:
@@ -147,8 +181,28 @@ def check_arguments(ns: Iterable[int], ps: Iterable[float], models: Iterable[str
                 why = bursty_loss_error(p, b)
                 if why is not None:
                     raise BenchError(f"--p {p:g} with --burst {b:g}: {why}")
+    check_delays(delays, delay_models)
     if episodes is not None and episodes < 1:
         raise BenchError(f"--episodes {episodes}: evaluate at least 1 episode per condition")
+
+
+def check_delays(delays: Iterable[float], models: Iterable[str]) -> None:
+    """BenchError naming the first bad --delay or --delay-model: a mean delay is a finite
+    number of steps >= 0, a fixed one a whole number within the environment's bound
+    (``EnvConfig.delay_max``), a geometric mean below it (envs/config.py ``delay_error``)."""
+    delays, models = list(delays), list(models)
+    for m in models:
+        if m not in DELAY_MODELS:
+            raise BenchError(f"--delay-model {m!r}: unknown delay model; choose {' or '.join(DELAY_MODELS)}")
+    bound = EnvConfig.model_fields["delay_max"].default
+    for d in delays:
+        if not (math.isfinite(d) and d >= 0.0):
+            raise BenchError(f"--delay {d:g}: a mean message delay must be a finite number of steps >= 0")
+        for m in models or ["fixed"]:
+            why = delay_error(d, m, bound)
+            if why is not None:
+                why = why.split(": ", 1)[-1].replace("delay_model='geometric'", "--delay-model geometric")
+                raise BenchError(f"--delay {d:g} with --delay-model {m}: {why}")
 
 
 def layout_chooser(cells: Sequence[Cell]) -> Callable[[int], str]:
@@ -205,7 +259,9 @@ class Unit:
         return {"cell_id": c.cell_id, "method": c.method, "seed": c.seed, "train_n": c.n_robots,
                 "train_p": c.loss_p, "train_loss_model": c.loss_model, "eval_n": d.n, "eval_p": d.p,
                 "loss_model": d.loss_model, "burst_length": d.burst_length, "layout": d.layout,
-                "condition": d.key, "eval_seed": d.seed}
+                "condition": d.key, "eval_seed": d.seed, "train_delay": c.delay,
+                "train_delay_model": c.delay_model if c.delay > 0 else "fixed", "eval_delay": d.delay,
+                "delay_model": d.delay_model}
 
 
 @dataclass
@@ -278,24 +334,38 @@ def support_reason(cell: Cell, cond: Condition, state: dict[str, Any] | None) ->
     return ""
 
 
+def run_delays(cells: Sequence[Cell], delays: Sequence[float] | None,
+               models: Sequence[str] | None) -> tuple[list[float], list[str]]:
+    """The delay axis's values: those given, else the delays the run's cells trained at;
+    the delay models given, else those of the run's delayed cells ("fixed" when none)."""
+    ds = [float(d) for d in delays] if delays else sorted({float(c.delay) for c in cells})
+    ms = list(models) if models else sorted({c.delay_model for c in cells if c.delay > 0}) or ["fixed"]
+    return list(dict.fromkeys(ds)), list(dict.fromkeys(ms))
+
+
 def plan_units(run: Path, ns: Sequence[int] | None = None, ps: Sequence[float] | None = None,
                models: Sequence[str] | None = None, bursts: Sequence[float] | None = None,
-               episodes: int | None = None) -> tuple[list[Cell], list[Condition], list[Unit], int]:
+               episodes: int | None = None, delays: Sequence[float] | None = None,
+               delay_models: Sequence[str] | None = None,
+               ) -> tuple[list[Cell], list[Condition], list[Unit], int]:
     """Validate the arguments and the run; returns (cells, conditions, units to do, skipped)."""
     ns = list(ns or [])
     ps = list(DEFAULT_P if ps is None or len(ps) == 0 else ps)
     models = list(models or LOSS_MODELS)
     bursts = list(DEFAULT_BURSTS if bursts is None or len(bursts) == 0 else bursts)
-    check_arguments(ns, ps, models, bursts, episodes)
+    check_arguments(ns, ps, models, bursts, episodes, delays or [], delay_models or [])
     store = RunStore(run)
     store.require_run()
     cells = done_cells(store)
+    ds, dms = run_delays(cells, delays, delay_models)
+    check_delays(ds, dms)
     ns = ns or sorted({c.n_robots for c in cells})
     choose = layout_chooser(cells)
     for n in dict.fromkeys(ns):
         check_fits(int(n), choose(int(n)))
     conds = conditions([int(n) for n in dict.fromkeys(ns)], [float(p) for p in dict.fromkeys(ps)],
-                       list(dict.fromkeys(models)), [float(b) for b in dict.fromkeys(bursts)], choose)
+                       list(dict.fromkeys(models)), [float(b) for b in dict.fromkeys(bursts)], choose,
+                       delay_settings(ds, dms))
     k = episodes if episodes is not None else max(c.eval_episodes for c in cells)
     units, skipped = [], 0
     for cell in cells:
@@ -350,7 +420,8 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
                models: Sequence[str] | None = None, bursts: Sequence[float] | None = None,
                episodes: int | None = None, workers: int | None = None, address: str | None = None,
                use_ray: bool = True, on_unit: Callable[[Unit], None] | None = None,
-               repair: bool = False) -> MatrixSummary:
+               repair: bool = False, delays: Sequence[float] | None = None,
+               delay_models: Sequence[str] | None = None) -> MatrixSummary:
     """Evaluate every missing (cell, condition) unit of the run; see the module docstring.
 
     A damaged or misplaced matrix file (bench/store/integrity.py) is a BenchError naming it, unless
@@ -358,12 +429,15 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
     ``use_ray=False`` runs the same worker code in this process (tests, one core)."""
     t0 = time.monotonic()
     run = Path(run)
-    _, _, units, skipped = plan_units(run, ns, ps, models, bursts, episodes)
+    def plan() -> tuple[list[Cell], list[Condition], list[Unit], int]:
+        return plan_units(run, ns, ps, models, bursts, episodes, delays, delay_models)
+
+    _, _, units, skipped = plan()
     store = RunStore(run)
     lock = store.lock()
     try:
         if _check_matrix_files(store, repair):  # moved aside: those units are to do again
-            _, _, units, skipped = plan_units(run, ns, ps, models, bursts, episodes)
+            _, _, units, skipped = plan()
         states: dict[str, dict[str, Any] | None] = {}
         support: dict[tuple[str, int, str], str] = {}
         todo: list[Unit] = []
@@ -454,6 +528,18 @@ def _evaluate(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit]
             ctx.shutdown()
 
 
+BASE_MATRIX_SCHEMA = pa.schema([f for f in MATRIX_SCHEMA if f.name not in ADDED_MATRIX_COLUMNS])
+
+
+def _with_added_columns(table: pa.Table) -> pa.Table:
+    """A matrix file's table with every ``ADDED_MATRIX_COLUMNS`` column it lacks, at its value."""
+    for name, value in ADDED_MATRIX_COLUMNS.items():
+        if name not in table.schema.names:
+            field = MATRIX_SCHEMA.field(name)
+            table = table.append_column(field, pa.array([value] * table.num_rows, field.type))
+    return table
+
+
 def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table | None:
     """Every stored unit of ``DIR/matrix/`` as one table (None when there is none). With a
     ``problems`` list, an unreadable file is skipped and named there instead of raising."""
@@ -462,7 +548,8 @@ def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table 
     tables = []
     for p in files:
         try:
-            tables.append(read_table(p, MATRIX_SCHEMA).select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA))
+            tables.append(_with_added_columns(read_table(p, BASE_MATRIX_SCHEMA, {}))
+                          .select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA))
         except BenchError as exc:
             if problems is None:
                 raise

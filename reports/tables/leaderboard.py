@@ -108,12 +108,12 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
     return ordered.drop(columns=["_m", "_l"]).reset_index(drop=True)
 
 
-def score_matrices(evals: pd.DataFrame, mode: str,
+def score_matrices(evals: pd.DataFrame, mode: str, metric: str = "success_rate",
                    ) -> tuple[dict[str, np.ndarray], list[tuple[int, float]], dict[str, int]]:
-    """Per method, its (seeds x configurations) success matrix in mode ``mode`` (a planner in
+    """Per method, its (seeds x configurations) ``metric`` matrix in mode ``mode`` (a planner in
     ``planner``) over the configurations every method covers, using the seeds every one of
     those configurations has; the configurations; the seeds used per method."""
-    scores = seed_scores(evals)
+    scores = seed_scores(evals, metric)
     scores = scores[(scores["execution"] == mode) | (scores["execution"] == PLANNER)]
     methods = _methods(scores)
     configs = None
@@ -128,7 +128,7 @@ def score_matrices(evals: pd.DataFrame, mode: str,
         seeds = sorted(set.intersection(*(set(g["seed"]) for g in per))) if per else []
         if not seeds:
             continue
-        mats[m] = np.stack([g.set_index("seed").loc[seeds, "success_rate"].to_numpy() for g in per], axis=1)
+        mats[m] = np.stack([g.set_index("seed").loc[seeds, metric].to_numpy() for g in per], axis=1)
         used[m] = len(seeds)
     return mats, cfgs, used
 
@@ -182,11 +182,13 @@ def _poi(k: int):
 
 def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(IQM per mode and method, probability of improvement per mode and ordered pair) over
-    the configurations every method covers; see the module docstring."""
+    the configurations every method covers; see the module docstring. A lifelong run's
+    score is its throughput, as in ``leaderboard_frame`` (docs/decisions/0218)."""
     iqm_rows, poi_rows = [], []
+    metric = "throughput" if is_lifelong(evals) else "success_rate"
     modes = [m for m in execution_order(evals["execution"]) if m != PLANNER] or [PLANNER]
     for mode in modes:
-        mats, cfgs, used = score_matrices(evals, mode)
+        mats, cfgs, used = score_matrices(evals, mode, metric)
         for m, mat in mats.items():
             cols = [mat[:, j] for j in range(mat.shape[1])]
             lo, hi = _stratified_ci(cols, _iqm)
@@ -252,17 +254,20 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
                          f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+    score = "throughput" if "throughput" in board else "success"
     lines += ["", "## Across configurations", "",
-              "Interquartile mean (rliable) of the seed x configuration success matrix over the "
+              f"Interquartile mean (rliable) of the seed x configuration {score} matrix over the "
               "configurations every method covers, [95% stratified bootstrap CI: seeds resampled "
               "within each configuration]; seeds: those every such configuration of the method has.", ""]
     if iqm.empty:
         lines += ["No configuration is covered by every method.", ""]
     else:
-        lines += ["| execution | method | configurations | seeds | IQM success [95% CI] |", "|---|---|---|---|---|"]
+        head = "IQM throughput (goals/step)" if score == "throughput" else "IQM success"
+        lines += [f"| execution | method | configurations | seeds | {head} [95% CI] |", "|---|---|---|---|---|"]
         for r in iqm.itertuples(index=False):
-            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | "
-                         f"{ci(r.iqm, r.iqm_lo, r.iqm_hi)} |")
+            value = (fmt_ci(r.iqm, r.iqm_lo, r.iqm_hi, "num") if score == "throughput"
+                     else ci(r.iqm, r.iqm_lo, r.iqm_hi))
+            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {value} |")
         lines += ["", "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
                   "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
                   "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
@@ -303,10 +308,12 @@ def leaderboard_display(board: pd.DataFrame) -> pd.DataFrame:
         columns={"n_robots": "N"}).fillna("")
 
 
-def success_figure(board: pd.DataFrame, against: str) -> Built:
-    """Success with its 95% CI over seeds against ``against`` ("n_robots" or "loss_p"), one
-    panel per value of the other axis, one row per learned execution mode (planners drawn
-    in every row), every method of the run in its declared colour."""
+def success_figure(board: pd.DataFrame, against: str, score: str = "success") -> Built:
+    """Success (or with ``score="throughput"`` a lifelong run's throughput) with its 95% CI
+    over seeds against ``against`` ("n_robots" or "loss_p"), one panel per value of the
+    other axis, one row per learned execution mode (planners drawn in every row), every
+    method of the run in its declared colour."""
+    name = "success rate" if score == "success" else "throughput (goals/step)"
     other = "loss_p" if against == "n_robots" else "n_robots"
     modes = [m for m in execution_order(board["execution"]) if m != PLANNER] or [PLANNER] if len(board) else []
     panels = sorted(board[other].unique()) if len(board) else []
@@ -323,23 +330,26 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
                 for m in _methods(part):
                     g = part[part["method"] == m].sort_values(against)
                     x = g[against].to_numpy(dtype=float)
-                    ax.plot(x, g["success"], marker="o", ls=method_style(m), color=method_color(m),
+                    ax.plot(x, g[score], marker="o", ls=method_style(m), color=method_color(m),
                             label=method_label(m), ms=2.5)
-                    ax.fill_between(x, g["success_lo"], g["success_hi"], color=method_color(m), alpha=0.15, lw=0)
-                ax.set_ylim(-0.02, 1.02)
+                    ax.fill_between(x, g[f"{score}_lo"], g[f"{score}_hi"], color=method_color(m), alpha=0.15, lw=0)
+                if score == "success":
+                    ax.set_ylim(-0.02, 1.02)
+                else:
+                    ax.set_ylim(bottom=0.0)
                 ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
                              f"{mode}")
                 ax.set_xticks(sorted(part[against].unique()) if len(part) else [])
                 if i == len(modes) - 1:
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")
                 if j == 0:
-                    ax.set_ylabel("success rate")
+                    ax.set_ylabel(name)
         handles, labels = ranked_legend(axes.flat)  # every method of any panel once
         fitted_legend(fig, handles, labels, "outside lower center")
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
-    caption = (f"Success rate against {'team size N' if against == 'n_robots' else 'loss probability p'} "
+    caption = (f"{name.capitalize()} against {'team size N' if against == 'n_robots' else 'loss probability p'} "
                f"for every method of the run, mean over seeds with a 95% Student t CI over seeds "
                f"(seeds per point: {seed_text}); one row per execution mode, planners in every row.")
     return Built(fig, [], caption)

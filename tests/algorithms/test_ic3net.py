@@ -247,3 +247,24 @@ def test_options__reference_setting_uses_rmsprop_and_the_per_robot_head() -> Non
     shared = IC3NetMethod(ENV, {}, seed=0)
     assert isinstance(shared.optimizer, torch.optim.Adam) and shared.policy.value_head is None
     assert {"critic", "critic_opt"} <= set(shared.state_dict())
+
+
+@pytest.mark.parametrize("delay, model, heard", [(0.0, "fixed", 0.8), (1.0, "fixed", 0.0), (2.0, "fixed", 0.0),
+                                                 (2.0, "geometric", 0.8 / 3)])
+def test_links__a_late_message_is_not_heard_and_still_counted_as_sent(delay: float, model: str,
+                                                                      heard: float) -> None:
+    """docs/decisions/0252: IC3Net hears only this step's vectors, so under a fixed delay
+    d >= 1 it hears nothing (as at p = 1) and under a geometric delay of mean d the share
+    (1 - p) / (1 + d) that arrives at once; payload counts what was sent, as at delay 0."""
+    env = EnvConfig(**{**ENV.model_dump(), "loss_p": 0.2, "delay": delay, "delay_model": model})
+    m = IC3NetMethod(env, {}, seed=0)
+    batch = EpisodeBatch(m.env, 8, batch_rng(0, 0, 0), m.layout)
+    state = m.begin(batch, ARGMAX_CHOICE)
+    n = env.n_robots
+    state.gate[:] = True
+    alive = np.ones((8, n), dtype=bool)
+    links = np.stack([m.links(state, alive) for _ in range(60)])
+    share = links.sum() / (links.shape[0] * 8 * n * (n - 1))
+    assert share == pytest.approx(heard, abs=0.03)
+    assert (links == 0).all() if heard == 0 else share > 0
+    assert m.payload(state, alive)[0] == n * (n - 1) * m.params.hidden

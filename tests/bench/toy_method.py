@@ -101,3 +101,33 @@ class ToyMethod(Method):
             loss.backward()
             self.opt.step()
         return {"actor_loss": float(loss.detach())}
+
+
+AGE_PROBE_PATH = "tests.bench.toy_method:AgeProbe"
+
+
+class AgeProbe(ToyMethod):
+    """The toy policy, plus a robot-to-robot channel it only listens to: each step's
+    ``predictor_error`` column becomes the mean age (steps) of the messages its robots hold,
+    so an episode's row says which delay its channel had (fixed delay d and no loss: exactly
+    d; delay 0: 0)."""
+
+    name = "ageprobe"
+
+    def begin(self, batch: EpisodeBatch, choice: ActionChoice) -> dict[str, Any]:
+        state: dict[str, Any] = dict(super().begin(batch, choice))
+        state["channel"] = batch.open_channel("robots")
+        return state
+
+    def decide(self, batch: EpisodeBatch, state: dict[str, Any], choice: ActionChoice) -> Decision:
+        decision = super().decide(batch, state, choice)
+        channel = state["channel"]
+        now = channel.step()
+        if channel.sent_at is None:  # no delay: what arrives is this step's message, age 0
+            held, age = now, np.zeros(now.shape)
+        else:
+            held = channel.sent_at >= 0
+            age = np.where(held, channel.delay.t - 1 - channel.sent_at, 0)
+        decision.pred_sq_err = age.sum(axis=(1, 2)).astype(np.float64)
+        decision.pred_count = held.sum(axis=(1, 2)).astype(np.float64)
+        return decision

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -147,10 +148,18 @@ def test_matrix__n_below_the_groups_is_an_unsupported_row(toy: str, tiny_run: Pa
     (dict(bursts=[0.5]), "--burst 0.5"),
     (dict(ps=[0.9], bursts=[4.0]), "--p 0.9 with --burst 4: mean loss 0.9 is more than bursts of 4 steps allow"),
     (dict(episodes=0), "--episodes 0"),
+    (dict(delays=[-1.0]), "--delay -1: a mean message delay must be a finite number of steps >= 0"),
+    (dict(delays=[math.nan]), "--delay nan: a mean message delay must be a finite number"),
+    (dict(delays=[1.5]), "--delay 1.5 with --delay-model fixed: a fixed delay is a whole number of steps "
+                         "(or use --delay-model geometric)"),
+    (dict(delays=[20.0]), "--delay 20 with --delay-model fixed: delay=20 exceeds delay_max=16"),
+    (dict(delays=[16.0], delay_models=["geometric"]),
+     "--delay 16 with --delay-model geometric: a geometric mean delay must be below delay_max=16"),
+    (dict(delay_models=["late"]), "--delay-model 'late': unknown delay model; choose fixed or geometric"),
 ])
 def test_matrix__bad_arguments_are_one_bench_error(toy: str, tiny_run: Path, kwargs: dict, message: str) -> None:
     before = snapshot(tiny_run)
-    with pytest.raises(BenchError, match=message.replace("[", r"\[").replace("]", r"\]").replace("(", r"\(")):
+    with pytest.raises(BenchError, match=re.escape(message)):
         run_matrix(tiny_run, use_ray=False, **kwargs)
     assert snapshot(tiny_run) == before
 
@@ -182,11 +191,17 @@ def test_matrix__cells_trained_under_other_defaults_are_refused(toy: str, tiny_r
     assert snapshot(run) == before
 
 
-def test_cli__bad_p_is_one_line_and_exit_2(tiny_run: Path) -> None:
-    proc = subprocess.run(cli_argv("matrix", "--run", str(tiny_run), "--p", "1.5"), cwd=REPO,
+@pytest.mark.parametrize("args, line", [
+    (("--p", "1.5"), "--p 1.5: a loss probability must be in [0, 1]"),
+    (("--delay", "2.5"), "--delay 2.5 with --delay-model fixed: a fixed delay is a whole number of steps "
+                         "(or use --delay-model geometric)"),
+    (("--delay=-2",), "--delay -2: a mean message delay must be a finite number of steps >= 0"),
+])
+def test_cli__bad_p_or_delay_is_one_line_and_exit_2(tiny_run: Path, args: tuple[str, ...], line: str) -> None:
+    proc = subprocess.run(cli_argv("matrix", "--run", str(tiny_run), *args), cwd=REPO,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == ["bench: error: --p 1.5: a loss probability must be in [0, 1]"]
+    assert proc.stderr.strip().splitlines() == [f"bench: error: {line}"]
 
 
 def test_matrix__ray_gives_the_rows_of_the_in_process_evaluation(toy: str, tiny_run: Path, tmp_path: Path,
@@ -292,7 +307,8 @@ def test_report__interval_is_over_seed_means_and_the_sentence_quotes_the_kept_sh
     t = matrix_table(df).set_index(["method", "eval_p"])
     m, lo, hi = mean_ci([0.8, 0.6, 1.0])
     row = t.loc[("hierarchical", 0.2)]
-    assert (row.success, row.lo, row.hi, row.seeds) == pytest.approx((m, lo, hi, 3))
+    assert hi > 1  # a success rate's interval is cut at 1 (reports.stats.cut_interval)
+    assert (row.success, row.lo, row.hi, row.seeds) == pytest.approx((m, lo, 1.0, 3))
     assert math.isnan(t.loc[("decentralized", 0.2)].lo)  # one seed: no interval
     (sentence,) = summary_sentences(df)
     assert sentence.startswith("Trained at N=4, p=0.2 and evaluated at p'=0.8 (Bernoulli, N'=4): ")
@@ -386,3 +402,126 @@ def test_matrix__a_flipped_bit_or_a_misplaced_unit_is_named_and_repair_redoes_on
     shutil.copyfile(other, run / "matrix" / victim.parent.name / other.name)  # another cell's unit
     with pytest.raises(BenchError, match="holds rows of cell"):
         run_matrix(run, **args)
+
+
+@pytest.fixture(scope="module")
+def delay_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """Age-probe cells (tests/bench/toy_method.py ``AgeProbe``: its predictor_error column is
+    the mean age of the messages it holds) trained with lifelong tasks at delay 0 and at a
+    fixed delay 2, two seeds each, plus PIBT."""
+    from algorithms import registry
+    from tests.bench.toy_method import AGE_PROBE_PATH
+
+    registry.register("ageprobe", AGE_PROBE_PATH)
+    cells = [Cell.make(**toy_spec(method="ageprobe", task="lifelong", delay=d, seed=s, episodes=2, eval_episodes=2))
+             for d in (0.0, 2.0) for s in (0, 1)]
+    cells += [Cell.make(method="pibt", n_robots=4, loss_p=0.2, layout="tiny", episodes=0, horizon=12,
+                        eval_episodes=2, task="lifelong")]
+    out = tmp_path_factory.mktemp("delay") / "run"
+    write_finished_store(out, Grid("delaygrid", "test", tuple(cells)))
+    yield out
+    registry.unregister("ageprobe")
+
+
+@pytest.fixture
+def ageprobe() -> Iterator[str]:
+    from algorithms import registry
+    from tests.bench.toy_method import AGE_PROBE_PATH
+
+    registry.register("ageprobe", AGE_PROBE_PATH)
+    yield "ageprobe"
+    registry.unregister("ageprobe")
+
+
+def test_matrix__delay_axis_evaluates_at_the_asked_delay(ageprobe: str, delay_run: Path, tmp_path: Path) -> None:
+    """Trained at delay 0 and 2, evaluated at d' in {0, 1, 3} (fixed) without loss: every
+    probe row's held messages are exactly d' steps old, whatever delay the cell trained at,
+    and a geometric d' = 2 gives other ages; scenarios stay paired across delays."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(delay_run, run)
+    s = run_matrix(run, ps=[0.0], models=["bernoulli"], delays=[0, 1, 3], episodes=K, use_ray=False)
+    assert (s.units, s.written, s.failed) == (5 * 3, 15, {})
+    df = _frame(run)
+    assert set(df.condition) == {"n4-p0-bernoulli", "n4-p0-bernoulli-d1", "n4-p0-bernoulli-d3"}
+    probe = df[df.method == "ageprobe"]
+    assert {(r.train_delay, r.eval_delay) for r in probe.itertuples()} == {
+        (t, e) for t in (0.0, 2.0) for e in (0.0, 1.0, 3.0)}
+    assert (probe.predictor_error == probe.eval_delay).all()  # the channel the cell really ran on
+    assert (df.delay_model == "fixed").all() and (df.train_delay_model == "fixed").all()
+    assert (df.groupby("episode")["scenario"].nunique() == 1).all()  # paired across delays and cells
+    assert df.throughput.notna().all() and (df.throughput >= 0).all()  # lifelong: the MAPF metric is kept
+    pibt = df[df.method == "pibt"]  # PIBT ignores the channel: the same rows at every delay
+    assert (pibt.groupby("episode")[["throughput", "steps"]].nunique() == 1).all().all()
+    geo = run_matrix(run, ps=[0.0], models=["bernoulli"], delays=[2], delay_models=["geometric"], episodes=K,
+                     use_ray=False)
+    assert geo.written == 5
+    g = _frame(run)
+    g = g[(g.condition == "n4-p0-bernoulli-d2-geometric") & (g.method == "ageprobe")]
+    assert len(g) == 4 * K * 3 and (g.delay_model == "geometric").all()
+    assert (g.predictor_error > 0).all() and (g.predictor_error != 2.0).any()
+
+
+def test_matrix__default_delays_are_the_run_s(ageprobe: str, delay_run: Path, tmp_path: Path) -> None:
+    """No --delay: the delays the run's cells trained at (0 and 2), so a delay-0 run's
+    matrix keeps its conditions and file names."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(delay_run, run)
+    _, conds, _, _ = matrix.plan_units(run, ps=[0.0], models=["bernoulli"], episodes=K)
+    assert [c.key for c in conds] == ["n4-p0-bernoulli", "n4-p0-bernoulli-d2"]
+    _, conds, _, _ = matrix.plan_units(run, ps=[0.0], models=["bernoulli"], delay_models=["geometric"], episodes=K)
+    assert [(c.delay, c.delay_model) for c in conds] == [(0.0, "fixed"), (2.0, "geometric")]
+    assert matrix.delay_settings([0, 2, 0], ["fixed", "geometric"]) == [(0.0, "fixed"), (2.0, "fixed"),
+                                                                         (2.0, "geometric")]
+
+
+def test_matrix__a_file_written_before_the_delay_axis_reads_as_delay_0(toy: str, tiny_run: Path,
+                                                                     tmp_path: Path) -> None:
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    run_matrix(run, ns=[4], ps=[0.2], models=["bernoulli"], episodes=K, use_ray=False)
+    path = sorted((run / "matrix").glob("*/*.parquet"))[0]
+    old = pq.read_table(path)
+    old = old.drop_columns(list(matrix.ADDED_MATRIX_COLUMNS))
+    pq.write_table(old, path)
+    df = _frame(run)
+    mine = df[df.cell_id == path.parent.name]
+    assert (mine.eval_delay == 0).all() and (mine.delay_model == "fixed").all() and mine.throughput.isna().all()
+
+
+def test_report__delay_matrix_section(ageprobe: str, delay_run: Path, tmp_path: Path) -> None:
+    """A lifelong matrix over delay: scored by throughput, a score(d') figure, d and d' in
+    the table, a sentence per trained delay; the loss figures hold d' = d."""
+    import shutil
+
+    from reports.build import build_report
+    from reports.matrix import THROUGHPUT, degradation, matrix_table, own_delay, score_of
+
+    run = tmp_path / "run"
+    shutil.copytree(delay_run, run)
+    run_matrix(run, ps=[0.2, 0.5], models=["bernoulli"], delays=[0, 2, 3], episodes=2, use_ray=False)
+    df = _frame(run)
+    assert score_of(df) is THROUGHPUT
+    out = build_report(run)
+    for name in ("matrix_delay.png", "matrix_delay.pdf", "matrix_heatmaps.png", "matrix.md", "matrix.csv"):
+        assert (out / name).stat().st_size > 0
+    md = (out / "matrix.md").read_text()
+    assert "| method | N | p | d | N' | p' | loss | d' | mode | throughput | 95% CI | seeds |" in md
+    assert "Trained at N=4, p=0.2, d=2 and evaluated at a fixed delay d'=3 (p'=0.2, Bernoulli, N'=4): " in md
+    assert "Trained at N=4, p=0.2, d=0 and evaluated at p'=0.5 (Bernoulli, N'=4, same delay): " in md
+    assert "of its throughput" in md
+    assert "Robustness matrix: throughput(d') per trained delay" in (out / "index.md").read_text()
+    csv = pd.read_csv(out / "matrix.csv")
+    crossed = {(t, e) for t in (0.0, 2.0) for e in (0.0, 2.0, 3.0)}
+    assert set(zip(csv.train_delay, csv.eval_delay, strict=True)) == crossed
+    table = matrix_table(df)
+    mine = own_delay(table)
+    assert len(mine) and (mine.eval_delay == mine.train_delay).all() and len(mine) < len(table)
+    degradation(table, THROUGHPUT)  # draws from the d' = d slice only (no error on mixed delays)

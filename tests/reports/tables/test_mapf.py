@@ -93,3 +93,30 @@ def test_old_store__no_mapf_table_and_the_leaderboard_unchanged(one_shot: Path) 
                                    "success_lo", "success_hi", "rank"]
     md = leaderboard_markdown(board, pd.DataFrame(), pd.DataFrame(), pd.DataFrame(columns=["method"]))
     assert "throughput" not in md and "throughput" not in leaderboard_display(board).to_string()
+
+
+def test_lifelong_aggregates_and_figure__throughput(lifelong: Path, one_shot: Path) -> None:
+    """A lifelong run's IQM and probability of improvement are over its throughput matrix, and
+    its leaderboard's figure is throughput against N; a one-shot run keeps success."""
+    from rliable import metrics as rly_metrics
+
+    from reports.data.variants import default_rows
+    from reports.tables.leaderboard import score_matrices
+
+    out = build_report(lifelong)
+    store = load_store(lifelong)
+    evals = default_rows(store.eval, cell_variants(store.cells))
+    agg = pd.read_csv(out / "leaderboard_aggregate.csv")
+    for mode, g in agg.groupby("execution"):
+        mats, _, _ = score_matrices(evals, str(mode), "throughput")
+        for r in g.itertuples():
+            assert r.iqm == pytest.approx(rly_metrics.aggregate_iqm(mats[r.method]))
+    assert agg["iqm"].gt(0).all()
+    assert "| IQM throughput (goals/step) [95% CI] |" in (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert (out / "throughput_vs_n.png").stat().st_size > 0
+    assert "![Leaderboard: every method of the run](throughput_vs_n.png)" in (out / "index.md").read_text()
+    assert "Throughput (goals/step) against team size N" in (out / "throughput_vs_n.txt").read_text()
+    plain = build_report(one_shot)
+    assert not (plain / "throughput_vs_n.png").exists()
+    assert "![Leaderboard: every method of the run](success_vs_n.png)" in (plain / "index.md").read_text()
+    assert "| IQM success [95% CI] |" in (plain / "leaderboard.md").read_text(encoding="utf-8")
