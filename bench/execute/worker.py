@@ -23,10 +23,7 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-import torch
-
 from algorithms.base import Method
-from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
 from envs.config import EnvConfig
 
@@ -57,9 +54,19 @@ def peak_rss_mb() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
+def one_torch_thread() -> None:
+    """One torch thread in this process, once torch is loaded: a method whose module uses
+    torch has loaded it by the time its class is resolved; a planner's need not load it."""
+    if "torch" in sys.modules:
+        import torch
+
+        torch.set_num_threads(1)
+
+
 def build_method(spec: Mapping[str, Any]) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
     cls = method_class(str(spec["method_path"]))
+    one_torch_thread()
     return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
 
 
@@ -83,7 +90,7 @@ class CellWorker:
     seed stack) and one evaluation method."""
 
     def __init__(self) -> None:
-        torch.set_num_threads(1)
+        one_torch_thread()
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
@@ -124,6 +131,8 @@ class CellWorker:
                 key = tuple(id(m) for m in live)
                 if key not in views:
                     views[key] = type(live[0]).stack_view(live)
+                from algorithms.common.seed_stack import train_stacked  # torch: loaded by a stacked method
+
                 out = train_stacked(live, views[key])
             else:
                 out = [m.train_iteration() for m in live]
