@@ -129,11 +129,11 @@ class EnvConfig(BaseModel):
             raise ValueError(f"groups={self.groups} exceeds n_robots={self.n_robots}")
         found = loss_error(self.loss_p, self.loss_model, self.burst_length)
         if found is not None:
-            names, why = found
-            raise ValueError(" with ".join(f"{n}={getattr(self, n):g}" for n in names) + f": {why}")
-        why = delay_error(self.delay, self.delay_model, self.delay_max)
-        if why is not None:
-            raise ValueError(why)
+            names, loss_why = found
+            raise ValueError(" with ".join(f"{n}={getattr(self, n):g}" for n in names) + f": {loss_why}")
+        delay_why = delay_error(self.delay, self.delay_model, self.delay_max)
+        if delay_why is not None:
+            raise ValueError(delay_why)
         return self
 
     @classmethod

@@ -25,6 +25,7 @@ from typing import Any
 
 from algorithms.base import Method
 from algorithms.registry import method_class
+from bench.execute.torch_setup import prepare_torch
 from envs.config import EnvConfig
 
 
@@ -54,19 +55,10 @@ def peak_rss_mb() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
-def one_torch_thread() -> None:
-    """One torch thread in this process, once torch is loaded: a method whose module uses
-    torch has loaded it by the time its class is resolved; a planner's need not load it."""
-    if "torch" in sys.modules:
-        import torch
-
-        torch.set_num_threads(1)
-
-
 def build_method(spec: Mapping[str, Any]) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
     cls = method_class(str(spec["method_path"]))
-    one_torch_thread()
+    prepare_torch()  # its module loaded torch (a planner's need not): one thread, no dynamo import
     return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
 
 
@@ -90,7 +82,7 @@ class CellWorker:
     seed stack) and one evaluation method."""
 
     def __init__(self) -> None:
-        one_torch_thread()
+        prepare_torch()
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
