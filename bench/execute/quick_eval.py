@@ -19,7 +19,6 @@ from algorithms.common.execution import parse_execution
 from algorithms.registry import is_builtin
 from bench.design.cells import Cell
 from bench.execute.plan import cell_spec
-from bench.execute.torch_setup import prepare_torch
 from bench.execute.worker import CellWorker
 from bench.store.checkpoints import load_checkpoint
 from envs.errors import BenchError
@@ -54,7 +53,6 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
         spec["layout"] = preset_for(n_robots)  # a new team size gets its own preset
     spec.update(episodes=0, eval_episodes=episodes)
     cell = Cell.make(**spec)
-    prepare_torch()  # the method's module loaded torch (a planner's need not)
     modes = cell.execution_modes() if execution is None else (
         parse_execution(execution, where="--execution").name,)
     worker = CellWorker()  # the runner's evaluator code path: same rows as the eval table

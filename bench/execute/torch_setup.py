@@ -1,6 +1,7 @@
-"""Torch settings of a process that runs methods (a worker, ``bench eval``), applied once
-torch is loaded: a method whose module uses torch loads it when its class is resolved,
-before any tensor exists; a planner's need not load it at all.
+"""Torch settings of a process that runs methods (a worker, ``bench eval``, ``bench
+matrix``), applied when the first method is built (``bench.execute.worker.build_method``),
+before it exists: every ``Method`` uses torch from its constructor on, so torch is loaded
+then and not before (a command that stops at a one-line error never loads it).
 
 * One torch thread (the bench's parallelism is its workers; training numbers are those of
   one thread).
@@ -26,9 +27,7 @@ _DISABLED = ("add_param_group", "state_dict", "load_state_dict", "zero_grad")
 
 
 def prepare_torch() -> None:
-    """One torch thread and no dynamo import for optimizer set-up, if torch is loaded."""
-    if "torch" not in sys.modules:
-        return
+    """Load torch with one thread and no dynamo import for optimizer set-up."""
     import torch
 
     torch.set_num_threads(1)

@@ -58,7 +58,7 @@ def peak_rss_mb() -> float:
 def build_method(spec: Mapping[str, Any]) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
     cls = method_class(str(spec["method_path"]))
-    prepare_torch()  # its module loaded torch (a planner's need not): one thread, no dynamo import
+    prepare_torch()  # before the method exists: one torch thread, no dynamo import
     return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
 
 
@@ -81,8 +81,7 @@ class CellWorker:
     """Computes chunks of cells; holds the methods of the cells it trains (one, or one
     seed stack) and one evaluation method."""
 
-    def __init__(self) -> None:
-        prepare_torch()
+    def __init__(self) -> None:  # torch is set up when the first method is built (build_method)
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
