@@ -197,7 +197,6 @@ def grids(
     from rich.table import Table
 
     from bench.design import costs
-    from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates
     from bench.design.grid_files import load_grid_file
     from bench.design.grids import get_grid, grid_builders
 
@@ -208,6 +207,8 @@ def grids(
     if rates_from is not None:
         if not (rates_from / "cells.parquet").is_file():
             raise BenchError(f"--rates-from {str(rates_from)!r}: no results store there (cells.parquet not found)")
+        from bench.design.cost_calibration import merged_rates, observed_costs, observed_rates  # pandas
+
         observed = observed_costs(rates_from, rates_stack_seeds)
         if observed.empty:
             raise BenchError(f"--rates-from {str(rates_from)!r}: the run has no done cell to take rates from")
@@ -295,7 +296,7 @@ def eval_(
     method: str | None = typer.Option(None, "--method",
         help="A registered method name or module:Class (`bench methods` lists them)."),
     checkpoint: Path | None = typer.Option(None, "--checkpoint",
-        help="checkpoints/<cell_id>.pt of a run (default: untrained)."),
+        help="checkpoints/<method>-<cell_id>.pt of a run (default: untrained)."),
     n_robots: int | None = typer.Option(None, "--n-robots", min=1,
         help="Team size N (default: the checkpoint's, else 20)."),
     loss_p: float | None = typer.Option(None, "--loss-p", min=0.0, max=1.0,

@@ -1,6 +1,7 @@
 """Validated environment configuration (pydantic): defaults live here, callers override."""
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -39,6 +40,26 @@ def bursty_loss_error(loss_p: float, burst_length: float) -> str | None:
     return (f"mean loss {loss_p:g} is more than bursts of {burst_length:g} steps allow "
             f"(at most {max_bursty_loss(burst_length):.4g}: P(Good -> Bad) = p / (L (1 - p)) "
             f"would exceed 1); use bursts of at least {loss_p / (1.0 - loss_p):.4g} steps or a smaller loss")
+
+
+LOSS_MODELS = ("bernoulli", "gilbert_elliott")  # i.i.d. per link and step; bursty two-state chain
+
+
+def loss_error(loss_p: float, loss_model: str = "bernoulli",
+               burst_length: float = 4.0) -> tuple[tuple[str, ...], str] | None:
+    """The loss rule, checked once where a loss enters (``EnvConfig``, which every cell
+    and study validates through, and ``bench matrix``'s --p, --loss-model and --burst):
+    (the inputs at fault, why) when (loss_p, loss_model, burst_length) is no loss process,
+    else None. ``LossProcess`` takes the values of a validated ``EnvConfig`` and does not
+    check them again."""
+    if not (math.isfinite(loss_p) and 0.0 <= loss_p <= 1.0):
+        return ("loss_p",), "a loss probability must be in [0, 1]"
+    if loss_model not in LOSS_MODELS:
+        return ("loss_model",), f"unknown loss model; choose {' or '.join(LOSS_MODELS)}"
+    if not (math.isfinite(burst_length) and burst_length >= 1.0):
+        return ("burst_length",), "a mean burst length must be >= 1 step"
+    why = bursty_loss_error(loss_p, burst_length) if loss_model == "gilbert_elliott" else None
+    return (("loss_p", "burst_length"), why) if why is not None else None
 
 
 def delay_error(delay: float, model: str, bound: int) -> str | None:
@@ -106,13 +127,13 @@ class EnvConfig(BaseModel):
     def _groups_fit(self) -> EnvConfig:
         if self.groups > self.n_robots:
             raise ValueError(f"groups={self.groups} exceeds n_robots={self.n_robots}")
-        if self.loss_model == "gilbert_elliott":
-            why = bursty_loss_error(self.loss_p, self.burst_length)
-            if why is not None:
-                raise ValueError(f"loss_p={self.loss_p:g} with burst_length={self.burst_length:g}: {why}")
-        why = delay_error(self.delay, self.delay_model, self.delay_max)
-        if why is not None:
-            raise ValueError(why)
+        found = loss_error(self.loss_p, self.loss_model, self.burst_length)
+        if found is not None:
+            names, loss_why = found
+            raise ValueError(" with ".join(f"{n}={getattr(self, n):g}" for n in names) + f": {loss_why}")
+        delay_why = delay_error(self.delay, self.delay_model, self.delay_max)
+        if delay_why is not None:
+            raise ValueError(delay_why)
         return self
 
     @classmethod

@@ -17,8 +17,8 @@ import numpy as np
 import torch
 
 from algorithms.hierarchical.method import HierarchicalMethod
-from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
+from paper.settings import PAPER_MAP
 
 VARIANTS: dict[str, dict[str, Any]] = {
     "paper": {}, "oracle messages": {"messages": "oracle"}, "last-received": {"messages": "last"},

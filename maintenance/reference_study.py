@@ -23,8 +23,8 @@ from algorithms.common.episodes import EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.hierarchical.method import HierarchicalMethod
 from algorithms.hierarchical.training import policy_update
-from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
+from paper.settings import PAPER_MAP
 
 
 def gradient_agreement(m: HierarchicalMethod, seed: int, pairs: int = 2) -> dict[str, float]:

@@ -15,6 +15,7 @@ Modules by role, in layers (each imports only the layers below it):
     tables                      Table I, the ablation
     figures                     Fig. 1-3
     grids | roles | data        the grids; the method-role table; Fig. 3's payload points
+    settings                    the paper's experimental settings, each stated once (every PAPER_*)
 
 May import: envs, algorithms, bench, reports, studies.
 """

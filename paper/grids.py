@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.design.grids import Grid, planner_settings, replicate
-from bench.design.paper import (
+from paper.settings import (
     PAPER_FIG1_P,
     PAPER_FIG1A_N,
     PAPER_FIG1B_N,

@@ -29,7 +29,6 @@ import torch
 from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from algorithms.hierarchical.method import HierarchicalMethod
-from bench.design.paper import PAPER_MAP
 from envs.config import EnvConfig
 
 FALLBACKS: dict[str, dict[str, Any]] = {
@@ -38,6 +37,7 @@ FALLBACKS: dict[str, dict[str, Any]] = {
     "per_robot": {"fallback": "per_robot", "resample_on_fallback": False},
     "per_robot+resample": {"fallback": "per_robot", "resample_on_fallback": True},
 }
+MAP = "warehouse-10-20-10-2-1"  # the bundled MovingAI map that stands in for the paper's layouts
 EVAL_SEED = 4242  # evaluation scenarios, outside every training seed used here
 
 
@@ -71,7 +71,7 @@ def main() -> None:
     a = ap.parse_args()
     torch.set_num_threads(1)
     params = {"eval_chunk": 10, **json.loads(a.params)}
-    env = EnvConfig.make(n_robots=a.n, layout=PAPER_MAP, horizon=a.horizon, loss_p=a.p)
+    env = EnvConfig.make(n_robots=a.n, layout=MAP, horizon=a.horizon, loss_p=a.p)
     m = HierarchicalMethod(env, params, seed=a.seed)
     t0 = time.time()
     train = [float(np.mean([r["success_rate"] for r in m.train_iteration()])) for _ in range(a.iters)]
@@ -81,7 +81,7 @@ def main() -> None:
     rec["reference"] = probe_reference(m, batches=2, batch_size=5, seed=1000)
     rec["fallback"] = fallback_table(m, a.chunks)
     if a.eval_n:
-        big = HierarchicalMethod(EnvConfig.make(n_robots=a.eval_n, layout=PAPER_MAP, horizon=a.horizon,
+        big = HierarchicalMethod(EnvConfig.make(n_robots=a.eval_n, layout=MAP, horizon=a.horizon,
                                                 loss_p=a.p), params, seed=a.seed)
         big.load_state_dict(m.state_dict())
         rec[f"fallback_n{a.eval_n}"] = fallback_table(big, a.chunks)

@@ -25,10 +25,16 @@ from pathlib import Path
 
 import pandas as pd
 
+from bench.store.checkpoints import checkpoint_cell
 from bench.store.run_store import RunStore
 from envs.errors import BenchError
 
 DATA = ("cells.parquet", "manifest.json", "checksums.json", "train", "eval", "matrix", "report")
+
+
+def _cell(ckpt: Path) -> str:
+    """The cell of a checkpoint file: ``<method>-<cell_id>.pt`` or the older ``<cell_id>.pt``."""
+    return checkpoint_cell(ckpt.name) or ckpt.stem
 
 
 def plan(run: Path, tracked: set[str]) -> tuple[list[str], list[str]]:
@@ -37,11 +43,12 @@ def plan(run: Path, tracked: set[str]) -> tuple[list[str], list[str]]:
     unfinished = set(cells.loc[cells["status"] != "done", "cell_id"])
     add = [str(run / name) for name in DATA if (run / name).exists()]
     ckpts = sorted((run / "checkpoints").glob("*.pt")) if (run / "checkpoints").exists() else []
-    add += [str(p) for p in ckpts if p.stem in unfinished]
+    add += [str(p) for p in ckpts if _cell(p) in unfinished]
     old = run / "superseded"
     add += [str(p) for p in sorted(old.rglob("*")) if p.is_file() and p.suffix in (".parquet", ".json")] \
         if old.is_dir() else []
-    drop = sorted(t for t in tracked if Path(t).parent == run / "checkpoints" and Path(t).stem not in unfinished)
+    drop = sorted(t for t in tracked
+                  if Path(t).parent == run / "checkpoints" and _cell(Path(t)) not in unfinished)
     return add, drop
 
 

@@ -8,6 +8,7 @@ does an entry here that no longer mentions one (the list stays honest).
 from __future__ import annotations
 
 import io
+import re
 import tokenize
 from pathlib import Path
 
@@ -88,3 +89,36 @@ def test_the_wing_check_sees_an_import_of_the_wing(tmp_path: Path) -> None:
     planted = tmp_path / "m.py"
     planted.write_text("def f():\n    from paper.claims.claims import Claim\n    return Claim\n")
     assert _imports_of(planted) == {"paper.claims.claims"}
+
+
+SETTING = re.compile(r"\bPAPER_[A-Z0-9_]+\b")  # the paper's settings: paper/settings.py, every PAPER_*
+
+
+def _settings_named(path: Path) -> list[int]:
+    """Lines of ``path`` whose code (not a comment or string) names one of the paper's settings."""
+    lines = []
+    for tok in tokenize.generate_tokens(io.StringIO(path.read_text(encoding="utf-8")).readline):
+        if tok.type == tokenize.NAME and SETTING.fullmatch(tok.string):
+            lines.append(tok.start[0])
+    return sorted(set(lines))
+
+
+def test_the_papers_settings_live_in_its_wing_only() -> None:
+    """The paper's settings (team sizes, loss probabilities, budgets, Table I, its map) are
+    stated once, in paper/settings.py; no module below the wing defines, imports or uses
+    a ``PAPER_*`` setting (the harness's own defaults, e.g. a Cell's budgets, are its own)."""
+    found = {}
+    for entry in OUTSIDE_THE_WING:
+        for path in sorted((ROOT / entry).rglob("*.py")):
+            lines = _settings_named(path)
+            if lines:
+                found[str(path.relative_to(ROOT))] = lines
+    assert not found, f"modules outside the paper's wing name its settings: {found}"
+    assert _settings_named(ROOT / WING / "settings.py")  # the wing still holds them
+
+
+def test_the_settings_check_sees_a_setting_in_code_only(tmp_path: Path) -> None:
+    planted = tmp_path / "m.py"
+    planted.write_text('"""PAPER_N in a docstring."""\n# PAPER_P in a comment\nHORIZON = PAPER_HORIZON\n'
+                       "from x import PAPER_MAP as M\n")
+    assert _settings_named(planted) == [3, 4]

@@ -25,7 +25,7 @@ from algorithms.common.execution import DEFAULT_TEMPERATURES, check_temperatures
 from algorithms.presets import PAPER, preset_values
 from algorithms.registry import method_class, method_target
 from bench.design.limits import limit, with_reasons
-from envs.config import EnvConfig, Probability, bursty_loss_error, delay_error
+from envs.config import EnvConfig, Probability, format_validation_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
@@ -117,15 +117,10 @@ class Cell(BaseModel):
 
     @model_validator(mode="after")
     def _check(self) -> Cell:
-        if self.groups > self.n_robots:
-            raise ValueError(f"groups: {self.groups} groups exceed n_robots={self.n_robots}")
-        why = delay_error(self.delay, self.delay_model, EnvConfig.model_fields["delay_max"].default)
-        if why is not None:
-            raise ValueError(f"delay: {why}")
-        if self.loss_model == "gilbert_elliott":  # the environment's burst length
-            why = bursty_loss_error(self.loss_p, EnvConfig.model_fields["burst_length"].default)
-            if why is not None:
-                raise ValueError(f"loss_p: {why}")
+        try:  # the environment's rules (groups, delay, the loss rule), checked once: by EnvConfig
+            self._env_config()
+        except ValidationError as exc:
+            raise ValueError("; ".join(str(e["msg"]).removeprefix("Value error, ") for e in exc.errors())) from None
         clash = sorted(set(self.params) & (set(SHARED_PARAM_FIELDS) | set(type(self).model_fields)))
         if clash:
             raise ValueError(f"params.{clash[0]}: set it as the cell field {clash[0]!r}, not in params")
@@ -180,12 +175,19 @@ class Cell(BaseModel):
         return hash(self.cell_id)
 
     # ----------------------------------------------------------- what it runs
-    def to_env_config(self) -> EnvConfig:
-        return EnvConfig.make(
+    def _env_config(self) -> EnvConfig:
+        """The cell's environment; a ``ValidationError`` when the environment refuses it."""
+        return EnvConfig(
             n_robots=self.n_robots, layout=self.layout, groups=self.groups, horizon=self.horizon,
             on_goal=self.on_goal, loss_p=self.loss_p, loss_model=self.loss_model,
             delay=self.delay, delay_model=self.delay_model, task=self.task,
         )
+
+    def to_env_config(self) -> EnvConfig:
+        try:
+            return self._env_config()
+        except ValidationError as exc:
+            raise BenchError(format_validation_error("environment config", exc)) from None
 
     def method_params(self) -> MethodParams:
         """The method's validated Params: ``params`` plus the shared cell fields it declares."""

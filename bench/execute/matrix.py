@@ -55,14 +55,13 @@ from bench.execute.executor import Unit as ExUnit
 from bench.execute.plan import cell_spec, params_changes
 from bench.execute.worker import CellWorker, build_method
 from bench.store.completeness import expected_rows
-from bench.store.run_store import RunStore, read_meta, read_table, write_table
+from bench.store.run_store import RunStore, read_meta, write_table
 from bench.store.schema import ADDED_EVAL_COLUMNS, METRIC_FIELDS, rows_to_table
-from envs.config import EnvConfig, bursty_loss_error, delay_error
+from envs.config import LOSS_MODELS, EnvConfig, delay_error, loss_error
 from envs.errors import BenchError
 from envs.layouts import load_layout, preset_for
 from envs.scenarios import main_region
 
-LOSS_MODELS = ("bernoulli", "gilbert_elliott")
 DELAY_MODELS = ("fixed", "geometric")
 DEFAULT_P = (0.0, 0.2, 0.4, 0.6, 0.8)
 DEFAULT_BURSTS = (4.0, 16.0)
@@ -167,20 +166,12 @@ def check_arguments(ns: Iterable[int], ps: Iterable[float], models: Iterable[str
         if int(n) < 1:
             raise BenchError(f"--n {n}: a team needs at least 1 robot")
     for p in ps:
-        if not (math.isfinite(p) and 0.0 <= p <= 1.0):
-            raise BenchError(f"--p {p}: a loss probability must be in [0, 1]")
-    for m in models:
-        if m not in LOSS_MODELS:
-            raise BenchError(f"--loss-model {m!r}: unknown loss model; choose {' or '.join(LOSS_MODELS)}")
-    for b in bursts:
-        if not (math.isfinite(b) and b >= 1.0):
-            raise BenchError(f"--burst {b}: a mean burst length must be >= 1 step")
-    if "gilbert_elliott" in models:
-        for p in ps:
-            for b in bursts:
-                why = bursty_loss_error(p, b)
-                if why is not None:
-                    raise BenchError(f"--p {p:g} with --burst {b:g}: {why}")
+        for m in models or LOSS_MODELS:
+            for b in bursts or DEFAULT_BURSTS:
+                found = loss_error(p, m, b)  # the one loss rule (envs/config.py)
+                if found is not None:
+                    names, why = found
+                    raise BenchError(f"{' with '.join(_flag(n, p, m, b, len(names) > 1) for n in names)}: {why}")
     check_delays(delays, delay_models)
     if episodes is not None and episodes < 1:
         raise BenchError(f"--episodes {episodes}: evaluate at least 1 episode per condition")
@@ -203,6 +194,13 @@ def check_delays(delays: Iterable[float], models: Iterable[str]) -> None:
             if why is not None:
                 why = why.split(": ", 1)[-1].replace("delay_model='geometric'", "--delay-model geometric")
                 raise BenchError(f"--delay {d:g} with --delay-model {m}: {why}")
+
+
+def _flag(name: str, p: float, model: str, burst: float, short: bool) -> str:
+    """The option of a loss input as the user typed it, e.g. '--p 0.9' ('--p 0.9 with --burst 4')."""
+    options = {"loss_p": ("--p", p), "loss_model": ("--loss-model", model), "burst_length": ("--burst", burst)}
+    flag, value = options[name]
+    return f"{flag} {value!r}" if isinstance(value, str) else f"{flag} {value:g}" if short else f"{flag} {value}"
 
 
 def layout_chooser(cells: Sequence[Cell]) -> Callable[[int], str]:
@@ -311,10 +309,10 @@ def done_cells(store: RunStore) -> list[Cell]:
         raise BenchError(f"{str(store.root)!r}: {len(stale)} done cell(s) were trained with other method "
                          f"parameters than this code resolves for them (a default changed since): "
                          f"{'; '.join(stale[:5])}; run `bench run --rerun-changed` on this run first")
-    out = [c for c in out if store.ckpt_path(c.cell_id).exists()]
+    out = [c for c in out if store.ckpt_path(c.cell_id, c.method).exists()]
     if not out:
         raise BenchError(f"{str(store.root)!r} has no trained checkpoints of done cells "
-                         "(checkpoints/<cell_id>.pt); run `bench run` to completion first")
+                         "(checkpoints/<method>-<cell_id>.pt); run `bench run` to completion first")
     return out
 
 
@@ -445,7 +443,7 @@ def run_matrix(run: Path | str, ns: Sequence[int] | None = None, ps: Sequence[fl
         for unit in units:
             cid = unit.cell.cell_id
             if cid not in states:
-                ckpt = store.read_checkpoint(cid)
+                ckpt = store.read_checkpoint(cid, unit.cell.method)
                 states[cid] = ckpt["state"] if ckpt is not None else None
             key = (cid, unit.cond.n, unit.cond.layout)
             if key not in support:
@@ -528,30 +526,13 @@ def _evaluate(units: list[Unit], states: dict[str, Any], finish: Callable[[Unit]
             ctx.shutdown()
 
 
-BASE_MATRIX_SCHEMA = pa.schema([f for f in MATRIX_SCHEMA if f.name not in ADDED_MATRIX_COLUMNS])
-
-
-def _with_added_columns(table: pa.Table) -> pa.Table:
-    """A matrix file's table with every ``ADDED_MATRIX_COLUMNS`` column it lacks, at its value."""
-    for name, value in ADDED_MATRIX_COLUMNS.items():
-        if name not in table.schema.names:
-            field = MATRIX_SCHEMA.field(name)
-            table = table.append_column(field, pa.array([value] * table.num_rows, field.type))
-    return table
-
-
 def read_matrix(run: Path | str, problems: list[str] | None = None) -> pa.Table | None:
-    """Every stored unit of ``DIR/matrix/`` as one table (None when there is none). With a
-    ``problems`` list, an unreadable file is skipped and named there instead of raising."""
+    """Every stored unit of ``DIR/matrix/`` as one table (None when there is none), read by
+    the run's one row reader (``RunStore.read_rows``; a file written before the delay axis
+    gets ``ADDED_MATRIX_COLUMNS`` at their values). With a ``problems`` list, an unreadable
+    or misplaced file is skipped and named there instead of raising."""
     root = Path(run) / MATRIX_DIR
-    files = sorted(p for p in root.glob("*/*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
-    tables = []
-    for p in files:
-        try:
-            tables.append(_with_added_columns(read_table(p, BASE_MATRIX_SCHEMA, {}))
-                          .select(MATRIX_SCHEMA.names).cast(MATRIX_SCHEMA))
-        except BenchError as exc:
-            if problems is None:
-                raise
-            problems.append(f"matrix file skipped: {exc}")
-    return pa.concat_tables(tables) if tables else None
+    if not (root.is_dir() and any(p for p in root.glob("*/*.parquet") if not p.name.startswith("."))):
+        return None
+    table = RunStore(run).read_rows(root, MATRIX_SCHEMA, problems, added=ADDED_MATRIX_COLUMNS)
+    return table if table.num_rows else None

@@ -207,9 +207,10 @@ def _resume_state(store: RunStore, st: CellState) -> None:
     for _, path in store.train_parts(st.cell_id):
         read_meta(path)  # a corrupt committed part is refused before anything is written
     meta = store.eval_meta(st.cell_id)
-    ckpt = store.read_checkpoint(st.cell_id)
+    ckpt = store.read_checkpoint(st.cell_id, st.cell.method)
     if ckpt is not None and ckpt.get("cell") != st.cell.canonical_json():
-        raise BenchError(f"checkpoint {str(store.ckpt_path(st.cell_id))!r} belongs to another cell config")
+        path = store.ckpt_path(st.cell_id, st.cell.method)
+        raise BenchError(f"checkpoint {str(path)!r} belongs to another cell config")
     if meta is not None:
         rows = cell_rows(store, st.cell_id, expected_for_cell(st.cell), st.modes, st.cell.eval_episodes)
         gap = rows.gap

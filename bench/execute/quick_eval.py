@@ -13,7 +13,6 @@ import sys
 from typing import Any
 
 import numpy as np
-import torch
 
 from algorithms.common.episodes import EVAL_METRICS
 from algorithms.common.execution import parse_execution
@@ -35,7 +34,6 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
                ) -> tuple[Cell, list[dict[str, Any]]]:
     """(the evaluated cell, one row per episode and execution mode, mode by mode). CLI values
     override the checkpoint's cell; ``execution`` restricts the modes to one."""
-    torch.set_num_threads(1)
     base: dict[str, Any] = {}
     state = None
     if checkpoint is not None:

@@ -306,7 +306,7 @@ class _Run:
 
         st.attempts += 1
         if st.state_ref is None and st.has_checkpoint:
-            ckpt = self.store.read_checkpoint(st.cell_id)
+            ckpt = self.store.read_checkpoint(st.cell_id, st.cell.method)
             st.state_ref = ray.put(ckpt["state"]) if ckpt is not None else None
         st.versions_json = self.versions
         if st.trained:

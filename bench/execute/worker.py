@@ -23,11 +23,9 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-import torch
-
 from algorithms.base import Method
-from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
+from bench.execute.torch_setup import prepare_torch
 from envs.config import EnvConfig
 
 
@@ -60,6 +58,7 @@ def peak_rss_mb() -> float:
 def build_method(spec: Mapping[str, Any]) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
     cls = method_class(str(spec["method_path"]))
+    prepare_torch()  # before the method exists: one torch thread, no dynamo import
     return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
 
 
@@ -82,8 +81,7 @@ class CellWorker:
     """Computes chunks of cells; holds the methods of the cells it trains (one, or one
     seed stack) and one evaluation method."""
 
-    def __init__(self) -> None:
-        torch.set_num_threads(1)
+    def __init__(self) -> None:  # torch is set up when the first method is built (build_method)
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
@@ -124,6 +122,8 @@ class CellWorker:
                 key = tuple(id(m) for m in live)
                 if key not in views:
                     views[key] = type(live[0]).stack_view(live)
+                from algorithms.common.seed_stack import train_stacked  # torch: loaded by a stacked method
+
                 out = train_stacked(live, views[key])
             else:
                 out = [m.train_iteration() for m in live]

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from bench.design.paper import PAPER_EVAL_EPISODES, PAPER_HORIZON
+from bench.perf import budget
 from bench.perf.methods import measure_training
 from envs.layouts import preset_for
 
@@ -27,7 +27,7 @@ BASELINES = ("decentralized", "ic3net")
 
 
 def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1,
-                        horizon: int = PAPER_HORIZON, batch_episodes: int = 8,
+                        horizon: int = budget.HORIZON, batch_episodes: int = 8,
                         layout: str | None = None) -> pd.DataFrame:
     """One row per (baseline, N): training throughput and projected paper-cell times.
 
@@ -41,7 +41,7 @@ def run_baselines_suite(sizes: tuple[int, ...] = (20, 100), iterations: int = 1,
                                    batch_episodes=batch_episodes, horizon=horizon)
             # Evaluation is a rollout without storage: B episodes per batched step.
             per_episode_step_s = row["rollout_ms_per_step"] / 1e3 / row["batch_episodes"]
-            row["paper_cell_eval_min"] = per_episode_step_s * PAPER_EVAL_EPISODES * PAPER_HORIZON / 60
+            row["paper_cell_eval_min"] = per_episode_step_s * budget.EVAL_EPISODES * budget.HORIZON / 60
             rows.append({"suite": "baselines", **row})
     return pd.DataFrame(rows)
 

@@ -1,6 +1,7 @@
 """Turn-around of the command line when it does not train: wall seconds of
 ``bench --help``, ``bench grids``, one-line errors, a refused ``--against`` and a 10-episode
-``bench eval`` at N = 8, each a fresh process (what a user waits for), median of ``repeats``.
+``bench eval`` at N = 8 (PIBT, and a learned method), each a fresh process (what a user
+waits for), median of ``repeats``.
 
 Targets on an idle machine: ``--help`` < 1.5 s, ``grids`` < 3 s, a one-line error < 2 s,
 ``eval`` of 10 episodes at N = 8 < 10 s. A loaded machine inflates every number alike:
@@ -28,6 +29,9 @@ COMMANDS: dict[str, list[str] | None] = {
     "error_method": ["eval", "--method", "pibtt", "--n-robots", "8"],
     "error_param": ["tune", "--study", "x", "--method", "decentralized", "--param", "nope=1,2"],
     "eval_10_n8": ["eval", "--method", "pibt", "--n-robots", "8", "--episodes", "10", "--horizon", "64"],
+    # a learned method's evaluation: torch and its optimizers' set-up (bench/execute/torch_setup.py)
+    "eval_10_n8_learned": ["eval", "--method", "decentralized", "--n-robots", "8", "--episodes", "10",
+                           "--horizon", "64"],
 }
 
 

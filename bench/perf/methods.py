@@ -35,7 +35,7 @@ from algorithms.common.episodes import TRAIN_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.common.seed_stack import train_stacked
 from algorithms.registry import method_class
-from bench.design.paper import PAPER_C_MAX, PAPER_EPISODES, PAPER_HORIZON, PAPER_SEARCH_RADIUS
+from bench.perf import budget
 from bench.perf.timing import time_training
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
@@ -44,7 +44,7 @@ REAL_MAP = MAPS_DIR / "warehouse-10-20-10-2-1.map"  # bundled copy of the Moving
 
 
 def measure_training(method: str, n_robots: int, layout: str, iterations: int = 1,
-                     batch_episodes: int = 8, horizon: int = PAPER_HORIZON, loss_p: float = 0.2,
+                     batch_episodes: int = 8, horizon: int = budget.HORIZON, loss_p: float = 0.2,
                      seed: int = 0, **params: Any) -> dict[str, Any]:
     """Throughput of ``iterations`` training updates of ``method`` (one torch thread)."""
     torch.set_num_threads(1)
@@ -63,9 +63,9 @@ def measure_training(method: str, n_robots: int, layout: str, iterations: int = 
         "agent_steps_per_s": n_robots * steps / total,
         "rollout_ms_per_step": 1e3 * t["rollout_s"] / max(t["batched_steps"], 1),
         "update_ms_per_step": 1e3 * t["update_s"] / max(t["batched_steps"], 1),
-        "paper_cell_train_min": total / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
+        "paper_cell_train_min": total / steps * budget.EPISODES * budget.HORIZON / 60,
         # Process CPU time: what one dedicated core would take on a shared, busy machine.
-        "paper_cell_train_min_cpu": cpu / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
+        "paper_cell_train_min_cpu": cpu / steps * budget.EPISODES * budget.HORIZON / 60,
     }
 
 
@@ -108,8 +108,8 @@ def measure_cell_training(method: str, n_robots: int, layout: str, iterations: i
         "batch_episodes": batch_episodes, "horizon": horizon, "episode_steps": steps,
         "env_steps_per_s": steps / wall, "env_steps_per_s_cpu": steps / cpu,
         "agent_steps_per_s": n_robots * steps / wall, "agent_steps_per_s_cpu": n_robots * steps / cpu,
-        "paper_cell_train_min": wall / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
-        "paper_cell_train_min_cpu": cpu / steps * PAPER_EPISODES * PAPER_HORIZON / 60,
+        "paper_cell_train_min": wall / steps * budget.EPISODES * budget.HORIZON / 60,
+        "paper_cell_train_min_cpu": cpu / steps * budget.EPISODES * budget.HORIZON / 60,
     }
 
 
@@ -170,7 +170,7 @@ class _TimedFilter:
 
 
 def measure_filter(n_robots: int, layout: str, horizon: int = 100, batch_episodes: int = 8,
-                   loss_p: float = 0.2, search_radius: int = PAPER_SEARCH_RADIUS, c_max: int = PAPER_C_MAX,
+                   loss_p: float = 0.2, search_radius: int = budget.SEARCH_RADIUS, c_max: int = budget.C_MAX,
                    seed: int = 0) -> dict[str, Any]:
     """Safety-filter cost in one rollout of the (untrained) hierarchical method."""
     torch.set_num_threads(1)
@@ -194,7 +194,7 @@ def measure_filter(n_robots: int, layout: str, horizon: int = 100, batch_episode
     }
 
 
-def run_hierarchical_suite(iterations: int = 1, horizon: int = PAPER_HORIZON) -> pd.DataFrame:
+def run_hierarchical_suite(iterations: int = 1, horizon: int = budget.HORIZON) -> pd.DataFrame:
     """Rows for N = 20 and N = 100: training throughput, projected paper-cell time, and
     safety-filter cost per group-step."""
     cases = [(20, "wh20"), (100, "wh100")]

@@ -27,7 +27,7 @@ import pandas as pd
 from algorithms.common.episodes import EVAL_STREAM, EpisodeBatch, batch_rng
 from algorithms.common.execution import ActionChoice
 from algorithms.pibt import PIBTMethod
-from bench.design.paper import PAPER_EVAL_EPISODES
+from bench.perf import budget
 from envs.config import EnvConfig
 from envs.layouts import MAPS_DIR
 
@@ -78,7 +78,7 @@ def time_pibt(
         "ms_per_step_full": 1e3 * full_s / max(full_ep_steps, 1),
         "us_per_agent_step": 1e6 * plan_s / max(agent_steps, 1),
         "env_ms_per_step": 1e3 * env_s / ep_steps,
-        "paper_cell_eval_s": PAPER_EVAL_EPISODES * (ep_steps / episodes) * per_ep_step,
+        "paper_cell_eval_s": budget.EVAL_EPISODES * (ep_steps / episodes) * per_ep_step,
     }
 
 

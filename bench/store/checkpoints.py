@@ -15,12 +15,33 @@ from typing import Any
 from bench.store.schema import SCHEMA_VERSION
 from envs.errors import BenchError
 
-__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSIONS", "load_checkpoint", "short_error"]
+__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSIONS", "checkpoint_cell", "checkpoint_name", "load_checkpoint",
+           "short_error"]
 
 CHECKPOINT_FORMAT = "warehouse-marl-bench/checkpoint"
 # Results schema versions whose checkpoints this bench loads: version 2 changed the eval
 # rows (execution modes) only, not the checkpoint (cell JSON and the method's state_dict).
 CHECKPOINT_VERSIONS = (1, SCHEMA_VERSION)
+
+
+# checkpoints/<method>-<cell_id>.pt, or <cell_id>.pt as written before names carried the method
+_NAME = re.compile(r"(?:[a-z0-9_]+(?:-[a-z0-9_]+)*-)?(?P<cell>[0-9a-f]{12})\.pt")
+
+
+def checkpoint_name(cell_id: str, method: str | None = None) -> str:
+    """The file name of a cell's checkpoint: ``<method>-<cell_id>.pt`` (a ``module:Class``
+    method by its class name, lowercased), so a listing of checkpoints/ says whose each
+    is; ``<cell_id>.pt`` without a method (the name of checkpoints written before)."""
+    if not method:
+        return f"{cell_id}.pt"
+    slug = re.sub(r"[^a-z0-9_]+", "-", method.rsplit(":", 1)[-1].lower()).strip("-")
+    return f"{slug}-{cell_id}.pt" if slug else f"{cell_id}.pt"
+
+
+def checkpoint_cell(name: str) -> str | None:
+    """The cell id of a checkpoint file name, either form; None when ``name`` is none."""
+    m = _NAME.fullmatch(name)
+    return m["cell"] if m else None
 
 
 def short_error(exc: BaseException) -> str:

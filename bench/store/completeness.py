@@ -35,7 +35,7 @@ from bench.store.schema import EVAL_SCHEMA
 from envs.errors import BenchError
 
 __all__ = ["CellRows", "RowCounts", "cell_rows", "expected_for_cell", "expected_for_row", "expected_rows",
-           "incomplete_cells", "modes_of_row", "shortfall", "stored_rows"]
+           "incomplete_cells", "modes_of_row", "row_cell_rows", "shortfall", "stored_rows"]
 
 
 @dataclass(frozen=True)
@@ -117,6 +117,7 @@ class CellRows:
     duplicated: int = 0
     foreign: int = 0
     eval_episodes: int = 0
+    eval_file: bool = True  # whether the cell's eval file exists at all
 
     @property
     def train_complete(self) -> bool:
@@ -153,7 +154,14 @@ def cell_rows(store: RunStore, cell_id: str, expected: RowCounts, modes: Sequenc
     missing = tuple((m, sum((m, e) in pairs for e in range(eval_episodes))) for m in modes
                     if any((m, e) not in pairs for e in range(eval_episodes)))
     return CellRows(expected, stored, missing, sum(k - 1 for k in pairs.values() if k > 1),
-                    sum(k for pair, k in pairs.items() if pair not in want), eval_episodes)
+                    sum(k for pair, k in pairs.items() if pair not in want), eval_episodes, path.exists())
+
+
+def row_cell_rows(store: RunStore, row: Mapping[str, Any]) -> CellRows:
+    """``cell_rows`` of a cells.parquet row (its expected rows from ``expected_for_row``).
+    An unknown method or odd row is a ``ValueError``/``KeyError``/``ImportError``; a corrupt
+    file a ``BenchError``."""
+    return cell_rows(store, str(row["cell_id"]), expected_for_row(row), modes_of_row(row), int(row["eval_episodes"]))
 
 
 def incomplete_cells(store: RunStore, cells: Any) -> dict[str, str]:
@@ -163,12 +171,12 @@ def incomplete_cells(store: RunStore, cells: Any) -> dict[str, str]:
     for row in cells[cells["status"] == "done"].to_dict("records"):
         cid = str(row["cell_id"])
         try:
-            expected, modes = expected_for_row(row), modes_of_row(row)
+            expected_for_row(row), modes_of_row(row)
         except (ImportError, KeyError, ValueError) as exc:  # unknown method or odd row: say so
             out[cid] = f"cannot tell the expected rows ({exc})"
             continue
         try:
-            gap = cell_rows(store, cid, expected, modes, int(row["eval_episodes"])).gap
+            gap = row_cell_rows(store, row).gap
         except BenchError as exc:  # an unreadable part: the cell cannot be complete
             gap = str(exc)
         if gap:

@@ -47,7 +47,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from bench.store.checkpoints import load_checkpoint
+from bench.store.checkpoints import checkpoint_cell, load_checkpoint
 from envs.errors import BenchError
 
 CHECKSUMS_FILE = "checksums.json"
@@ -295,7 +295,9 @@ FOLDERS = ("train", "eval", "checkpoints", "matrix")  # the folders of a run the
 def owner_cell(rel: str) -> str:
     """The cell a stored file belongs to ('' for cells.parquet)."""
     parts = rel.split("/")
-    if parts[0] in ("eval", "checkpoints"):
+    if parts[0] == "checkpoints":
+        return checkpoint_cell(parts[-1]) or parts[-1].rsplit(".", 1)[0]
+    if parts[0] == "eval":
         return parts[-1].rsplit(".", 1)[0]
     if parts[0] in ("train", "matrix") and len(parts) == 3:
         return parts[1]
@@ -326,7 +328,7 @@ def not_plain(root: Path) -> list[tuple[str, str, str]]:
         if not check(root / name, "", True):
             continue
         for sub in sorted((root / name).iterdir()):
-            cid = sub.name.rsplit(".", 1)[0]
+            cid = (checkpoint_cell(sub.name) or "") if name == "checkpoints" else sub.name.rsplit(".", 1)[0]
             if not _CELL_ID.fullmatch(cid):
                 continue
             if name in ("train", "matrix"):

@@ -4,7 +4,7 @@
     <run>/cells.parquet            one row per cell (written only by the driver)
     <run>/train/<cell_id>/part-<first_episode>.parquet
     <run>/eval/<cell_id>.parquet   written once, after every evaluation chunk
-    <run>/checkpoints/<cell_id>.pt
+    <run>/checkpoints/<method>-<cell_id>.pt   (<cell_id>.pt in runs written before)
 
 Every write is atomic (envs/atomic.py: temp file, fsync, rename; permissions from the
 umask; a full disk is one ``DiskFull`` line naming the file, the old file kept). Tables
@@ -28,8 +28,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from bench.store.checkpoints import CHECKPOINT_FORMAT, load_checkpoint, short_error
-from bench.store.integrity import CHECKSUMS_FILE, Checksums
+from bench.store.checkpoints import CHECKPOINT_FORMAT, checkpoint_cell, checkpoint_name, load_checkpoint, short_error
+from bench.store.integrity import CHECKSUMS_FILE, Checksums, Damage, not_plain, owner_cell
 from bench.store.meta_schema import EvalMeta, Manifest, validated
 from bench.store.schema import (
     ADDED_CELL_COLUMNS,
@@ -68,10 +68,10 @@ def write_table(path: Path, table: pa.Table, checksums: Checksums | None = None)
         fh.write(data)
 
 
-def read_table(path: Path, expected: pa.Schema, added: Mapping[str, float] | None = None) -> pa.Table:
+def read_table(path: Path, expected: pa.Schema, added: Mapping[str, Any] | None = None) -> pa.Table:
     """Read one Parquet file of ours; corrupt, foreign or other-version files -> BenchError.
     A column of ``added`` (name -> value; default: the schema's ``added_columns``) that the
-    file lacks is filled with its value."""
+    file lacks is filled with its value, of the column's type in ``expected``."""
     try:
         table = pq.read_table(path, page_checksum_verification=True)
     except (OSError, pa.ArrowException) as exc:
@@ -79,7 +79,8 @@ def read_table(path: Path, expected: pa.Schema, added: Mapping[str, float] | Non
     _check_version(path, table.schema.metadata)
     for name, value in (added_columns(expected) if added is None else added).items():
         if name not in table.schema.names:
-            table = table.append_column(expected.field(name), pa.array([value] * table.num_rows, pa.float64()))
+            field = expected.field(name)
+            table = table.append_column(field, pa.array([value] * table.num_rows, field.type))
     missing = [n for n in expected.names if n not in table.schema.names]
     if missing:
         raise BenchError(f"Parquet file {str(path)!r} lacks column {missing[0]!r}")
@@ -232,7 +233,7 @@ class RunStore:
         return len(gone)
 
     def read_train(self) -> pd.DataFrame:
-        return self._read_dataset(self.train_dir, TRAIN_SCHEMA)
+        return self.read_rows(self.train_dir, TRAIN_SCHEMA).to_pandas()
 
     # ------------------------------------------------------------- eval rows
     def eval_path(self, cell_id: str) -> Path:
@@ -259,32 +260,84 @@ class RunStore:
         return validated(EvalMeta, out, f"{path} (key-value metadata)")
 
     def read_eval(self) -> pd.DataFrame:
-        return self._read_dataset(self.eval_dir, EVAL_SCHEMA)
+        return self.read_rows(self.eval_dir, EVAL_SCHEMA).to_pandas()
 
-    def _read_dataset(self, root: Path, schema: pa.Schema) -> pd.DataFrame:
-        files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith("."))
-        if not files:
-            return schema.empty_table().to_pandas()
-        return pa.concat_tables([read_table(p, schema).select(schema.names).cast(schema)
-                                 for p in files]).to_pandas()
+    def read_rows(self, root: Path, schema: pa.Schema, problems: list[str] | None = None,
+                  checksums: Checksums | None = None, damaged: set[str] | None = None,
+                  added: Mapping[str, Any] | None = None) -> pa.Table:
+        """Every Parquet file of ours under ``root`` (``train/``, ``eval/`` or ``matrix/``) as one
+        table of ``schema``: the one reader of a run's row datasets (the report's too). A file that is unreadable,
+        damaged (its digest differs from ``checksums``), a link or inside one (never followed),
+        or that holds rows of another cell than its name says is a ``BenchError`` naming it;
+        with ``problems``, it is listed there instead (and its cell added to ``damaged``) and
+        skipped, so one bad file neither hides the rest of the run nor puts wrong numbers in a
+        report (bench/store/integrity.py). Files whose name starts with '.' are temporary.
+        ``added``: columns a file may lack and their values (``read_table``)."""
+        files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
+        if not files and problems is not None:
+            problems.append(f"{root.name}/ holds no Parquet file")
+        tables = []
+        links = not_plain(root.parent) if files else []
+        for path in files:
+            rel = path.relative_to(root.parent).as_posix()
+            why = next((w for r, _, w in links if rel == r or rel.startswith(r + "/")), "")
+            why = why or (checksums.mismatch(path) if checksums is not None else "")
+            table = None
+            if not why:
+                try:
+                    table = read_table(path, schema, added).select(schema.names).cast(schema)
+                except BenchError as exc:
+                    if problems is None:
+                        raise
+                    why = f"unreadable ({exc})"
+            if table is not None:
+                cid = owner_cell(rel)
+                found = {str(v) for v in table.column("cell_id").unique().to_pylist()}
+                if cid and found and found != {cid}:
+                    others = ", ".join(sorted(found - {cid}))
+                    why = f"it holds rows of cell {others}, not of {cid} (a copied or renamed file)"
+            if why:
+                line = Damage(rel, owner_cell(rel), why).line()
+                if problems is None:
+                    raise BenchError(f"{str(self.root)!r}: {line}")
+                problems.append(f"skipped {rel}: {line}")
+                if damaged is not None:
+                    damaged.add(owner_cell(rel))
+                continue
+            tables.append(table)
+        return pa.concat_tables(tables) if tables else schema.empty_table()
 
     # ----------------------------------------------------------- checkpoints
-    def ckpt_path(self, cell_id: str) -> Path:
-        return self.ckpt_dir / f"{cell_id}.pt"
+    def ckpt_path(self, cell_id: str, method: str | None = None) -> Path:
+        """The cell's checkpoint file: the stored one, whichever its name
+        (``checkpoints/<method>-<cell_id>.pt``, or ``<cell_id>.pt`` as written before names
+        carried the method); where none is stored, the name a new one of ``method`` gets."""
+        new = self.ckpt_dir / checkpoint_name(cell_id, method)
+        old = self.ckpt_dir / checkpoint_name(cell_id)
+        if new.exists() or old.exists():
+            return new if new.exists() else old
+        if method is None and self.ckpt_dir.is_dir():  # the method unknown here: look for its name
+            found = [p for p in self.ckpt_dir.glob(f"*-{cell_id}.pt") if checkpoint_cell(p.name) == cell_id]
+            if found:
+                return min(found)
+        return new
 
     def write_checkpoint(self, cell_id: str, payload: Mapping[str, Any]) -> None:
-        """Atomically save ``payload`` (tensors and plain data) to checkpoints/<cell_id>.pt."""
+        """Atomically save ``payload`` (tensors and plain data) to the cell's checkpoint,
+        ``checkpoints/<method>-<cell_id>.pt`` (``payload["method"]``); a cell whose checkpoint
+        already has the older name ``<cell_id>.pt`` keeps it."""
         import torch
 
+        path = self.ckpt_path(cell_id, payload.get("method"))
         buf = io.BytesIO()  # serialize first: a full disk fails in fh.write, not in torch's zip writer
         torch.save({"format": CHECKPOINT_FORMAT, "schema_version": SCHEMA_VERSION, **payload}, buf)
         if self.checksums is not None:
-            self.checksums.before_write(self.ckpt_path(cell_id), buf.getvalue())
-        with atomic_file(self.ckpt_path(cell_id)) as fh:
+            self.checksums.before_write(path, buf.getvalue())
+        with atomic_file(path) as fh:
             fh.write(buf.getbuffer())
 
-    def read_checkpoint(self, cell_id: str) -> dict[str, Any] | None:
-        path = self.ckpt_path(cell_id)
+    def read_checkpoint(self, cell_id: str, method: str | None = None) -> dict[str, Any] | None:
+        path = self.ckpt_path(cell_id, method)
         return load_checkpoint(path) if path.exists() else None
 
     # ----------------------------------------------------------- superseded
@@ -330,7 +383,7 @@ class RunStore:
         """Files of this run directory that the bench itself writes (and only those).
 
         manifest.json, cells.parquet, checksums.json, train/<cell_id>/part-<k>.parquet,
-        eval/<cell_id>.parquet, checkpoints/<cell_id>.pt, matrix/<cell_id>/*.parquet
+        eval/<cell_id>.parquet, checkpoints/<method>-<cell_id>.pt (or <cell_id>.pt), matrix/<cell_id>/*.parquet
         (``bench matrix``; cell_id: 12 hex digits) and the
         temp files ('.<name>.<random>.tmp') of interrupted writes of these. Anything else,
         and anything behind a symlink, is the user's.
@@ -346,9 +399,9 @@ class RunStore:
             for d in self.train_dir.iterdir():
                 if CELL_ID_RE.fullmatch(d.name):
                     out += [p for p, name in plain(d) if _is_part(name)]
-        for d, suffix in ((self.eval_dir, ".parquet"), (self.ckpt_dir, ".pt")):
-            out += [p for p, name in plain(d)
-                    if name.endswith(suffix) and CELL_ID_RE.fullmatch(name.removesuffix(suffix))]
+        out += [p for p, name in plain(self.eval_dir)
+                if name.endswith(".parquet") and CELL_ID_RE.fullmatch(name.removesuffix(".parquet"))]
+        out += [p for p, name in plain(self.ckpt_dir) if checkpoint_cell(name)]
         matrix = self.root / "matrix"  # bench matrix: matrix/<cell_id>/<condition>.parquet
         if matrix.is_dir() and not matrix.is_symlink():
             for d in matrix.iterdir():

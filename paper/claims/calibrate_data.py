@@ -33,7 +33,6 @@ import pandas as pd
 from scipy import stats as sps
 
 from algorithms.base import REFERENCE
-from bench.design.paper import PAPER_TABLE1
 from paper.claims import claims as C
 from paper.claims import method_claims as MC
 from paper.claims.claim_power import EFFECT_SUCCESS, REWARD_FRAC
@@ -47,6 +46,7 @@ from paper.claims.verdicts import (
     TEST_ALPHA,
 )
 from paper.claims.verdicts_bounds import NEAR_TOL, trend_weights
+from paper.settings import PAPER_TABLE1
 from reports.stats import ALPHA, curve_shape, quantile_curve, welch_parts, zero_events_bound
 
 SIMS = 5000  # MC s.e. of a 5% rate: 0.0031; of any rate up to 14%: <= 0.005

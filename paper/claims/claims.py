@@ -30,20 +30,6 @@ import numpy as np
 import pandas as pd
 
 from algorithms.hierarchical.safety_filter import lemma1_count
-from bench.design.paper import (
-    PAPER_C_MAX,
-    PAPER_FIG1_P,
-    PAPER_FIG1A_N,
-    PAPER_FIG1B_N,
-    PAPER_FIG2_N,
-    PAPER_FIG2_P,
-    PAPER_GROUPS,
-    PAPER_N,
-    PAPER_SEARCH_RADIUS,
-    PAPER_TABLE1,
-    PAPER_TABLE1_N,
-    PAPER_TABLE1_P,
-)
 from paper.claims.claim_power import (
     power_below,
     power_convergence,
@@ -74,6 +60,20 @@ from paper.claims.verdicts import (
     seeds_msg,
 )
 from paper.data.payload import payload_points
+from paper.settings import (
+    PAPER_C_MAX,
+    PAPER_FIG1_P,
+    PAPER_FIG1A_N,
+    PAPER_FIG1B_N,
+    PAPER_FIG2_N,
+    PAPER_FIG2_P,
+    PAPER_GROUPS,
+    PAPER_N,
+    PAPER_SEARCH_RADIUS,
+    PAPER_TABLE1,
+    PAPER_TABLE1_N,
+    PAPER_TABLE1_P,
+)
 from reports.data.store import fmt_p, select
 
 RATIO_TOL = 0.01  # payload ratio "equal" to the bound: within 1%

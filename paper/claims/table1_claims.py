@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from bench.design.paper import PAPER_TABLE1
 from paper.claims import claims as C
 from paper.claims.claim_power import power_below, power_near, power_trend
 from paper.claims.verdicts import NOT_ENOUGH
@@ -23,6 +22,7 @@ from paper.claims.verdicts_bounds import (
     check_trend,
     trend_weights,
 )
+from paper.settings import PAPER_TABLE1
 
 PRINT_BOUND = 0.00005  # Table I prints rates as 0.00%: below 0.005% of robot-steps rounds to it
 FALLBACK_BOUND = 0.05  # "within the normal search": fewer than 5% of group-steps fall back

@@ -2,14 +2,14 @@
 the accounted C_hier, C_dec, their ratio and the bound (Z-1)/(N-1) of Sec. III-A (the
 inequality after eq:gru_pred_loss), at the p of Fig. 3 when the run has it, else over every p.
 
-May import: bench.design.paper, reports.data.store.
+May import: paper.settings, reports.data.store.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from bench.design.paper import PAPER_FIG3_P
+from paper.settings import PAPER_FIG3_P
 from reports.data.store import fmt_p, select
 
 __all__ = ["payload_points"]

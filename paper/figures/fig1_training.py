@@ -17,7 +17,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-from bench.design.paper import PAPER_FIG1_P, PAPER_FIG1A_N, PAPER_FIG1B_N
+from paper.settings import PAPER_FIG1_P, PAPER_FIG1A_N, PAPER_FIG1B_N
 from reports.data.store import fmt_p, select
 from reports.figures.learning_curves import Curve, draw_curve, smoothing_text, training_curve
 from reports.figures.plotting import (

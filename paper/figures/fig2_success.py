@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 from matplotlib.artist import Artist
 
-from bench.design.paper import PAPER_FIG2_N, PAPER_FIG2_P
+from paper.settings import PAPER_FIG2_N, PAPER_FIG2_P
 from reports.data.store import execution_order, fmt_p, select
 from reports.figures.plotting import (
     FONT_PT,

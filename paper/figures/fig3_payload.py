@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 from matplotlib.ticker import FixedLocator
 
-from bench.design.paper import PAPER_FIG3_P
 from paper.data.payload import payload_points
+from paper.settings import PAPER_FIG3_P
 from reports.data.store import fmt_p, select
 from reports.figures.plotting import (
     Built,

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from bench.design.paper import PAPER_TABLE1, PAPER_TABLE1_P
+from paper.settings import PAPER_TABLE1, PAPER_TABLE1_P
 from reports.data.store import execution_order, fmt_p, fmt_pct, select
 from reports.tables.summary import metric_estimate
 

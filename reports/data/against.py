@@ -19,12 +19,13 @@ REF; the merged report goes to MINE/report (or ``--out``) and says what it merge
 """
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from bench.store.completeness import row_cell_rows
+from bench.store.run_store import RunStore
 from envs.errors import BenchError
 from reports.data.store import Store, fmt_p, load_store
 
@@ -93,13 +94,18 @@ def _check_scenarios(mine: Store, ref: Store, ref_name: str) -> None:
 
 def _unusable_files(ref: Store) -> list[str]:
     """What ``load_store`` left out of ``ref`` for a file, each naming it: a damaged or
-    misplaced file, a done cell's absent eval file (D17: a refusal names its file)."""
+    misplaced file, a done cell's absent eval file (D17: a refusal names its file), the
+    latter told by the one completeness rule (``bench.store.completeness.cell_rows``)."""
     out = [p.removeprefix("skipped ") for p in ref.problems if p.startswith("skipped ")]
-    no_rows = re.compile(r"cell ([0-9a-f]{12}) is done but its rows are incomplete: (.*, )?no evaluation rows")
-    for p in ref.problems:
-        m = no_rows.fullmatch(p)
-        if m and not (ref.run_dir / "eval" / f"{m[1]}.parquet").is_file():
-            out.append(f"eval/{m[1]}.parquet is absent although cells.parquet says cell {m[1]} is done; "
+    store = RunStore(ref.run_dir)
+    for row in ref.done.to_dict("records"):
+        try:
+            rows = row_cell_rows(store, row)
+        except (BenchError, ImportError, KeyError, ValueError):  # already among the problems above
+            continue
+        if rows.expected.eval and not rows.eval_file:
+            cid = row["cell_id"]
+            out.append(f"eval/{cid}.parquet is absent although cells.parquet says cell {cid} is done; "
                        "rerun `bench run` on that run to evaluate it again")
     return out
 

@@ -2,8 +2,9 @@
 
 The report is rebuilt from the store alone: ``cells.parquet`` (one row per cell),
 ``train/`` and ``eval/`` (Parquet datasets, one row per cell and episode) and
-``manifest.json``, read with the bench's own file reader (``bench.store.run_store.read_table``:
-schema version checked per file). Per-episode rows are joined with the configuration columns of their
+``manifest.json``, read with the bench's one reader of row datasets
+(``bench.store.run_store.RunStore.read_rows``: schema version checked per file, damaged
+files skipped and listed). Per-episode rows are joined with the configuration columns of their
 cell (method, n_robots, loss_p, seed, groups, ...). Evaluation rows carry their execution
 mode (``execution``: argmax, sample, sample@T, or planner), one row per cell x episode x
 mode; a done cell missing a mode or an episode is listed in ``Store.problems``. Only cells whose status is ``done``
@@ -20,12 +21,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pyarrow as pa
 
 from bench.execute.plan import dict_changes
 from bench.store.completeness import incomplete_cells
-from bench.store.integrity import REPAIR_FILE, REPAIR_PREFIX, Checksums, Damage, not_plain, owner_cell
-from bench.store.run_store import RunStore, read_table
+from bench.store.integrity import REPAIR_FILE, REPAIR_PREFIX, Damage
+from bench.store.run_store import RunStore
 from bench.store.schema import EVAL_SCHEMA, TRAIN_SCHEMA
 from envs.errors import BenchError
 
@@ -55,43 +55,6 @@ class Store:
     @property
     def not_done(self) -> pd.DataFrame:
         return self.cells[self.cells["status"] != "done"]
-
-
-def _read_dataset(root: Path, schema: pa.Schema, problems: list[str],
-                  checksums: Checksums | None = None, damaged: set[str] | None = None) -> pd.DataFrame:
-    """Every Parquet file under ``root`` (bench/store/run_store.py layout); unreadable, damaged
-    (checksum mismatch) and misplaced (rows of another cell than its name says) ones are
-    listed in ``problems`` and skipped, so one bad file neither hides the rest of the run
-    nor puts wrong numbers in the report (bench/store/integrity.py)."""
-    files = sorted(p for p in root.rglob("*.parquet") if not p.name.startswith(".")) if root.is_dir() else []
-    if not files:
-        problems.append(f"{root.name}/ holds no Parquet file")
-    tables = []
-    links = not_plain(root.parent)  # a link or a misplaced folder is damage, never followed (D18)
-    for path in files:
-        rel = path.relative_to(root.parent).as_posix()
-        why = next((w for r, _, w in links if rel == r or rel.startswith(r + "/")), "")
-        why = why or (checksums.mismatch(path) if checksums is not None else "")
-        try:
-            table = read_table(path, schema).select(schema.names).cast(schema) if not why else None
-        except BenchError as exc:
-            why = f"unreadable ({exc})"
-            table = None
-        if table is not None:
-            cid = owner_cell(rel)
-            found = {str(v) for v in table.column("cell_id").unique().to_pylist()}
-            if cid and found and found != {cid}:
-                others = ", ".join(sorted(found - {cid}))
-                why = f"it holds rows of cell {others}, not of {cid} (a copied or renamed file)"
-        if why:
-            problems.append(f"skipped {rel}: {Damage(rel, owner_cell(rel), why).line()}")
-            if damaged is not None:
-                damaged.add(owner_cell(rel))
-            continue
-        tables.append(table)
-    if not tables:
-        return schema.empty_table().to_pandas()
-    return pa.concat_tables(tables).to_pandas()
 
 
 def _with_config(rows: pd.DataFrame, done: pd.DataFrame) -> pd.DataFrame:
@@ -150,8 +113,8 @@ def load_store(run_dir: Path | str) -> Store:
     problems: list[str] = []
     done = cells[cells["status"] == "done"]
     damaged: set[str] = set()
-    train = _with_config(_read_dataset(rs.train_dir, TRAIN_SCHEMA, problems, checksums, damaged), done)
-    evals = _with_config(_read_dataset(rs.eval_dir, EVAL_SCHEMA, problems, checksums, damaged), done)
+    train = _with_config(rs.read_rows(rs.train_dir, TRAIN_SCHEMA, problems, checksums, damaged).to_pandas(), done)
+    evals = _with_config(rs.read_rows(rs.eval_dir, EVAL_SCHEMA, problems, checksums, damaged).to_pandas(), done)
     problems += manifest_problems
     if damaged:  # a done cell with a damaged file is not done until `bench run --repair`
         cells.loc[cells["cell_id"].isin(damaged) & (cells["status"] == "done"), "status"] = "pending"

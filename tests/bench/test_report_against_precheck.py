@@ -30,9 +30,7 @@ def _no_rows(*args, **kwargs):
 def test_against__refused_from_the_cell_lists_without_reading_a_row(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], other, message) -> None:
     mine, ref = _store(tmp_path, "mine"), _store(tmp_path, "ref", **other)
-    monkeypatch.setattr("reports.data.store._read_dataset", _no_rows)
-    monkeypatch.setattr("bench.store.run_store.RunStore.read_train", _no_rows)
-    monkeypatch.setattr("bench.store.run_store.RunStore.read_eval", _no_rows)
+    monkeypatch.setattr("bench.store.run_store.RunStore.read_rows", _no_rows)  # the one reader of rows
     with pytest.raises(SystemExit) as exc:
         main(["report", "--run", str(mine), "--against", str(ref), "--out", str(tmp_path / "report")])
     err = capsys.readouterr().err.strip()

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from envs.channel import GroupChannel, LossProcess, comm_graph, group_assignment, group_members
-from envs.config import EnvConfig
+from envs.config import EnvConfig, loss_error
 from envs.errors import BenchError
 
 
@@ -57,10 +57,11 @@ def test_gilbert_elliott_keeps_a_high_mean_loss_up_to_what_its_bursts_allow(p: f
 @pytest.mark.parametrize(("p", "burst", "limit"), [(0.9, 4.0, "0.8"), (0.6, 1.0, "0.5"), (0.81, 4.0, "0.8")])
 def test_gilbert_elliott_refuses_a_loss_its_bursts_cannot_have(p: float, burst: float, limit: str) -> None:
     # The chain would need P(Good -> Bad) > 1; quietly capping it gave a mean loss of
-    # L / (L + 1) instead of p (0.8 for p = 0.9, L = 4).
-    with pytest.raises(ValueError, match=f"at most {limit}"):
-        LossProcess((2, 2), p, np.random.default_rng(0), "gilbert_elliott", burst_length=burst)
-    with pytest.raises(BenchError, match=f"loss_p={p:g} with burst_length={burst:g}"):
+    # L / (L + 1) instead of p (0.8 for p = 0.9, L = 4). The environment refuses it where
+    # the value enters (the loss rule, envs.config.loss_error); LossProcess takes its values.
+    found = loss_error(p, "gilbert_elliott", burst)
+    assert found is not None and found[0] == ("loss_p", "burst_length") and f"at most {limit}" in found[1]
+    with pytest.raises(BenchError, match=f"loss_p={p:g} with burst_length={burst:g}: .*at most {limit}"):
         EnvConfig.make(loss_p=p, loss_model="gilbert_elliott", burst_length=burst)
     EnvConfig.make(loss_p=p, loss_model="bernoulli", burst_length=burst)  # Bernoulli has no bursts
 

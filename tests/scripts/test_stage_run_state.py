@@ -16,8 +16,10 @@ def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: 
     run = tmp_path / "paper"
     (run / "checkpoints").mkdir(parents=True)
     (run / "train").mkdir()
-    pd.DataFrame({"cell_id": ["aaa", "bbb", "ccc"], "status": ["done", "running", "pending"]}).to_parquet(
-        run / "cells.parquet")
+    new = "0123456789ab"  # a checkpoint named by its method (checkpoints/<method>-<cell_id>.pt)
+    pd.DataFrame({"cell_id": ["aaa", "bbb", "ccc", new], "status": ["done", "running", "pending", "running"]}
+                 ).to_parquet(run / "cells.parquet")
+    (run / "checkpoints" / f"pibt-{new}.pt").write_bytes(b"x")
     (run / "manifest.json").write_text("{}")
     (run / "checksums.json").write_text("{}")
     for cid in ("aaa", "bbb"):
@@ -25,7 +27,8 @@ def test_plan__unfinished_checkpoints_are_added_finished_ones_dropped(tmp_path: 
     tracked = {str(run / "checkpoints" / "aaa.pt"), str(run / "checkpoints" / "bbb.pt"), str(run / "train" / "x")}
     add, drop = stage.plan(run, tracked)
     assert add == [str(run / "cells.parquet"), str(run / "manifest.json"), str(run / "checksums.json"),
-                   str(run / "train"), str(run / "checkpoints" / "bbb.pt")]  # no eval/, matrix/, report/; ccc: none
+                   str(run / "train"), str(run / "checkpoints" / "bbb.pt"),  # no eval/, matrix/, report/; ccc: none
+                   str(run / "checkpoints" / f"pibt-{new}.pt")]
     assert drop == [str(run / "checkpoints" / "aaa.pt")]  # done: its checkpoint leaves the index only
     assert (run / "checkpoints" / "aaa.pt").exists()
 

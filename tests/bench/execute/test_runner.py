@@ -11,6 +11,7 @@ import pytest
 from bench.design.cells import Cell
 from bench.design.grids import Grid
 from bench.execute.runner import run_grid
+from bench.store.checkpoints import checkpoint_cell
 from bench.store.run_store import RunStore
 from tests.bench.conftest import as_written_by_the_bench, snapshot, store_with_params, toy_spec
 
@@ -136,7 +137,7 @@ def test_run__fresh_starts_over_and_drops_cells_of_other_grids(toy: str, tmp_pat
     summary = run_grid(other, out, workers=1, checkpoint_every=4, fresh=True)
     cells = RunStore(out).read_cells()
     assert summary.done == 1 and cells["cell_id"].tolist() == [other.cells[0].cell_id]
-    assert sorted(p.stem for p in (out / "checkpoints").iterdir()) == [other.cells[0].cell_id]
+    assert sorted(checkpoint_cell(p.name) for p in (out / "checkpoints").iterdir()) == [other.cells[0].cell_id]
     assert cells["attempts"].tolist() == [1]
 
 

@@ -56,7 +56,7 @@ def flip_bit(path: Path, where: float) -> None:
 def stored_files(out: Path, cid: str) -> dict[str, Path]:
     return {"cells": out / "cells.parquet", "eval": out / "eval" / f"{cid}.parquet",
             "train": sorted((out / "train" / cid).glob("part-*.parquet"))[0],
-            "checkpoint": out / "checkpoints" / f"{cid}.pt"}
+            "checkpoint": RunStore(out).ckpt_path(cid)}
 
 
 # ------------------------------------------------------------------ recording

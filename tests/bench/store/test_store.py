@@ -10,7 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 import torch
 
-from bench.store.checkpoints import load_checkpoint
+from bench.store.checkpoints import checkpoint_cell, checkpoint_name, load_checkpoint
 from bench.store.run_store import RunStore, read_table
 from bench.store.schema import (
     CELLS_SCHEMA,
@@ -204,3 +204,28 @@ def test_lock__a_second_run_on_the_same_directory_is_refused(tmp_path: Path) -> 
         os.close(fd)
     os.close(RunStore(tmp_path).lock())  # free again once released
     assert list(tmp_path.iterdir()) == []  # locking creates no file
+
+
+@pytest.mark.parametrize(("method", "name"), [
+    ("hierarchical", f"hierarchical-{CID}.pt"),
+    ("my_pkg.methods:MyMethod", f"mymethod-{CID}.pt"),  # a module:Class method by its class name
+    (None, f"{CID}.pt"),  # the name of checkpoints written before names carried the method
+])
+def test_checkpoint_name__carries_the_method_and_gives_back_the_cell(method, name) -> None:
+    assert checkpoint_name(CID, method) == name and checkpoint_cell(name) == CID
+    assert checkpoint_cell("best.pt") is None and checkpoint_cell(f"x{CID}.pt") is None
+
+
+def test_checkpoint__new_ones_are_named_by_method_and_old_names_still_read(tmp_path: Path) -> None:
+    store = RunStore(tmp_path)
+    state = {"w": torch.arange(3.0)}
+    store.write_checkpoint(CID, {"cell": "{}", "method": "pibt", "state": state})
+    assert [p.name for p in store.ckpt_dir.iterdir()] == [f"pibt-{CID}.pt"]
+    assert store.ckpt_path(CID) == store.ckpt_path(CID, "pibt") == store.ckpt_dir / f"pibt-{CID}.pt"
+    old_cid = "ba9876543210"  # a committed store's checkpoint: checkpoints/<cell_id>.pt
+    torch.save(torch.load(store.ckpt_path(CID), weights_only=True), store.ckpt_dir / f"{old_cid}.pt")
+    for method in (None, "pibt"):
+        assert torch.equal(store.read_checkpoint(old_cid, method)["state"]["w"], state["w"])
+    store.write_checkpoint(old_cid, {"cell": "{}", "method": "pibt", "state": state})  # a resumed old run
+    assert sorted(p.name for p in store.ckpt_dir.iterdir()) == [f"{old_cid}.pt", f"pibt-{CID}.pt"]
+    assert sorted(p.name for p in store.bench_files()) == [f"{old_cid}.pt", f"pibt-{CID}.pt"]

@@ -11,7 +11,6 @@ import pandas as pd
 import pytest
 
 from algorithms.hierarchical.safety_filter import lemma1_count
-from bench.design.paper import PAPER_TABLE1
 from paper.claims.catalog import all_claims
 from paper.claims.claim_power import power_below
 from paper.claims.claims import (
@@ -63,6 +62,7 @@ from paper.claims.verdicts import (
     combine,
     decide,
 )
+from paper.settings import PAPER_TABLE1
 from reports.stats import TTest, curve_shape, quantile_curve, simultaneous_band, t_test
 from tests.reports.synthetic import frames, joined, smoke_specs
 

@@ -1,4 +1,4 @@
-"""bench/design/paper.py against the sentences of the paper that state each setting.
+"""paper/settings.py against the sentences of the paper that state each setting.
 
 Each quote is copied verbatim from the paper's source (line numbers of
 shared/paper/000_895b9ea056843c2c.txt); the numbers are read out of the quote, so a
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 
-import bench.design.paper as paper
+import paper.settings as paper
 from envs.layouts import bundled_maps
 
 # Sec. IV, Simulation Setup (line 707).

@@ -1,13 +1,14 @@
 """The paper's experimental settings, each stated once (Sec. IV of the paper,
 shared/paper/000_895b9ea056843c2c.txt; the test
-tests/bench/design/test_paper.py pins every value against the sentence that states it).
+tests/paper/test_settings.py pins every value against the sentence that states it).
 
-Grids (bench/design/grids.py), the speed suites (bench/perf) and the report's figures,
-Table I and claims (reports) take them from here; nothing else spells them out.
+The paper's wing takes them from here: its grids (paper/grids.py), Fig. 1-3, Table I and
+the claims; nothing else spells them out, and nothing below the wing imports them (the
+harness's own defaults, e.g. a ``Cell``'s budgets, are its own).
 Team sizes and loss probabilities are tuples in the paper's order, a single loss
 probability is a float, counts are ints.
 
-May import: nothing of the project.
+May import: nothing of the project (the bottom of the wing).
 """
 from __future__ import annotations
 
