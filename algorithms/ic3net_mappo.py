@@ -40,8 +40,9 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
     gen = update_generator(method.seed, method.iterations)
     crit = mappo_critic(critic, method.critic_opt, buf, p, gen=gen)
     gap = p.detach_gap
-    data = {k: _chunked(buf.tensor(k), gap) for k in ("obs", "mask", "links", "alive", "actions", "gates")}
-    active = _chunked(buf.tensor("active"), gap).to(torch.float32)  # (C, gap, B, N)
+    dev = method.device
+    data = {k: _chunked(buf.tensor(k, dev), gap) for k in ("obs", "mask", "links", "alive", "actions", "gates")}
+    active = _chunked(buf.tensor("active", dev), gap).to(torch.float32)  # (C, gap, B, N)
     adv = _chunked(crit.robot_adv, gap)
     c, _, b, n = active.shape
     h0 = torch.stack([hc[0].clone() for hc in state.chunk_hc[:c]]).view(c, b, n, -1)  # (C, B, N, H)
