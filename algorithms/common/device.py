@@ -85,10 +85,10 @@ def module_device(module: torch.nn.Module) -> torch.device:
     """The device of a module's first parameter (or buffer); cpu for one with neither."""
     import torch
 
-    for t in module.parameters():
-        return t.device
-    for t in module.buffers():
-        return t.device
+    for param in module.parameters():
+        return param.device
+    for buf in module.buffers():
+        return buf.device
     return torch.device(CPU)
 
 
