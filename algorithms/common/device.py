@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 __all__ = ["CPU", "check_device", "host_tree", "module_device", "resolve_device"]
 
-CPU = "cpu"
+CPU = "cpu"  # the default device, whose numbers never change
 
 
 def _available(kind: str, index: int | None) -> str | None:
