@@ -239,9 +239,10 @@ class HierarchicalMethod(Method):
         with torch.no_grad():
             ref, ref_logp, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=ref_in,
                                                       choice=choice)
+            logp = logp.cpu()  # sampling and the filter read it on the host (one copy from a device)
             proposed_g = choice(logp)  # (Z, B, n), the same mode as r
         state.ref, state.t = ref, state.t + 1
-        proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)  # host
+        proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
 
         dec = Decision(actions=proposed, proposed=proposed, payload=float(state.channel.payload_hier),
                        pred_sq_err=rx.sq_err, pred_count=rx.n_lost, group_links=group_links)
