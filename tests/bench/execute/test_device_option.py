@@ -67,3 +67,39 @@ def test_a_method_without_a_device_argument_is_refused(toy: str) -> None:
     assert build_method(spec).learned  # the cpu: built as before
     with pytest.raises(BenchError, match="takes no device"):
         build_method(spec, "cuda")
+
+
+class _Refused(Exception):
+    """Stands in for the Ray executor: records how the runner asked for its workers."""
+
+
+def test_run_grid_asks_ray_for_gpu_shares_and_records_the_device(toy: str, tmp_path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import bench.execute.runner as runner
+    from bench.design.grid_files import load_grid_file
+    from bench.execute.ray_cluster import RayContext
+    from bench.store.run_store import RunStore
+    from tests.bench.conftest import toy_spec, write_grid_file
+
+    asked: dict = {}
+
+    def executor(worker_cls, capacity, ctx, **kw):  # noqa: ANN001, ANN202 - RayExecutor's signature
+        asked.update(kw, capacity=capacity)
+        raise _Refused
+
+    monkeypatch.setattr(runner, "connect", lambda *a, **k: RayContext(False, "none", 2))
+    monkeypatch.setattr(runner, "RayExecutor", executor)
+    grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0, 1]}))
+    with pytest.raises(_Refused):
+        runner.run_grid(grid, tmp_path / "run", workers=2, device="cuda:0")
+    assert asked == {"capacity": 2, "worker_args": ("cuda:0",), "num_gpus": 0.5}
+    record = RunStore(tmp_path / "run").read_manifest()["runs"][-1]
+    assert record["device"] == "cuda:0"
+    cells = RunStore(tmp_path / "run").read_cells()
+    assert "cuda" not in cells.to_json()  # no cell names the device
+
+    asked.clear()
+    with pytest.raises(_Refused):
+        runner.run_grid(grid, tmp_path / "cpu", workers=2)
+    assert asked == {"capacity": 2}  # the cpu: workers as before
+    assert "device" not in RunStore(tmp_path / "cpu").read_manifest()["runs"][-1]
