@@ -22,6 +22,11 @@ A method is built from an environment config, its hyperparameters (a pydantic mo
   gradient. Store the inputs (observations, masks, sampled actions) and recompute the
   log-probabilities in ``update``; a backward pass through a rollout tensor raises
   ``InferenceModeError`` saying so.
+* ``device``: the torch device of the networks (``Method(..., device="cuda")``; default
+  cpu), an execution choice like the number of workers, never a parameter; the
+  environment, observations, rollout storage, filter and sampling stay on the host
+  (algorithms/common/device.py). A learned method places its modules with
+  ``place_modules()`` and moves what it builds from host arrays to ``self.device``.
 * ``state_dict()`` / ``load_state_dict()`` -> tensors and plain data only (parameters,
   optimizer states, RNG states, counters), loadable with ``torch.load(weights_only=True)``;
   a run resumed from it continues exactly as an uninterrupted one.
@@ -38,6 +43,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from algorithms.common.allocator import tune_allocator
+from algorithms.common.device import CPU, host_tree, resolve_device
 from algorithms.common.episodes import (
     EVAL_STREAM,
     TRAIN_STREAM,
@@ -203,12 +209,16 @@ class Method(ABC):
         if isinstance(params, type) and not cls.__module__.startswith("algorithms."):
             _warn_shadowed(cls, params)  # a plugin's Params (the built-ins' are checked by their tests)
 
-    def __init__(self, env: EnvConfig, params: Mapping[str, Any] | None = None, seed: int = 0) -> None:
+    def __init__(self, env: EnvConfig, params: Mapping[str, Any] | None = None, seed: int = 0,
+                 device: Any = None) -> None:
         self.env = env
         self.params = self.parse_params(params or {})
         self.seed = int(seed)
         self.layout = load_layout(env.layout)
         import torch
+
+        # The networks' device (algorithms/common/device.py): an execution choice, no parameter.
+        self.device = resolve_device(device)
 
         self.iterations = 0  # training updates done
         self.episodes_done = 0
@@ -375,7 +385,21 @@ class Method(ABC):
         """Named modules and optimizers whose state is checkpointed."""
         return {}
 
+    def place_modules(self) -> None:
+        """Move the networks of ``modules()`` to ``self.device`` (a learned method calls it
+        at the end of ``__init__``; nothing moves on the cpu). Optimizers made before keep
+        their parameters: ``Module.to`` moves them in place."""
+        if self.device.type == CPU:
+            return
+        import torch
+
+        for mod in self.modules().values():
+            if isinstance(mod, torch.nn.Module):
+                mod.to(self.device)
+
     def state_dict(self) -> dict[str, Any]:
+        """Counters, RNG states and every module's and optimizer's state, on the host (a
+        device run's checkpoint loads anywhere; ``load_state_dict`` moves it back)."""
         import torch
 
         out: dict[str, Any] = {
@@ -386,7 +410,7 @@ class Method(ABC):
         }
         for key, mod in self.modules().items():
             out[key] = mod.state_dict()
-        return out
+        return out if self.device.type == CPU else host_tree(out)
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
         import torch
@@ -403,5 +427,5 @@ def masked_logits(logits: torch.Tensor, mask: np.ndarray | torch.Tensor) -> torc
     """Set logits of disallowed actions (mask False) to a large negative number."""
     import torch
 
-    m = torch.as_tensor(mask, dtype=torch.bool)
+    m = torch.as_tensor(mask, dtype=torch.bool, device=logits.device)
     return logits.masked_fill(~m, -1e9)

@@ -195,8 +195,8 @@ class DecentralizedMethod(Method):
     presets = {"tuned": Preset.unpublished("studies/definitions/decentralized.toml")}  # decision 0215
     params: DecentralizedParams
 
-    def __init__(self, env, params=None, seed: int = 0) -> None:
-        super().__init__(env, params, seed)
+    def __init__(self, env, params=None, seed: int = 0, device=None) -> None:
+        super().__init__(env, params, seed, device)
         p = self.params
         self.n_obs = (local_view_size(p.patch_radius) + HISTORY_SIZE
                       + map_feature_size(p.patch_radius))
@@ -207,6 +207,7 @@ class DecentralizedMethod(Method):
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.ppo_lr if self.mappo else p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max) if p.safety_filter else None
+        self.place_modules()
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         return {"actor": self.actor, "critic": self.critic,
@@ -254,10 +255,11 @@ class DecentralizedMethod(Method):
         with torch.inference_mode():  # rollouts never backpropagate (the update recomputes)
             hidden = None if buf is None or "hidden0" not in buf.data else \
                 (torch.from_numpy(buf.row("hidden0")), torch.from_numpy(buf.row("hidden1")))
-            logits = self.actor.rollout_logits(torch.from_numpy(obs), torch.from_numpy(mask), hidden)
+            dev = self.device
+            logits = self.actor.rollout_logits(torch.from_numpy(obs).to(dev), torch.from_numpy(mask).to(dev), hidden)
             actions = choice(logits).numpy()
             if buf is not None and "logp" in buf.data:  # mappo: the rollout policy's log-probs
-                buf.row("logp")[...] = torch.log_softmax(logits, -1).gather(
+                buf.row("logp")[...] = torch.log_softmax(logits, -1).cpu().gather(
                     -1, torch.from_numpy(actions)[..., None]).squeeze(-1).numpy()
         state.running = ~core.ended
         if buf is not None:
@@ -280,7 +282,7 @@ class DecentralizedMethod(Method):
         present = (board.ctl != OFF_FLOOR) & board.others  # (B, N_recv, N_send)
         blocked = filt.blocked_cells(board.pos.reshape(g, n), present.reshape(g, n))
         controlled = ~core.done & ~core.ended[:, None]
-        logp = torch.log_softmax(logits, dim=-1).double().numpy().reshape(g, 1, N_ACTIONS)
+        logp = torch.log_softmax(logits, dim=-1).double().cpu().numpy().reshape(g, 1, N_ACTIONS)
         res = filt(core.pos.reshape(g, 1), core.occupying.reshape(g, 1),
                           controlled.reshape(g, 1), dec.actions.reshape(g, 1), logp, blocked)
         dec.proposed = dec.actions
@@ -317,19 +319,20 @@ class DecentralizedMethod(Method):
 
         obs, act_mask = rows_of("obs"), rows_of("mask")
         hidden0, hidden1 = rows_of("hidden0"), rows_of("hidden1")
-        actions = torch.from_numpy(rows_of("actions"))
-        weight = np.take(np.broadcast_to(adv.numpy()[..., None], active.shape).reshape(-1), sel) / float(n)
-        weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32))
+        dev = self.device
+        actions = torch.from_numpy(rows_of("actions")).to(dev)
+        weight = np.take(np.broadcast_to(adv.cpu().numpy()[..., None], active.shape).reshape(-1), sel) / float(n)
+        weight_t = torch.from_numpy(np.ascontiguousarray(weight, dtype=np.float32)).to(dev)
         rows = obs.shape[0]
         self.actor_opt.zero_grad()
         actor_total, entropy_total = 0.0, 0.0
         for lo in range(0, rows, p.chunk_rows):
             sl = slice(lo, lo + p.chunk_rows)
             # The rollout's hidden activations instead of a re-forward (bit for bit).
-            obs_t = torch.from_numpy(obs[sl])
-            kept = (torch.from_numpy(hidden0[sl]), torch.from_numpy(hidden1[sl]).requires_grad_())
+            obs_t = torch.from_numpy(obs[sl]).to(dev)
+            kept = (torch.from_numpy(hidden0[sl]).to(dev), torch.from_numpy(hidden1[sl]).to(dev).requires_grad_())
             logp_all = torch.log_softmax(self.actor.logits_from_hidden(
-                obs_t, kept[1], torch.from_numpy(act_mask[sl])), dim=-1)
+                obs_t, kept[1], torch.from_numpy(act_mask[sl]).to(dev)), dim=-1)
             logp = logp_all.gather(-1, actions[sl, None]).squeeze(-1)
             entropy = -(logp_all.exp() * logp_all).sum(-1)
             loss = -(weight_t[sl] * logp).sum() - p.entropy_coef * entropy.sum() / max(rows, 1)
@@ -344,13 +347,13 @@ class DecentralizedMethod(Method):
                 "return_mean": float((crit.returns * crit.mask).sum() / n),
                 **crit.diagnostics(), "diag_entropy": entropy_total / max(rows, 1),
                 "diag_grad_norm": grad_norm, "diag_kl": probe.kl(),
-                "diag_wait_share": wait_share(actions.numpy(), np.ones(rows, dtype=bool))}
+                "diag_wait_share": wait_share(actions.cpu().numpy(), np.ones(rows, dtype=bool))}
 
     def kl_probe(self, obs: np.ndarray, act_mask: np.ndarray) -> KLProbe:
         """The actor's log-probabilities on a strided subset of the update's robot-steps,
         for the KL across the step (diagnostics only)."""
         idx = probe_rows(obs.shape[0])
-        o, m = torch.from_numpy(obs[idx]), torch.from_numpy(act_mask[idx])
+        o, m = torch.from_numpy(obs[idx]).to(self.device), torch.from_numpy(act_mask[idx]).to(self.device)
         return KLProbe(lambda: (torch.log_softmax(self.actor(o, m), dim=-1), None))
 
     def mappo_update(self, buf: RolloutBuffer) -> dict[str, float]:
@@ -362,11 +365,11 @@ class DecentralizedMethod(Method):
         crit = mappo_critic(self.critic, self.critic_opt, buf, p, gen=gen)
         active = buf.data["active"][: buf.t]
         sel = torch.from_numpy(np.flatnonzero(active))
-        obs = torch.from_numpy(buf.data["obs"][: buf.t].reshape(active.size, -1))
-        masks = torch.from_numpy(buf.data["mask"][: buf.t].reshape(active.size, -1))
-        actions = torch.from_numpy(buf.data["actions"][: buf.t].reshape(-1))
+        obs = torch.from_numpy(buf.data["obs"][: buf.t].reshape(active.size, -1)).to(self.device)
+        masks = torch.from_numpy(buf.data["mask"][: buf.t].reshape(active.size, -1)).to(self.device)
+        actions = torch.from_numpy(buf.data["actions"][: buf.t].reshape(-1)).to(self.device)
         adv = crit.robot_adv.reshape(-1)[sel][:, None]
-        old = torch.from_numpy(buf.data["logp"][: buf.t].reshape(-1))[sel][:, None]
+        old = torch.from_numpy(buf.data["logp"][: buf.t].reshape(-1))[sel][:, None].to(self.device)
 
         def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
             rows = sel[ix]

@@ -160,7 +160,8 @@ class IC3NetPolicy(nn.Module):
         self.path = ActionPath(index) if action_path else None
 
     def initial_state(self, b: int, n: int) -> tuple[torch.Tensor, torch.Tensor]:
-        return torch.zeros(b * n, self.hidden), torch.zeros(b * n, self.hidden)
+        dev = self.encoder.weight.device
+        return torch.zeros(b * n, self.hidden, device=dev), torch.zeros(b * n, self.hidden, device=dev)
 
     def forward(
         self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
@@ -231,8 +232,8 @@ class IC3NetMethod(Method):
     presets = {"tuned": Preset.unpublished("studies/definitions/ic3net.toml")}  # decision 0215
     params: IC3NetParams
 
-    def __init__(self, env, params=None, seed: int = 0) -> None:
-        super().__init__(env, params, seed)
+    def __init__(self, env, params=None, seed: int = 0, device=None) -> None:
+        super().__init__(env, params, seed, device)
         p = self.params
         self.n_obs = local_view_size(p.patch_radius) + HISTORY_SIZE
         self.mappo = p.protocol == MAPPO  # the protocol's own critic replaces ``baseline``
@@ -250,6 +251,7 @@ class IC3NetMethod(Method):
             self.critic = RobotCritic(p.critic_hidden) if self.mappo else CentralCritic(p.critic_hidden)
         self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
                            if self.critic is not None else None)
+        self.place_modules()
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
@@ -319,9 +321,10 @@ class IC3NetMethod(Method):
         if self.mappo and buf is not None and buf.t % p.detach_gap == 0:
             state.chunk_hc.append(state.hc)  # the mappo update replays chunks from here
         with torch.inference_mode():  # rollouts never backpropagate (the update replays)
+            dev = self.device
             logits, gate_logits, values, state.hc = self.policy(
-                torch.from_numpy(obs), torch.from_numpy(mask), torch.from_numpy(links.astype(np.float32)),
-                torch.from_numpy(alive_n), state.hc)
+                torch.from_numpy(obs).to(dev), torch.from_numpy(mask).to(dev),
+                torch.from_numpy(links.astype(np.float32)).to(dev), torch.from_numpy(alive_n).to(dev), state.hc)
             actions = choice(logits).numpy()
             gates = choice(gate_logits).numpy()  # the gate is an action too: same mode
             if buf is not None and "logp" in buf.data:  # mappo: the rollout policy's log-probs
@@ -337,7 +340,7 @@ class IC3NetMethod(Method):
             else:  # the reference's V^i, in return units
                 with torch.inference_mode():
                     baseline = {"values": (self.policy.value_norm.denormalize(values)
-                                           if p.value_norm else values).numpy()}
+                                           if p.value_norm else values).cpu().numpy()}
             buf.add(alive=alive_n, actions=actions, gates=gates, active=alive & state.running[:, None],
                     **baseline)
         return Decision(actions=actions, payload=payload, robot_links=links)
@@ -346,9 +349,9 @@ class IC3NetMethod(Method):
                           gates: np.ndarray) -> torch.Tensor:
         """log pi of the sampled control, plus that of the sampled gate where the gate is
         learned (what the mappo update's ratio divides by; ic3net_mappo.py)."""
-        logp = torch.log_softmax(logits, dim=-1).gather(-1, torch.from_numpy(actions)[..., None]).squeeze(-1)
+        logp = torch.log_softmax(logits, dim=-1).cpu().gather(-1, torch.from_numpy(actions)[..., None]).squeeze(-1)
         if self.params.gate == "learned" and self.params.communicate:
-            logp = logp + torch.log_softmax(gate_logits, dim=-1).gather(
+            logp = logp + torch.log_softmax(gate_logits, dim=-1).cpu().gather(
                 -1, torch.from_numpy(gates)[..., None]).squeeze(-1)
         return logp
 
@@ -374,8 +377,8 @@ class IC3NetMethod(Method):
         ``normalize_advantage``; and the value targets (T, B, N) (normalized with
         ``value_norm``, whose statistics this updates)."""
         p = self.params
-        returns = mc_returns(buf.rewards[: buf.t])[..., None]  # (T, B, 1) team return G_t
-        adv = returns - buf.tensor("values")
+        returns = mc_returns(buf.rewards[: buf.t])[..., None].to(self.device)  # (T, B, 1) team return G_t
+        adv = returns - buf.tensor("values", self.device)
         if p.normalize_advantage:
             n_act = active.sum().clamp_min(1.0)
             mean = (adv * active).sum() / n_act
@@ -395,7 +398,7 @@ class IC3NetMethod(Method):
         if isinstance(self.critic, RobotCritic):
             return mappo_update(self, state, self.critic)
         t_used = buf.t
-        data = {k: buf.tensor(k) for k in buf.data}
+        data = {k: buf.tensor(k, self.device) for k in buf.data}
         active = data["active"].float()  # (T, B, N) alive robots of running episodes
         n_steps = float(max(buf.running[:t_used].sum(), 1))  # environment steps in the batch
         n_active = float(active.sum().clamp_min(1.0))  # alive robot-steps
@@ -415,7 +418,7 @@ class IC3NetMethod(Method):
         totals = dict(action_loss=0.0, value_loss=0.0, entropy=0.0)
         for lo in range(0, t_used, p.detach_gap):
             sl = slice(lo, min(lo + p.detach_gap, t_used))
-            links = torch.from_numpy(buf.data["links"][sl].astype(np.float32))  # once per chunk
+            links = torch.from_numpy(buf.data["links"][sl].astype(np.float32)).to(self.device)  # once per chunk
             logits, gate_logits, values, hc = self.policy.replay(
                 data["obs"][sl], data["mask"][sl], links, data["alive"][sl], hc)
             logp_all = torch.log_softmax(logits, dim=-1)
@@ -457,8 +460,8 @@ class IC3NetMethod(Method):
         value head's values against the team return over alive robot-steps."""
         if crit is not None:
             return crit.diagnostics()
-        returns = mc_returns(buf.rewards[: buf.t])[..., None].expand_as(active)
-        return value_diagnostics(buf.tensor("values"), returns, active)
+        returns = mc_returns(buf.rewards[: buf.t])[..., None].to(self.device).expand_as(active)
+        return value_diagnostics(buf.tensor("values", self.device), returns, active)
 
     def kl_probe(self, data: dict[str, torch.Tensor]) -> KLProbe:
         """The action log-probabilities of the first ``detach_gap`` steps of up to two

@@ -40,8 +40,9 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
     gen = update_generator(method.seed, method.iterations)
     crit = mappo_critic(critic, method.critic_opt, buf, p, gen=gen)
     gap = p.detach_gap
-    data = {k: _chunked(buf.tensor(k), gap) for k in ("obs", "mask", "links", "alive", "actions", "gates")}
-    active = _chunked(buf.tensor("active"), gap).to(torch.float32)  # (C, gap, B, N)
+    dev = method.device
+    data = {k: _chunked(buf.tensor(k, dev), gap) for k in ("obs", "mask", "links", "alive", "actions", "gates")}
+    active = _chunked(buf.tensor("active", dev), gap).to(torch.float32)  # (C, gap, B, N)
     adv = _chunked(crit.robot_adv, gap)
     c, _, b, n = active.shape
     h0 = torch.stack([hc[0].clone() for hc in state.chunk_hc[:c]]).view(c, b, n, -1)  # (C, B, N, H)
@@ -72,7 +73,7 @@ def mappo_update(method: Any, state: Any, critic: RobotCritic) -> dict[str, floa
         return per_sample(logp), per_sample(entropy), per_sample(pick(active, ci, bi))
 
     advantages = per_sample(pick(adv, pairs_c, pairs_b))
-    old = per_sample(pick(_chunked(buf.tensor("logp"), gap), pairs_c, pairs_b))  # the rollout's, kept
+    old = per_sample(pick(_chunked(buf.tensor("logp", dev), gap), pairs_c, pairs_b))  # the rollout's, kept
     out = ppo_actor_update(PPOBatch(c * b, log_probs, advantages, old_log_probs=old), method.optimizer, p.ppo_epochs,
                            p.ppo_minibatches, p.ppo_clip, p.entropy_coef, p.max_grad_norm, gen)
     t_used = buf.t

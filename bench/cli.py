@@ -105,10 +105,17 @@ def run(
              "params.lr=0.01). Recorded in manifest.json; a resumed run must give the same overrides."),
     axis: list[str] | None = typer.Option(None, "--axis",
         help="Cross every cell with each value, KEY=V1,V2 (repeatable; e.g. loss_p=0.1,0.3)."),
+    device: str | None = typer.Option(None, "--device",
+        help="Torch device of the learned methods' networks, optimizers and update tensors: cpu (default) or cuda, "
+             "cuda:N (the environment, observations and safety filter stay on the host; numbers differ from the "
+             "cpu's in float rounding). Not part of a cell: recorded in the manifest (docs/guide/speed.md)."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
+    from algorithms.common.device import check_device
     from bench.tracking import parse_log
+
+    device = check_device(device)  # a bad or absent device: one line, before any grid is built
 
     log_names = parse_log(log)
     from bench.design.overrides import apply_overrides, parse_overrides
@@ -156,7 +163,7 @@ def run(
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(verbose),
                                command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stack_seeds,
-                               repair=repair, observer=observer, overrides=overrides)
+                               repair=repair, observer=observer, overrides=overrides, device=device)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
@@ -311,9 +318,14 @@ def eval_(
     execution: str | None = typer.Option(None, "--execution",
         help="One execution mode: argmax, sample, sample@T (e.g. sample@0.5); planner for pibt (default: every mode "
              "of the cell)."),
+    device: str | None = typer.Option(None, "--device",
+        help="Torch device of the networks: cpu (default), cuda or cuda:N."),
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
+    from algorithms.common.device import check_device
+
+    device = check_device(device)
     if method is not None:  # a misspelled name is one line before torch and Ray load
         from algorithms.registry import available, is_path, method_class
 
@@ -322,7 +334,7 @@ def eval_(
     from bench.execute.quick_eval import quick_eval, summarize
 
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
-                            episodes, seed, horizon, execution=execution)
+                            episodes, seed, horizon, execution=execution, device=device)
     means = summarize(rows)
     if as_json:
         typer.echo(json.dumps({"cell": json.loads(cell.canonical_json()), "checkpoint": str(checkpoint or ""),

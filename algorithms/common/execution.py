@@ -107,8 +107,11 @@ def sample_categorical(logits: torch.Tensor, temperature: float | None,
                        gen: torch.Generator | None) -> torch.Tensor:
     """Argmax (``temperature`` None) or one sample from softmax(logits / T) per row.
 
-    logits (..., K) -> (...) int64. Masked logits (-1e9) stay impossible at any T > 0.
+    logits (..., K) -> (...) int64 on the host. Masked logits (-1e9) stay impossible at any
+    T > 0. Logits on an accelerator come to the host first: the draws come from the host
+    generator ``gen`` on every device (algorithms/common/device.py).
     """
+    logits = logits.cpu()  # no copy on the cpu
     if temperature is None:
         return logits.argmax(dim=-1)
     import torch

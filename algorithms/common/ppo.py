@@ -21,7 +21,7 @@ on the same rollouts with (docs/decisions/0201):
 
 A method (a plugin too, docs/training-protocols.md) supplies only what is its own: which
 rows it learns from and how to compute their log-probabilities (``PPOBatch``).
-May import: envs, algorithms.common (trainer, value_norm, diagnostics).
+May import: envs, algorithms.common (trainer, value_norm, diagnostics, device).
 """
 from __future__ import annotations
 
@@ -33,6 +33,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from algorithms.common.device import module_device
 from algorithms.common.diagnostics import value_diagnostics
 from algorithms.common.trainer import CRITIC_FEATURES, RolloutBuffer, clip_and_step
 from algorithms.common.value_norm import ValueNorm
@@ -202,14 +203,16 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
     and the last gradient norm."""
     cols = batch.advantages.shape[1]
     levels = torch.zeros(cols, dtype=torch.long) if batch.levels is None else batch.levels
-    onehot = torch.nn.functional.one_hot(levels, len(batch.level_names)).to(torch.float32)  # (S, L)
+    dev = batch.advantages.device
+    onehot = torch.nn.functional.one_hot(levels, len(batch.level_names)).to(dev, torch.float32)  # (S, L)
     old = batch.old_log_probs
     if old is None:
         with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
             old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
     loss_sum, steps, grad_norm = 0.0, 0, float("nan")
-    ent_sum, ent_steps = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))
-    kl_sum, counted = torch.zeros(len(batch.level_names)), torch.zeros(len(batch.level_names))
+    ent_sum = torch.zeros(len(batch.level_names), device=dev)
+    ent_steps = torch.zeros(len(batch.level_names), device=dev)
+    kl_sum, counted = torch.zeros(len(batch.level_names), device=dev), torch.zeros(len(batch.level_names), device=dev)
     clipped = 0.0
     for epoch in range(epochs):
         perm = torch.randperm(batch.rows, generator=gen)
@@ -265,10 +268,11 @@ def mappo_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, buf: Rol
     buffer does not store it. ``gen`` (``update_generator``) shuffles the critic's
     ``ppo_minibatches`` minibatches; without it the critic takes one full-batch step per
     epoch."""
-    states = buf.tensor("critic")
-    t_frac = buf.tensor("t_frac") if t_frac is None else t_frac
-    rewards = buf.tensor("robot_reward")
-    running = torch.from_numpy(buf.running[: buf.t])
+    dev = module_device(critic)
+    states = buf.tensor("critic", dev)
+    t_frac = buf.tensor("t_frac", dev) if t_frac is None else t_frac
+    rewards = buf.tensor("robot_reward", dev)
+    running = torch.from_numpy(buf.running[: buf.t]).to(dev)
     adv = torch.zeros(())
 
     def targets_of(values: torch.Tensor) -> torch.Tensor:

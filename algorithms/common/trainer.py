@@ -24,6 +24,7 @@ import torch
 from numpy.typing import DTypeLike
 from torch import nn
 
+from algorithms.common.device import module_device
 from algorithms.common.diagnostics import value_diagnostics
 from envs.core import WarehouseCore
 
@@ -109,9 +110,10 @@ class RolloutBuffer:
         self.running[self.t] = running
         self.t += 1
 
-    def tensor(self, key: str) -> torch.Tensor:
-        """The first ``t`` steps of a field as a tensor (T_used, B, ...)."""
-        return torch.from_numpy(self.data[key][: self.t])
+    def tensor(self, key: str, device: torch.device | str = "cpu") -> torch.Tensor:
+        """The first ``t`` steps of a field as a tensor (T_used, B, ...) on ``device`` (the
+        storage is the host's: the environment writes into it in place)."""
+        return torch.from_numpy(self.data[key][: self.t]).to(device)
 
 
 @dataclass
@@ -151,8 +153,8 @@ def team_advantage(
     methods whose actor loss is too large for one backward pass (chunked over time) use it
     directly and weight each chunk's log-probabilities with the same adv / n.
     """
-    g = mc_returns(rewards)
-    mask = torch.as_tensor(running, dtype=torch.float32)
+    g = mc_returns(rewards).to(values.device)
+    mask = torch.as_tensor(running, dtype=torch.float32, device=values.device)
     n = mask.sum().clamp_min(1.0)
     adv = (g - values).detach()
     if normalize:
@@ -231,5 +233,6 @@ def critic_update(
 ) -> CriticStep:
     """``critic_step`` on a rollout buffer that stored ``critic`` (T, B, N, 6) and
     ``t_frac`` (T, B) with ``critic_inputs``."""
-    return critic_step(critic, optimizer, buf.tensor("critic"), buf.tensor("t_frac"),
+    dev = module_device(critic)
+    return critic_step(critic, optimizer, buf.tensor("critic", dev), buf.tensor("t_frac", dev),
                        buf.rewards[: buf.t], buf.running[: buf.t], normalize, max_grad_norm)

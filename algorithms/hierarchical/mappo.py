@@ -42,7 +42,7 @@ def ratio_advantages(gs: GroupStructure, group_adv: torch.Tensor, robot_adv: tor
     if local_credit == "group":
         local = group_adv[:, :, None].expand(-1, -1, gs.n_slots)  # (M, Z, n)
     else:
-        local = group_major(gs, robot_adv.numpy(), fill=0.0).permute(1, 0, 2)  # (M, Z, n)
+        local = group_major(gs, robot_adv.cpu().numpy(), fill=0.0, device=group_adv.device).permute(1, 0, 2)
     return torch.cat([group_adv, local.reshape(m, -1)], dim=1)
 
 
@@ -53,14 +53,15 @@ def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iterati
     t_used = buf.t
     d = {k: v[:t_used] for k, v in buf.data.items()}
     running = buf.running[:t_used]
+    dev = learner.device
     t_frac = torch.from_numpy(
-        np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy())
+        np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy()).to(dev)
     gen = update_generator(seed, iteration)
     crit = mappo_critic(learner.critic, learner.opt_critic, buf, p, t_frac, gen)
 
     def sum_group(x: torch.Tensor) -> torch.Tensor:  # (T, B, N) -> (T, B, Z): summed over each group's robots
-        per_slot = gs.gather(x.reshape(-1, x.shape[-1]).numpy(), fill=0.0)
-        return torch.from_numpy(per_slot.sum(-1).reshape(*x.shape[:2], -1))
+        per_slot = gs.gather(x.reshape(-1, x.shape[-1]).cpu().numpy(), fill=0.0)
+        return torch.from_numpy(per_slot.sum(-1).reshape(*x.shape[:2], -1)).to(dev)
 
     group_adv, _ = gae(sum_group(crit.rewards), sum_group(crit.values), crit.running, p.gamma, p.gae_lambda)
     tt, bb = np.nonzero(running)
@@ -70,12 +71,12 @@ def mappo_policy_update(learner: Learner, buf: RolloutBuffer, seed: int, iterati
     def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         r_t, r_b = tt[ix.numpy()], bb[ix.numpy()]
         ctl = d["controlled"][r_t, r_b]
-        ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))  # (Z, K)
+        ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T)).to(dev)  # (Z, K)
         _, ref_logp, logp = policy_forward(learner.reference, learner.local, gs, d["own"][r_t, r_b],
                                            d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
-        mask = group_major(gs, ctl, fill=False)  # (Z, K, n)
-        decided = mask.any(-1) & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))
-        u = group_major(gs, d["proposed"][r_t, r_b], fill=WAIT)
+        mask = group_major(gs, ctl, fill=False, device=dev)  # (Z, K, n)
+        decided = mask.any(-1) & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T)).to(dev)
+        u = group_major(gs, d["proposed"][r_t, r_b], fill=WAIT, device=dev)
         lp_u = logp.gather(-1, u.unsqueeze(-1)).squeeze(-1)  # (Z, K, n)
         lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1)  # (Z, K)
         ent_u = -(logp.exp() * logp).sum(-1)

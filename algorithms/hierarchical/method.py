@@ -111,8 +111,9 @@ class HierarchicalMethod(Method):
     presets = PRESETS  # "tuned": decision 0215
     params: HierarchicalParams
 
-    def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0) -> None:
-        super().__init__(env, params, seed)
+    def __init__(self, env: EnvConfig, params: dict[str, Any] | None = None, seed: int = 0,
+                 device: Any = None) -> None:
+        super().__init__(env, params, seed, device)
         p = self.params
         self.gs = group_structure(env)
         z = env.groups
@@ -142,6 +143,7 @@ class HierarchicalMethod(Method):
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max)
         self.snap = SnapToFree(self.layout)
         self._decoders: list[tuple[GroupPredictor, int, int]] | None = None  # a stack view's seeds
+        self.place_modules()
 
     # ------------------------------------------------------------ seed stacking
     STACKED = ("reference", "local", "predictor")  # the modules a rollout runs
@@ -162,7 +164,7 @@ class HierarchicalMethod(Method):
         if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
             raise ValueError("stack_view: the methods must differ only in their seed")
         rng = torch.get_rng_state()  # building the view must not move the global stream
-        view = cls(first.env, first.params.model_dump(), seed=first.seed)
+        view = cls(first.env, first.params.model_dump(), seed=first.seed, device=first.device)
         torch.set_rng_state(rng)
         for name in cls.STACKED:
             for mod in getattr(view, name).modules():
@@ -237,6 +239,7 @@ class HierarchicalMethod(Method):
         with torch.no_grad():
             ref, ref_logp, logp = self.policy_forward(own, nbr, controlled, action_mask, ref=ref_in,
                                                       choice=choice)
+            logp = logp.cpu()  # sampling and the filter read it on the host (one copy from a device)
             proposed_g = choice(logp)  # (Z, B, n), the same mode as r
         state.ref, state.t = ref, state.t + 1
         proposed = np.where(controlled, gs.scatter(proposed_g.numpy().swapaxes(0, 1), core.n), WAIT)
@@ -249,7 +252,7 @@ class HierarchicalMethod(Method):
         if state.buffer is not None:
             assert state.pred is not None
             state.buffer.add(own=own, nbr=nbr, controlled=controlled, action_mask=action_mask,
-                             ref=ref.numpy().T, ref_new=np.broadcast_to(ref_new, ref.shape).T,
+                             ref=ref.cpu().numpy().T, ref_new=np.broadcast_to(ref_new, ref.shape).T,
                              proposed=proposed, critic=critic_features(core),
                              msgs=rx.own_msgs, avail=rx.avail, age=state.pred.age)
         return dec
@@ -333,7 +336,7 @@ class HierarchicalMethod(Method):
         pos = gs.gather(core.pos).reshape(g, -1)
         occ = gs.gather(core.occupying, fill=False).reshape(g, -1)
         ctl = gs.gather(controlled, fill=False).reshape(g, -1)
-        lp = logp.numpy().swapaxes(0, 1).reshape(g, -1, N_ACTIONS).astype(np.float64)
+        lp = logp.cpu().numpy().swapaxes(0, 1).reshape(g, -1, N_ACTIONS).astype(np.float64)
         prop = gs.gather(proposed, fill=WAIT).reshape(g, -1)
         res = self.filter(pos, occ, ctl, prop, lp, blocked)
         if resample and res.fallback.any():  # one fresh sample from pi, filtered again

@@ -159,10 +159,11 @@ class LocalPolicy(nn.Module):
         return x
 
 
-def group_major(gs: GroupStructure, per_robot: np.ndarray, fill: object = 0) -> torch.Tensor:
-    """(M, N, ...) per robot -> (Z, M, n, ...) tensor grouped by slot."""
+def group_major(gs: GroupStructure, per_robot: np.ndarray, fill: object = 0,
+                device: torch.device | str = "cpu") -> torch.Tensor:
+    """(M, N, ...) per robot -> (Z, M, n, ...) tensor grouped by slot, on ``device``."""
     g = gs.gather(per_robot, fill=fill)
-    return torch.from_numpy(np.ascontiguousarray(np.swapaxes(g, 0, 1)))
+    return torch.from_numpy(np.ascontiguousarray(np.swapaxes(g, 0, 1))).to(device)
 
 
 def policy_forward(reference: ReferencePolicy, local: LocalPolicy, gs: GroupStructure, own: np.ndarray,
@@ -172,13 +173,14 @@ def policy_forward(reference: ReferencePolicy, local: LocalPolicy, gs: GroupStru
     """Both levels for M rows: own (M, N, F) float16, nbr (M, N, P) uint8, controlled
     (M, N), action_mask (M, N, 5). Picks r by ``choice`` when ``ref`` is None. Returns r
     (Z, M), log mu (Z, M, |R|) and the local per-robot log-probs (Z, M, n, 5)."""
-    feats_u = group_major(gs, own).to(torch.float32)
-    feats_r = torch.cat([feats_u, group_major(gs, nbr).to(torch.float32)], dim=-1)
-    mask = group_major(gs, controlled, fill=False)
-    amask = group_major(gs, action_mask, fill=True)
+    dev = local.action_idx.device  # the networks' (algorithms/common/device.py); the rows come from the host
+    feats_u = group_major(gs, own, device=dev).to(torch.float32)
+    feats_r = torch.cat([feats_u, group_major(gs, nbr, device=dev).to(torch.float32)], dim=-1)
+    mask = group_major(gs, controlled, fill=False, device=dev)
+    amask = group_major(gs, action_mask, fill=True, device=dev)
     ref_logp = torch.log_softmax(reference(feats_r, mask), dim=-1)  # (Z, M, R)
     if ref is None:
         if choice is None:
             raise ValueError("policy_forward: give the reference r or the choice that picks it")
-        ref = choice(ref_logp)
-    return ref, ref_logp, local(feats_u, mask, ref, amask)
+        ref = choice(ref_logp).to(dev)  # drawn on the host
+    return ref, ref_logp, local(feats_u, mask, ref.to(dev), amask)

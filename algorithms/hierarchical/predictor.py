@@ -21,7 +21,7 @@ Parameters are per receiver group (eta_z) or shared, see ``group_layers``.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -57,6 +57,12 @@ class GroupPredictor(nn.Module):
         self.gru = GroupGRUCell(p, z, 2 * embed + 2, hidden)
         self.decoder = GroupMLP(p, z, [hidden + MSG_DIM + 3, embed, MSG_DIM])
         self.register_buffer("deltas", torch.from_numpy(DELTAS.astype(np.float32)))
+
+    def _apply(self, fn: Callable[[torch.Tensor], torch.Tensor], recurse: bool = True) -> GroupPredictor:
+        """``Module._apply`` (``.to(device)``, ...), with ``msg_scale`` (no buffer) moved alike."""
+        super()._apply(fn, recurse)
+        self.msg_scale = fn(self.msg_scale)
+        return self
 
     def _norm(self, msg: torch.Tensor) -> torch.Tensor:
         """Positions to [0, 1], the rest unchanged: one division by (H, W, 1, ..., 1)
@@ -145,7 +151,7 @@ def initial_state(model: GroupPredictor, link_msgs: np.ndarray) -> PredictorStat
     assignment) is known to every coordinator, so the memory holds M_0, aged 0 at step 0
     whether or not M_0 itself arrives."""
     b, z, k = link_msgs.shape[:3]
-    return PredictorState(torch.zeros(z, b, k, model.hidden), link_msgs.copy(),
+    return PredictorState(torch.zeros(z, b, k, model.hidden, device=model.scale.device), link_msgs.copy(),
                           np.full((b, z, k), -1, dtype=np.int64))
 
 
@@ -163,7 +169,9 @@ def rollout_step(model: GroupPredictor, state: PredictorState, link_msgs: np.nda
     state.age = np.where(avail, 0, state.age + 1)
     state.mem = np.where(avail[..., None, None], link_msgs, state.mem)
     msg_bar = link_msgs * avail[..., None, None]  # eq:predictor_input (null = zeros)
-    to_t = _group_major
+    def to_t(a: np.ndarray) -> torch.Tensor:
+        return _group_major(a).to(model.scale.device)
+
     x = model.encode(to_t(msg_bar), to_t(avail), to_t(state.age), to_t(own_msgs))
     state.h = model.step(x, state.h)
     out = link_msgs.copy()
@@ -186,7 +194,8 @@ def _decode_lost(model: GroupPredictor, h_all: torch.Tensor, mem_all: np.ndarray
     mem = mem_all.transpose(1, 0, 2, 3, 4).reshape(z, b * k, *mem_all.shape[3:])[zi, sel]
     age = age_all.transpose(1, 0, 2).reshape(z, b * k)[zi, sel]
     h = h_all.reshape(z, b * k, -1)[torch.from_numpy(zi), torch.from_numpy(sel)]
-    pred = model.decode(h, torch.from_numpy(mem), torch.from_numpy(age)).numpy()
+    dev = model.scale.device
+    pred = model.decode(h, torch.from_numpy(mem).to(dev), torch.from_numpy(age).to(dev)).cpu().numpy()
     valid = np.arange(sel.shape[1])[None, :] < count[:, None]
     zz = np.broadcast_to(zi, sel.shape)[valid]
     out[sel[valid] // k, zz, sel[valid] % k] = pred[valid]

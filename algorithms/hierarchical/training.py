@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from algorithms.common.device import module_device
 from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
 from algorithms.common.ppo import RobotCritic
 from algorithms.common.trainer import (
@@ -63,6 +64,11 @@ class Learner:
     opt_critic: torch.optim.Optimizer
     opt_predictor: torch.optim.Optimizer
 
+    @property
+    def device(self) -> torch.device:
+        """The networks' device: tensors built from the buffer go there."""
+        return module_device(self.critic)
+
 
 def _entropy(logp: torch.Tensor) -> torch.Tensor:
     return -(logp.exp() * logp).sum(-1)
@@ -74,12 +80,13 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     t_used = buf.t
     d = {k: v[:t_used] for k, v in buf.data.items()}
     running, rewards = buf.running[:t_used], buf.rewards[:t_used]
+    dev = learner.device
     t_frac = torch.from_numpy(
-        np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy())
+        np.broadcast_to((np.arange(t_used, dtype=np.float32) / learner.horizon)[:, None], running.shape).copy()).to(dev)
     assert isinstance(learner.critic, CentralCritic)  # the paper protocol's critic
     # The critic first (its own parameters and optimizer): one step on the whole batch,
     # and the team advantage from its values before the step.
-    crit = critic_step(learner.critic, learner.opt_critic, torch.from_numpy(d["critic"]), t_frac,
+    crit = critic_step(learner.critic, learner.opt_critic, torch.from_numpy(d["critic"]).to(dev), t_frac,
                        rewards, running, p.normalize_advantage, p.max_grad_norm)
     values, adv, ret, n = crit.values, crit.adv, crit.returns, crit.n
     tt, bb = np.nonzero(running)
@@ -97,13 +104,13 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     for s in range(0, len(tt), rows):
         r_t, r_b = tt[s : s + rows], bb[s : s + rows]
         ctl = d["controlled"][r_t, r_b]
-        ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))  # (Z, M)
+        ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T)).to(dev)  # (Z, M)
         _, ref_logp, logp = policy_forward(learner.reference, learner.local, learner.gs, d["own"][r_t, r_b],
                                            d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
-        mask = group_major(learner.gs, ctl, fill=False)  # (Z, M, n)
+        mask = group_major(learner.gs, ctl, fill=False, device=dev)  # (Z, M, n)
         active = mask.any(-1)  # groups with a robot to steer
-        decided = active & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))  # mu drew r
-        u = group_major(learner.gs, d["proposed"][r_t, r_b], fill=WAIT)
+        decided = active & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T)).to(dev)  # mu drew r
+        u = group_major(learner.gs, d["proposed"][r_t, r_b], fill=WAIT, device=dev)
         lp_u = (logp.gather(-1, u.unsqueeze(-1)).squeeze(-1) * mask).sum(-1)  # log pi(U~ | w)
         lp_r = ref_logp.gather(-1, ref.unsqueeze(-1)).squeeze(-1) * decided  # log mu(r | o)
         actor = -((adv[r_t, r_b] * lp_u.sum(0)).sum()  # eq:losses (L_l + L_r)
@@ -115,7 +122,7 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
             sums[key] += float(val.detach())
     probes = kl_probes(learner, d, tt, bb)
     grad_norm = clip_and_step(learner.opt_policy, p.max_grad_norm)
-    sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32))).sum() / n)
+    sums["return_mean"] = float((ret * torch.from_numpy(running.astype(np.float32)).to(dev)).sum() / n)
     ctl_run = d["controlled"][tt, bb]
     return {**sums, **crit.diagnostics(), "diag_entropy": sums["entropy_local"],
             "diag_entropy_ref": sums["entropy_ref"], "diag_grad_norm": grad_norm,
@@ -131,9 +138,10 @@ def kl_probes(learner: Learner, d: dict[str, np.ndarray], tt: np.ndarray, bb: np
     k = probe_rows(len(tt), 16)
     r_t, r_b = tt[k], bb[k]
     ctl = d["controlled"][r_t, r_b]
-    ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T))
-    mask = group_major(learner.gs, ctl, fill=False)
-    decided = mask.any(-1) & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T))
+    dev = learner.device
+    ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T)).to(dev)
+    mask = group_major(learner.gs, ctl, fill=False, device=dev)
+    decided = mask.any(-1) & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T)).to(dev)
 
     def level(which: int, weight: torch.Tensor) -> KLProbe:
         def log_probs() -> tuple[torch.Tensor, torch.Tensor]:
@@ -151,18 +159,21 @@ def group_advantage(learner: Learner, values: torch.Tensor, group_reward: np.nda
     from eq:advantage): group z's Monte-Carlo return of its own reward share minus the
     team value scaled by its share of the robots, n_z / N; RMS-normalized over running steps."""
     t, b, z = group_reward.shape
-    g = mc_returns(group_reward.reshape(t, b * z)).reshape(t, b, z)
-    share = torch.from_numpy(learner.gs.slot_valid.sum(1) / learner.n_robots).to(torch.float32)
+    dev = values.device
+    g = mc_returns(group_reward.reshape(t, b * z)).reshape(t, b, z).to(dev)
+    share = torch.from_numpy(learner.gs.slot_valid.sum(1) / learner.n_robots).to(dev, torch.float32)
     adv = (g - values[..., None] * share).detach()
-    mask = torch.from_numpy(running.astype(np.float32))[..., None]
+    mask = torch.from_numpy(running.astype(np.float32)).to(dev)[..., None]
     if normalize:
         rms = torch.sqrt(((adv * mask) ** 2).sum() / (mask.sum() * z).clamp_min(1.0)).clamp_min(1e-6)
         adv = adv / rms
     return adv * mask
 
 
-def predictor_targets(gs: GroupStructure, buf: RolloutBuffer) -> dict[str, torch.Tensor]:
-    """Group-major (Z, T, B, ...) training tensors of the predictor from a rollout buffer."""
+def predictor_targets(gs: GroupStructure, buf: RolloutBuffer, device: torch.device | str = "cpu",
+                      ) -> dict[str, torch.Tensor]:
+    """Group-major (Z, T, B, ...) training tensors of the predictor from a rollout buffer,
+    on ``device``."""
     t_used = buf.t
     msgs = buf.data["msgs"][:t_used]  # (T, B, Z, n, D)
     avail = buf.data["avail"][:t_used]  # (T, B, Z, K)
@@ -175,12 +186,12 @@ def predictor_targets(gs: GroupStructure, buf: RolloutBuffer) -> dict[str, torch
     lost = ~avail & gs.link_valid[None, None] & buf.running[:t_used, :, None, None]
 
     def gm(a: np.ndarray) -> torch.Tensor:  # (T, B, Z, ...) -> (Z, T, B, ...)
-        return torch.from_numpy(np.ascontiguousarray(np.moveaxis(a, 2, 0)))
+        return torch.from_numpy(np.ascontiguousarray(np.moveaxis(a, 2, 0))).to(device)
 
     sender_slots = gs.slot_valid[nb] & gs.link_valid[..., None]  # (Z, K, n)
     return {
         "link": gm(link), "mem": gm(mem), "avail": gm(avail), "age": gm(age), "lost": gm(lost),
-        "own": gm(msgs), "slots": torch.from_numpy(sender_slots),
+        "own": gm(msgs), "slots": torch.from_numpy(sender_slots).to(device),
         "n_group_steps": torch.tensor(float(max(1, buf.running[:t_used].sum() * gs.n_groups))),
     }
 
@@ -201,7 +212,8 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
                          rows(data["age"], sl), rows(data["own"], sl))
         xs.append(x.reshape(z, -1, b, k, x.shape[-1]))
     x = torch.cat(xs, dim=1)
-    h = torch.zeros(z, b, k, model.hidden)
+    dev = data["link"].device
+    h = torch.zeros(z, b, k, model.hidden, device=dev)
     hs = []
     # eq:recurrent_predictor over the episode: the input half of the GRU for every step in
     # one matmul, the recurrent half step by step (unbind: one backward for all steps).
@@ -214,16 +226,16 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
     lost = data["lost"].reshape(z, -1)
     idx = [torch.nonzero(lost[g]).squeeze(-1) for g in range(z)]
     width = max(1, max(len(i) for i in idx))
-    sel = torch.zeros(z, width, dtype=torch.int64)
-    valid = torch.zeros(z, width, dtype=torch.bool)
+    sel = torch.zeros(z, width, dtype=torch.int64, device=dev)
+    valid = torch.zeros(z, width, dtype=torch.bool, device=dev)
     for g, i in enumerate(idx):
         sel[g, : len(i)], valid[g, : len(i)] = i, True
     k_of = sel % k
-    slots = data["slots"][torch.arange(z)[:, None], k_of]  # (Z, W, n)
+    slots = data["slots"][torch.arange(z, device=dev)[:, None], k_of]  # (Z, W, n)
 
     def pick(a: torch.Tensor) -> torch.Tensor:
         flat = a.reshape(z, t_used * b * k, *a.shape[4:])
-        return flat[torch.arange(z)[:, None], sel]
+        return flat[torch.arange(z, device=dev)[:, None], sel]
 
     h_sel, mem, age, target = pick(hid), pick(data["mem"]), pick(data["age"]), pick(data["link"])
     total = torch.zeros(())
@@ -238,7 +250,7 @@ def predictor_loss_on(model: GroupPredictor, data: dict[str, torch.Tensor], chun
 
 def predictor_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
     """One Adam step of the GRU predictors on L_c; nothing to learn without lost messages."""
-    data = predictor_targets(learner.gs, buf)
+    data = predictor_targets(learner.gs, buf, learner.device)
     if not bool(data["lost"].any()):
         return {"predictor_loss": float("nan")}
     learner.opt_predictor.zero_grad(set_to_none=True)

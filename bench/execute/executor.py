@@ -244,14 +244,17 @@ class RayExecutor:
     (bench/execute/ray_cluster.py ``connect``; the caller shuts it down)."""
 
     def __init__(self, worker_cls: type, capacity: int, ctx: Any = None, *,
-                 max_restarts: int = MAX_RESTARTS, worker_args: tuple[Any, ...] = ()) -> None:
+                 max_restarts: int = MAX_RESTARTS, worker_args: tuple[Any, ...] = (), num_gpus: float = 0) -> None:
         import ray
 
         self.ray, self.ctx = ray, ctx
         self.capacity = max(1, int(capacity))
-        self.remote: Any = ray.remote(num_cpus=1, max_restarts=max_restarts, max_task_retries=0)(worker_cls)
+        # num_gpus > 0 (a share of an accelerator per worker): Ray hides the GPUs from actors that ask for none
+        self.remote: Any = ray.remote(num_cpus=1, num_gpus=num_gpus, max_restarts=max_restarts,
+                                      max_task_retries=0)(worker_cls)
         self.worker_args = worker_args
-        self.pool_key = (_session(), f"{worker_cls.__module__}.{worker_cls.__qualname__}/{max_restarts}")
+        self.pool_key = (_session(), f"{worker_cls.__module__}.{worker_cls.__qualname__}/{max_restarts}"
+                         + (f"/{worker_args!r}/{num_gpus}" if worker_args or num_gpus else ""))
         idle = _IDLE.pop(self.pool_key, [])
         for key in [k for k in _IDLE if k[0] != self.pool_key[0]]:  # gone with their session
             del _IDLE[key]

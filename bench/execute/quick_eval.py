@@ -30,10 +30,11 @@ EVAL_COLUMNS = EVAL_METRICS  # the eval table's metric columns (bench/store/sche
 def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robots: int | None = None,
                loss_p: float | None = None, layout: str | None = None, episodes: int = 10,
                seed: int | None = None, horizon: int | None = None, groups: int | None = None,
-               execution: str | None = None,
+               execution: str | None = None, device: str = "cpu",
                ) -> tuple[Cell, list[dict[str, Any]]]:
     """(the evaluated cell, one row per episode and execution mode, mode by mode). CLI values
-    override the checkpoint's cell; ``execution`` restricts the modes to one."""
+    override the checkpoint's cell; ``execution`` restricts the modes to one; ``device`` runs
+    the networks there (``bench eval --device``)."""
     base: dict[str, Any] = {}
     state = None
     if checkpoint is not None:
@@ -55,7 +56,7 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
     cell = Cell.make(**spec)
     modes = cell.execution_modes() if execution is None else (
         parse_execution(execution, where="--execution").name,)
-    worker = CellWorker()  # the runner's evaluator code path: same rows as the eval table
+    worker = CellWorker(device)  # the runner's evaluator code path: same rows as the eval table
     box = [state] if state is not None else []
     rows: list[dict[str, Any]] = []
     try:

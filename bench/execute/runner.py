@@ -82,8 +82,13 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
              rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False,
-             observer: RunObserver | None = None, overrides: dict[str, Any] | None = None) -> RunSummary:
+             observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
+             device: str = "cpu") -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
+
+    ``device`` (``bench run --device``): the torch device of the learned methods' networks in
+    every worker, each worker asking Ray for an equal share of one accelerator; an execution
+    choice, recorded in the manifest's run record (absent: cpu), never in a cell.
 
     ``observer`` (bench/tracking/observers.py) receives each cell's start, stored training rows,
     evaluation summary and end, from the driver (loggers: ``bench run --log``). ``overrides``
@@ -130,7 +135,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
                            progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
-                           observer, overrides)
+                           observer, overrides, device)
                 summary = run.execute()
                 summary.repaired = repaired
                 return summary
@@ -174,8 +179,10 @@ class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
                  on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
-                 observer: RunObserver | None = None, overrides: dict[str, Any] | None = None) -> None:
+                 observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
+                 device: str = "cpu") -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
+        self.device = device  # the networks' (bench run --device)
         self.overrides = overrides if overrides and any(overrides.values()) else None
         self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
@@ -208,6 +215,8 @@ class _Run:
                            "git": v["git"], "machine": machine(), "workers": self.n_workers,
                            "cells_done_before": sum(s.phase == "done" for s in self.states),
                            RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/store/integrity.py)
+        if self.device != "cpu":  # bench run --device (absent: the cpu)
+            self.run_record["device"] = self.device
         if self.overrides is not None:  # bench run --set/--axis (absent: none)
             manifest["overrides"] = self.run_record["overrides"] = self.overrides
         runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
@@ -243,7 +252,9 @@ class _Run:
         self._prepare_store()
         ex: RayExecutor | None = None
         if not all(s.finished for s in self.states):
-            ex = RayExecutor(CellWorker, self.n_workers, self.ctx)
+            ex = (RayExecutor(CellWorker, self.n_workers, self.ctx) if self.device == "cpu" else
+                  RayExecutor(CellWorker, self.n_workers, self.ctx, worker_args=(self.device,),
+                              num_gpus=1 / self.n_workers if self.device.startswith("cuda") else 0))
         self._emit("start", None)
         for st in self.states:  # said at once: an interrupted run never reaches the summary
             if st.rerun:

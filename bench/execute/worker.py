@@ -6,9 +6,11 @@ dict to checkpoint; the worker keeps the method in memory so the next chunk of t
 cell continues without reloading. When the cached method does not match (another cell, a
 restarted process, a re-dispatch after a crash), it is rebuilt from the cell seed and the
 given checkpoint state, which by the Method contract continues exactly as an
-uninterrupted run. An evaluation chunk loads the trained state (passed by reference,
-``ray.put`` once by the driver) and returns ``Method.evaluate(chunk, seed, execution)``
-rows: one chunk in one execution mode (the driver fans out every mode x chunk).
+uninterrupted run. A worker made with a ``device`` (``bench run --device``) builds its
+methods' networks there; checkpoints come back on the host (``Method.state_dict``).
+An evaluation chunk loads the trained state (passed by reference, ``ray.put`` once by
+the driver) and returns ``Method.evaluate(chunk, seed, execution)`` rows: one chunk in
+one execution mode (the driver fans out every mode x chunk).
 
 The class is plain Python (unit-testable without Ray); the runner wraps it with
 ``ray.remote``. One torch thread per worker.
@@ -16,6 +18,7 @@ The class is plain Python (unit-testable without Ray); the runner wraps it with
 from __future__ import annotations
 
 import copy
+import inspect
 import os
 import resource
 import sys
@@ -24,9 +27,11 @@ from collections.abc import Mapping
 from typing import Any
 
 from algorithms.base import Method
+from algorithms.common.device import CPU
 from algorithms.registry import method_class
 from bench.execute.torch_setup import prepare_torch
 from envs.config import EnvConfig
+from envs.errors import BenchError
 
 
 def reset_peak_rss() -> None:
@@ -55,11 +60,19 @@ def peak_rss_mb() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
-def build_method(spec: Mapping[str, Any]) -> Method:
-    """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed."""
+def build_method(spec: Mapping[str, Any], device: str = CPU) -> Method:
+    """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed, its
+    networks on ``device`` (an execution choice: the cell does not name it). BenchError for a
+    method whose ``__init__`` takes no device, asked for another than the cpu."""
     cls = method_class(str(spec["method_path"]))
     prepare_torch()  # before the method exists: one torch thread, no dynamo import
-    return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
+    if device == CPU:
+        return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
+    if "device" not in inspect.signature(cls.__init__).parameters:
+        raise BenchError(f"--device {device}: method {cls.name} takes no device (its __init__ has no device "
+                         "argument, algorithms/base.py); run it on the cpu")
+    return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]),
+               device=device)
 
 
 def _resolve(box: list[Any]) -> Any:
@@ -81,7 +94,8 @@ class CellWorker:
     """Computes chunks of cells; holds the methods of the cells it trains (one, or one
     seed stack) and one evaluation method."""
 
-    def __init__(self) -> None:  # torch is set up when the first method is built (build_method)
+    def __init__(self, device: str = CPU) -> None:  # torch is set up when the first method is built
+        self.device = device  # the networks' (bench run --device); cpu: the default
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
@@ -155,7 +169,7 @@ class CellWorker:
         method = cached.get(cell_id)
         if method is not None and method.iterations == iterations:
             return method
-        method = build_method(spec)
+        method = build_method(spec, self.device)
         state = _resolve(state_box)
         if state is not None:
             method.load_state_dict(state)
@@ -175,7 +189,7 @@ class CellWorker:
         cell_id = str(spec["cell_id"])
         state = _resolve(state_box)
         if self._eval is None or self._eval[0] != cell_id:
-            method = build_method(spec)
+            method = build_method(spec, self.device)
             self._eval = (cell_id, method, copy.deepcopy(method.state_dict()))
         _, method, initial = self._eval
         # Every chunk starts from the same state (RNG streams included), so the rows do not
