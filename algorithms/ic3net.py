@@ -15,7 +15,7 @@ shared/REFERENCES.md), per robot i and step t, with parameters shared by all rob
   code's mask g_i g_j), alive robots (a completed robot neither sends nor receives) and
   the lossy channel (each message dropped with probability p per directed link and step;
   under a message delay only the vectors that arrive the step they are sent are heard, a
-  late one counts as lost: under a fixed delay d >= 1 nothing is heard, docs/decisions/0252);
+  late one counts as lost: under a fixed delay d >= 1 nothing is heard, docs/decisions/0223);
 * (h_t^i, c_t^i) = LSTMCell(e_t^i + C c_t^i, (h_{t-1}^i, c_{t-1}^i)), repeated
   ``comm_passes`` times (each pass communicates the newest hidden states);
 * heads on h_t^i: action log-softmax (5, masked like every method's), gate log-softmax

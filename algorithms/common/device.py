@@ -10,7 +10,7 @@ random streams are the same on every device). The tensors cross at the network b
 observations in, logits (and, for the filter, log-probabilities) out.
 
 A cell's id and stored parameters never name the device (``bench run --device``,
-docs/guide/speed.md "Accelerators"; decision record 0260).
+docs/guide/speed.md "Accelerators"; decision record 0229).
 May import: envs.errors (torch lazily).
 """
 from __future__ import annotations

@@ -253,7 +253,7 @@ def test_options__reference_setting_uses_rmsprop_and_the_per_robot_head() -> Non
                                                  (2.0, "geometric", 0.8 / 3)])
 def test_links__a_late_message_is_not_heard_and_still_counted_as_sent(delay: float, model: str,
                                                                       heard: float) -> None:
-    """docs/decisions/0252: IC3Net hears only this step's vectors, so under a fixed delay
+    """docs/decisions/0223: IC3Net hears only this step's vectors, so under a fixed delay
     d >= 1 it hears nothing (as at p = 1) and under a geometric delay of mean d the share
     (1 - p) / (1 + d) that arrives at once; payload counts what was sent, as at delay 0."""
     env = EnvConfig(**{**ENV.model_dump(), "loss_p": 0.2, "delay": delay, "delay_model": model})
