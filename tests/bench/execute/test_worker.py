@@ -79,11 +79,11 @@ def test_train_stack__stacks_seeds_of_a_stackable_method_and_equals_one_by_one(t
     """A stack of three hierarchical seeds trains through ``train_stacked`` (one rollout batch
     per iteration) and returns, cell by cell, what ``train_chunk`` returns for each alone; a
     toy stack (not stackable) trains one by one."""
-    import bench.execute.worker as worker_mod
+    import algorithms.common.seed_stack as stack_mod  # the worker imports it when a stack trains
 
     calls = []
-    real = worker_mod.train_stacked
-    monkeypatch.setattr(worker_mod, "train_stacked", lambda ms, view: calls.append(len(ms)) or real(ms, view))
+    real = stack_mod.train_stacked
+    monkeypatch.setattr(stack_mod, "train_stacked", lambda ms, view: calls.append(len(ms)) or real(ms, view))
     kw = toy_spec(method="hierarchical", episodes=4, horizon=10, params={"batch_episodes": 2, "eval_chunk": 2})
     specs = [cell_spec(Cell.make(**{**kw, "seed": s})) for s in (0, 1, 2)]
     stacked = CellWorker().train_stack(specs, [[], [], []], [0, 0, 0], 3)
