@@ -108,16 +108,110 @@ def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[fl
 
 
 def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
-    """(mean, lo, hi): the Student t interval of the mean of ``x`` (n,), e.g. seed means.
+    """(mean, lo, hi): the Student t interval of the mean of ``x`` (n,), e.g. seed means
+    (``scipy.stats.t.interval``).
 
     Calibrated for normal seed means at any n >= 2 (coverage in docs/decisions/0035);
-    one value gives (v, nan, nan), none gives NaNs. NaNs are dropped.
+    one value gives (v, nan, nan), none gives NaNs. NaNs are dropped. For a quantity with a
+    range (a rate, a count) use ``rate_ci`` / ``positive_ci``: this one can leave it.
     """
     a = _clean(x)
     if a.size == 0:
         return np.nan, np.nan, np.nan
-    t = t_test([a], [1.0], level=level)  # NaN bounds below 2 values
-    return float(a.mean()), t.lo, t.hi
+    m = float(a.mean())
+    if a.size < 2:
+        return m, np.nan, np.nan
+    _, q = sps.t.interval(level, a.size - 1)
+    half = float(q) * float(a.std(ddof=1)) / np.sqrt(a.size)
+    return m, m - half, m + half
+
+
+# Rates are squeezed into [RATE_EPS, 1 - RATE_EPS] before the logit (below any rate the store measures:
+# a seed at exactly 0% or 100% has no logit); positive quantities into [POS_EPS, inf) before the log.
+RATE_EPS = 1e-6
+POS_EPS = 1e-9
+UNINFORMATIVE = 0.8  # a rate interval wider than 80 points says nothing useful about the mean
+
+
+def _transformed_ci(a: np.ndarray, fwd: Callable[[np.ndarray], np.ndarray],
+                    back: Callable[[np.ndarray], np.ndarray], level: float,
+                    axis: int = -1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean of ``a`` along ``axis`` and the Student t interval of the mean of ``fwd(a)``
+    mapped back by ``back``: inside ``back``'s range by construction. Where every value is
+    equal the interval is that value."""
+    z = fwd(a)
+    n = a.shape[axis]
+    m = z.mean(axis=axis)
+    _, q = sps.t.interval(level, n - 1)
+    half = q * z.std(axis=axis, ddof=1) / np.sqrt(n)
+    mean = a.mean(axis=axis)
+    same = a.max(axis=axis) == a.min(axis=axis)
+    return mean, np.where(same, mean, back(m - half)), np.where(same, mean, back(m + half))
+
+
+def _logit(x: np.ndarray) -> np.ndarray:
+    y = np.clip(x, RATE_EPS, 1.0 - RATE_EPS)
+    return np.log(y / (1.0 - y))
+
+
+def _expit(z: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-z))
+
+
+def _log(x: np.ndarray) -> np.ndarray:
+    return np.log(np.maximum(x, POS_EPS))
+
+
+def rate_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
+    """(mean, lo, hi) of a rate's seed values ``x`` (n,) in [0, 1]: the Student t interval
+    on the logit scale (each seed squeezed into [``RATE_EPS``, 1 - ``RATE_EPS``]), mapped
+    back, so it lies inside [0, 1] by construction, never by cutting (docs/decisions/0232).
+    Below two values: (mean, nan, nan)."""
+    a = _clean(x)
+    if a.size < 2:
+        return (float(a[0]) if a.size else np.nan), np.nan, np.nan
+    m, lo, hi = _transformed_ci(a, _logit, _expit, level)
+    return float(m), float(lo), float(hi)
+
+
+def positive_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
+    """(mean, lo, hi) of a count or other non-negative quantity's seed values ``x`` (n,):
+    the Student t interval on the log scale mapped back, so lo >= 0 by construction."""
+    a = _clean(x)
+    if a.size < 2:
+        return (float(a[0]) if a.size else np.nan), np.nan, np.nan
+    m, lo, hi = _transformed_ci(a, _log, np.exp, level)
+    return float(m), float(lo), float(hi)
+
+
+def uninformative(lo: float, hi: float, span: float = 1.0) -> bool:
+    """Whether an interval of a quantity whose range is ``span`` wide (a rate: 1) covers more
+    than ``UNINFORMATIVE`` of it: its point says little."""
+    return bool(np.isfinite(lo) and np.isfinite(hi) and hi - lo > UNINFORMATIVE * span)
+
+
+def coverage(kind: str, mean: float, sd: float, seeds: int, sims: int = 2000, level: float = LEVEL,
+             seed: int = 0) -> float:
+    """Simulated coverage of ``rate_ci`` (``kind`` "rate": seed values Beta with this mean and
+    s.d.) or ``positive_ci`` ("positive": lognormal with this mean and s.d.) of the true
+    mean, at ``seeds`` seeds: the interval's coverage at the data's own spread. NaN below
+    two seeds or without a finite mean."""
+    if seeds < 2 or not (np.isfinite(mean) and np.isfinite(sd)):
+        return np.nan
+    rng = np.random.default_rng(np.random.SeedSequence([seed, seeds, int(1e6 * mean) % 2**31]))
+    if kind == "rate":
+        m = float(np.clip(mean, 1e-3, 1 - 1e-3))
+        v = min(max(sd, 1e-4) ** 2, 0.999 * m * (1 - m))
+        k = m * (1 - m) / v - 1.0
+        x = rng.beta(m * k, (1 - m) * k, size=(sims, seeds))
+        fwd, back = _logit, _expit
+    else:
+        m = max(float(mean), POS_EPS)
+        s2 = np.log1p((max(sd, 1e-12) / m) ** 2)
+        x = rng.lognormal(np.log(m) - s2 / 2, np.sqrt(s2), size=(sims, seeds))
+        fwd, back = _log, np.exp
+    _, lo, hi = _transformed_ci(x, fwd, back, level, axis=1)
+    return float(np.mean((lo <= m) & (m <= hi)))
 
 
 def cut_interval(lo: float, hi: float, floor: float = 0.0, ceil: float = 1.0) -> tuple[float, float]:
@@ -183,22 +277,23 @@ def bootstrap_ci(
     level: float = LEVEL,
     seed: int = 0,
 ) -> tuple[float, float]:
-    """Percentile bootstrap CI of ``statistic`` (default: mean) of a sample ``x`` (n,).
+    """Percentile bootstrap CI of ``statistic`` (default: mean) of a sample ``x`` (n,)
+    (``scipy.stats.bootstrap``, method "percentile").
 
     For statistics without a t interval (IQM of many episodes); undercovers with few
-    values, so never used over seeds. ``statistic`` maps (n_boot, n) to (n_boot,). NaNs
-    are dropped; empty gives (nan, nan), a single value v gives (v, v).
+    values, so never used over seeds. ``statistic`` maps (..., n) to (...,) along its last
+    axis. NaNs are dropped; empty gives (nan, nan), values all equal v give (v, v).
     """
     a = _clean(x)
     if a.size == 0:
         return np.nan, np.nan
-    stat = statistic or (lambda m: m.mean(axis=1))
-    rng = np.random.default_rng(seed)
-    idx = rng.integers(a.size, size=(n_boot, a.size))
-    reps = np.asarray(stat(a[idx]))
-    alpha = (1.0 - level) / 2.0
-    lo, hi = np.quantile(reps, [alpha, 1.0 - alpha])
-    return float(lo), float(hi)
+    if a.min() == a.max():
+        return float(a[0]), float(a[0])
+    stat = statistic or (lambda m: m.mean(axis=-1))
+    res = sps.bootstrap((a,), lambda s, axis=-1: stat(np.moveaxis(s, axis, -1)), n_resamples=n_boot,
+                        confidence_level=level, method="percentile", vectorized=True,
+                        random_state=np.random.default_rng(seed))
+    return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
 def t_band(curves: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -206,7 +301,7 @@ def t_band(curves: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.nda
 
     The shading of Fig. 1 and Fig. 2: per column, the mean over the runs (rows, e.g.
     seeds) and the t interval of that mean (``mean_ci`` per point; a percentile
-    bootstrap over 3 seeds covers only about 75%, ``bench calibrate``). NaN entries are
+    bootstrap over 3 seeds covers only about 75%, ``bench calibrate``; ``scipy.stats.t.interval``). NaN entries are
     ignored per column; a column with fewer than two values has NaN bounds (no band).
     """
     c = np.asarray(curves, dtype=np.float64)
@@ -217,7 +312,8 @@ def t_band(curves: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.nda
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns and single values
         mean = np.nanmean(c, axis=0)
         # nanstd with ddof=1 is NaN below two values, so such columns get no band
-        half = sps.t.ppf(0.5 + level / 2.0, np.maximum(k - 1, 1)) * np.nanstd(c, axis=0, ddof=1) / np.sqrt(k)
+        _, q = sps.t.interval(level, np.maximum(k - 1, 1))
+        half = q * np.nanstd(c, axis=0, ddof=1) / np.sqrt(k)
     return mean, mean - half, mean + half
 
 

@@ -4,8 +4,10 @@ Pure functions of the evaluation rows (one row per cell, execution mode and epis
 the cell's config columns; reports/data/store.py), seed as the unit everywhere:
 
 * ``leaderboard_frame``: per configuration (N, p) and execution mode, each method's
-  success rate: the mean over seeds of per-seed means with a 95% Student t CI over seeds
-  (``reports.stats.mean_ci``), and its rank within the configuration;
+  success rate: the mean over seeds of per-seed means with a 95% CI over seeds inside [0, 1]
+  by construction (``reports.stats.rate_ci``, a logit-scale t interval) and its simulated
+  coverage at the row's own mean, spread and seeds (``reports.stats.coverage``), and its
+  rank within the configuration;
 * ``aggregate_frame``: across the configurations every method of the run covers, per
   learned execution mode (a planner's one mode counts in each), the interquartile mean
   of the (seed x configuration) success matrix (rliable's ``aggregate_iqm``) with a 95%
@@ -46,12 +48,13 @@ from reports.figures.plotting import (
     placeholder,
     ranked_legend,
 )
-from reports.stats import cut_interval, mean_ci
+from reports.stats import coverage, positive_ci, rate_ci, uninformative
 from reports.tables.mapf import is_lifelong
 from reports.tables.summary import fmt_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
+COVERAGE_SIMS = 2000  # simulations behind each printed coverage (MC s.e. <= 0.006 near 93%)
 PLANNER = "planner"
 SAFETY = ("collision_rate", "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step")
 
@@ -78,18 +81,22 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
         scores = scores.merge(seed_scores(evals, "throughput"))
     rows = []
     for (n, p, mode, method), g in scores.groupby(["n_robots", "loss_p", "execution", "method"], sort=True):
-        mean, lo, hi = mean_ci(g["success_rate"].to_numpy(), LEVEL)
-        lo, hi = cut_interval(lo, hi)  # a rate (NaN with one seed stays NaN)
+        x = g["success_rate"].to_numpy()
+        mean, lo, hi = rate_ci(x, LEVEL)  # inside [0, 1] by construction (NaN with one seed)
         rows.append({"n_robots": int(n), "loss_p": float(p), "execution": mode, "method": method,
                      "label": method_label(method), "seeds": len(g), "success": mean,
-                     "success_lo": lo, "success_hi": hi})
+                     "success_lo": lo, "success_hi": hi,
+                     "success_cov": coverage("rate", mean, float(np.std(x, ddof=1)) if len(x) > 1 else np.nan,
+                                             len(x), COVERAGE_SIMS, LEVEL)})
         if lifelong:
-            mean, lo, hi = mean_ci(g["throughput"].to_numpy(), LEVEL)
-            lo, hi = cut_interval(lo, hi, 0.0, np.inf)
-            rows[-1].update(throughput=mean, throughput_lo=lo, throughput_hi=hi)
+            x = g["throughput"].to_numpy()
+            mean, lo, hi = positive_ci(x, LEVEL)
+            rows[-1].update(throughput=mean, throughput_lo=lo, throughput_hi=hi,
+                            throughput_cov=coverage("positive", mean, float(np.std(x, ddof=1)) if len(x) > 1
+                                                    else np.nan, len(x), COVERAGE_SIMS, LEVEL))
     out = pd.DataFrame(rows, columns=["n_robots", "loss_p", "execution", "method", "label", "seeds",
-                                      "success", "success_lo", "success_hi"]
-                       + (["throughput", "throughput_lo", "throughput_hi"] if lifelong else []))
+                                      "success", "success_lo", "success_hi", "success_cov"]
+                       + (["throughput", "throughput_lo", "throughput_hi", "throughput_cov"] if lifelong else []))
     key = "throughput" if lifelong else "success"
     if out.empty:
         return out.assign(rank=pd.Series(dtype="int64"))
@@ -220,7 +227,9 @@ def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
 
 LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one, so success (robots at their "
                  "goal at the end) says little; throughput (goals reached per step) is the score. Both: the mean "
-                 "over seeds of per-seed means, [95% Student t CI over seeds]; rank 1 = highest mean throughput "
+                 "over seeds of per-seed means, [95% CI over seeds, inside the range by construction: a "
+                 "Student t interval on the log (throughput) or logit (success) scale] (simulated coverage); "
+                 "rank 1 = highest mean throughput "
                  "among the methods at that configuration and mode (a planner's one mode ranks with every "
                  "learned mode).")
 
@@ -230,12 +239,18 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     def pct(v: float) -> str:
         return "—" if not np.isfinite(v) else f"{100 * v:.1f}%"
 
-    def ci(v: float, lo: float, hi: float) -> str:
-        return pct(v) + ("" if not np.isfinite(lo) else f" [{pct(lo)}, {pct(hi)}]")
+    def ci(v: float, lo: float, hi: float, cov: float = np.nan) -> str:
+        if not np.isfinite(lo):
+            return pct(v)
+        vague = "; uninformative" if uninformative(lo, hi) else ""
+        shown = f" (coverage {cov:.0%})" if np.isfinite(cov) else ""
+        return pct(v) + f" [{pct(lo)}, {pct(hi)}{vague}]" + shown
 
     lines = ["# Leaderboard: every method of the run", "",
              "Success rate (robots at their goal per episode): the mean over seeds of per-seed means, "
-             "[95% Student t CI over seeds]; rank 1 = highest mean among the methods at that "
+             "[95% CI over seeds: a Student t interval on the logit scale, inside 0-100% by construction; "
+             "'uninformative' where it spans more than 80 points], (its coverage of the true mean simulated "
+             "at the row's own mean, spread and seeds); rank 1 = highest mean among the methods at that "
              "configuration and mode (a planner's one mode ranks with every learned mode).", ""]
     if board.empty:
         return "\n".join(lines + ["No evaluated cell yet.", ""])
@@ -245,13 +260,14 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
                   "|---|---|---|---|---|---|---|---|"]
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} | "
-                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} "
+                         f"(coverage {r.throughput_cov:.0%}) | "
+                         f"{ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
     else:
         lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+                         f"{ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
     lines += ["", "## Across configurations", "",
               "Interquartile mean (rliable) of the seed x configuration success matrix over the "
               "configurations every method covers, [95% stratified bootstrap CI: seeds resampled "
