@@ -8,9 +8,10 @@ Replaces the text between ``<!-- NAME:begin -->`` and ``<!-- NAME:end -->``:
   ``progress`` with ``<run>/report/progress.md`` and ``success`` with
   ``<run>/report/success_by_mode.md`` (all written by ``bench report``), verbatim;
 * in ``README.md``: ``verdicts`` with the count of each verdict per claim in
-  ``claims_table.md``, and, once the full grid has a report, ``full_leaders`` with the rows
-  of the "Per method" table of ``reproduction/full/report/leaders.md`` in the modes of
-  ``FULL_MODES``.
+  ``claims_table.md`` and ``pooled`` with its pooled sign tests, and, once the full grid has
+  a report, ``full_leaders`` with the rows of the "Per method" table of
+  ``reproduction/full/report/leaders.md`` in the modes of ``FULL_MODES`` and
+  ``full_ordering`` with its sign tests of the ordering across configurations.
 
 So no verdict, success rate or status on either page is typed by hand; ``tests/reproduction``
 checks that both pages agree with the committed report.
@@ -46,11 +47,12 @@ def verdicts(claims_table: str) -> str:
     """One row per claim of ``claims_table.md``: how many of its checks got each verdict."""
     counts: dict[str, Counter[str]] = {}
     claim = ""
-    header = [c.strip() for c in claims_table.splitlines()[0].strip().strip("|").split("|")]
+    lines = claims_table.splitlines()
+    header = [c.strip() for c in lines[0].strip().strip("|").split("|")]
     col = header.index("verdict")
-    for line in claims_table.splitlines()[2:]:
+    for line in lines[2:]:
         if not line.startswith("|"):
-            continue
+            break  # the checks' table ends; the pooled tests follow (``pooled``)
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
         claim = cells[0].strip("*") or claim
         counts.setdefault(claim, Counter())[cells[col].strip("*")] += 1
@@ -59,6 +61,24 @@ def verdicts(claims_table: str) -> str:
         rows.append(f"| {claim} | {sum(c.values())} | "
                     + ", ".join(f"{v} {k}" for k, v in c.most_common()) + " |")
     return "\n".join(rows) + "\n"
+
+
+def pooled(claims_table: str) -> str:
+    """The pooled sign tests of ``claims_table.md`` (the table after its checks), with their
+    one-line heading."""
+    marker = "Pooled across configurations"
+    if marker not in claims_table:
+        return "No claim has a pooled test yet.\n"
+    part = claims_table[claims_table.index(marker):]
+    return "\n".join(ln for ln in part.splitlines() if ln.startswith((marker, "|"))) + "\n"
+
+
+def ordering(leaders: str) -> str:
+    """The table of leaders.md's "Ordering across configurations" section (sign tests)."""
+    from reports.tables.ordering import ORDERING_HEADING
+
+    section = leaders.split(ORDERING_HEADING, 1)[1]
+    return "\n".join(ln for ln in section.splitlines() if ln.startswith("|")) + "\n"
 
 
 def per_method(leaders: str) -> str:
@@ -74,9 +94,11 @@ def expected_blocks(run: Path, full: Path = FULL) -> dict[str, dict[str, str]]:
     """page (relative to the repository) -> marker name -> the text its block must hold
     (``full_leaders`` only once ``full`` has a report)."""
     report = {name: (run / "report" / file).read_text(encoding="utf-8") for name, file in BLOCKS.items()}
-    readme = {"verdicts": verdicts(report["claims_table"])}
+    readme = {"verdicts": verdicts(report["claims_table"]), "pooled": pooled(report["claims_table"])}
     if (full / "report" / "leaders.md").is_file():
-        readme["full_leaders"] = per_method((full / "report" / "leaders.md").read_text(encoding="utf-8"))
+        leaders = (full / "report" / "leaders.md").read_text(encoding="utf-8")
+        readme["full_leaders"] = per_method(leaders)
+        readme["full_ordering"] = ordering(leaders)
     return {PAGE: report, README: readme}
 
 

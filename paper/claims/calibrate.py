@@ -283,8 +283,8 @@ def ci_coverage(sims: int = 2000, seed: int = 0, run: Path | str | None = None) 
     ev = C.with_execution(load_store(run if run is not None else RUN).eval)
     rows = []
     for metric, kind, name in (("success_rate", "rate", "rate_ci (logit t over seeds)"),
-                               ("mean_candidates", "positive", "positive_ci (log t over seeds)"),
-                               ("throughput", "positive", "positive_ci (log t over seeds)")):
+                               ("mean_candidates", "positive", "positive_ci (Cox, over seeds)"),
+                               ("throughput", "positive", "positive_ci (Cox, over seeds)")):
         if metric not in ev.columns:
             continue
         per = ev.groupby(["method", "n_robots", "loss_p", "execution", "cell_id"])[metric].mean().dropna()

@@ -24,6 +24,7 @@ Bonferroni level is conservative). Verdict codes: 1 supported, 0 undecided,
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -65,8 +66,17 @@ def welch(groups: Sequence[np.ndarray], weights: Sequence[float], null: float = 
     counts = [g.shape[1] for g in groups]
     est, se, df = welch_parts(means, var, counts, np.asarray(weights, dtype=np.float64))
     d = est - null
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = d / se
+    w = [float(x) for x in weights]
+    with np.errstate(divide="ignore", invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # exact (variance-free) draws: decided below
+        if w in ([1.0], [-1.0]):  # scipy's one-sample t test, vectorized over simulations
+            r = sps.ttest_1samp(w[0] * groups[0], null, axis=1)
+            t, df = r.statistic, r.df
+        elif w == [1.0, -1.0]:  # scipy's Welch test
+            r = sps.ttest_ind(groups[0] - null, groups[1], axis=1, equal_var=False)
+            t, df = r.statistic, r.df
+        else:  # a contrast of three or more means: Welch-Satterthwaite (reports.stats.t_test)
+            t = d / se
         pg, pl = sps.t.sf(t, df), sps.t.cdf(t, df)
     exact = se == 0.0  # decided exactly, as t_test
     return np.where(exact, (d <= 0).astype(float), pg), np.where(exact, (d >= 0).astype(float), pl)

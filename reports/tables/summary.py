@@ -110,7 +110,7 @@ SUMMARY_HEAD = ["method", "N", "p", "execution", "seeds (done/cells)", "eval epi
                 "payload (scalars/step)", "CI over"]
 SUMMARY_CAPTION = (
     "Mean over seeds [95% CI]; the CI is a Student t interval over seeds (on the logit scale for "
-    "rates and the log scale for counts and payloads, so inside their range by construction) when a "
+    "rates, Cox's lognormal interval for counts and payloads, so inside their range by construction) when a "
     "configuration has "
     "two or more done seeds, else a bootstrap over the evaluation episodes of its single seed "
     "(column \"CI over\"). IQM: interquartile mean over pooled evaluation episodes. n/a: the "

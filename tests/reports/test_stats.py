@@ -18,7 +18,6 @@ from reports.stats import (
     bootstrap_ci,
     convergence_test,
     curve_shape,
-    cut_interval,
     iqm,
     mean_ci,
     percentile_curve,
@@ -320,15 +319,6 @@ def test_t_test__rate_under_the_null_and_power_by_simulation():
     assert power > 0.6
 
 
-def test_cut_interval__stops_a_rate_at_0_and_1_and_keeps_what_is_inside():
-    assert cut_interval(-0.2, 0.4) == (0.0, 0.4)
-    assert cut_interval(0.7, 1.3) == (0.7, 1.0)
-    assert cut_interval(0.1, 0.9) == (0.1, 0.9)
-    assert cut_interval(-5.0, 3.0, 0.0, float("inf")) == (0.0, 3.0)  # a payload: [0, inf)
-    lo, hi = cut_interval(float("nan"), float("nan"))
-    assert np.isnan(lo) and np.isnan(hi)  # one seed: no interval to cut
-
-
 def test_mean_ci__covers_the_mean_95_percent_at_three_seeds():
     rng = np.random.default_rng(1)
     hits = 0
@@ -380,7 +370,7 @@ def test_metric_estimate__a_seed_interval_stays_inside_the_metrics_range() -> No
 
 
 def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -> None:
-    """Two seeds are enough for the seed interval (log scale: a payload is never negative,
+    """Two seeds are enough for the seed interval (Cox's: a payload is never negative,
     by construction); one seed falls back to a bootstrap over its episodes, inside their range."""
     import pandas as pd
 
