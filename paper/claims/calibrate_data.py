@@ -240,7 +240,7 @@ def _pooled(specs: list[tuple[str, list[np.ndarray]]]) -> np.ndarray:
     return z / np.where(s > 0, s, 1.0)
 
 
-_POINTS: dict[Callable, Callable] = {}  # verdict function -> its direction function (``add`` records them)
+_POINTS: dict[Callable, Callable | None] = {}  # verdict function -> its direction function (``add`` records them)
 
 
 def _spec(claim: str, check: str, gs: list[np.ndarray], null: list, effect: list,

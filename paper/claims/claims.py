@@ -263,8 +263,8 @@ def decide_scope(claim: Claim, scope: str, configs: Configs,
     decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
     for rows in decided:
         for label, ex, v, nums, test, *extra in rows:
-            pw = extra[0] if extra and v != NOT_ENOUGH else NO_POWER
-            side = extra[1] if len(extra) > 1 and v != NOT_ENOUGH else NO_SIDE
+            pw: Power = extra[0] if extra and v != NOT_ENOUGH else NO_POWER  # type: ignore[assignment]  # CheckRow's 6th
+            side: Side = extra[1] if len(extra) > 1 and v != NOT_ENOUGH else NO_SIDE  # type: ignore[assignment]  # 7th
             claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text(), side))
     return claim
 

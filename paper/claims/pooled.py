@@ -51,7 +51,7 @@ class Pooled:
         """"16 of 18 checks point against the claim; sign test p(toward) = 1, p(against) = 0.00066: contradicted"."""
         n = self.toward + self.against
         if n == 0:
-            return "no check with an estimate"
+            return "no sign test (no check with an estimate on a one-sided claim)"
         lead, k = (TOWARD, self.toward) if self.toward >= self.against else (AGAINST, self.against)
         note = f" (a sign test over fewer than {MIN_DECIDABLE} checks cannot reach {TEST_ALPHA:g})" \
             if n < MIN_DECIDABLE else ""

@@ -224,10 +224,16 @@ def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
 LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one, so success (robots at their "
                  "goal at the end) says little; throughput (goals reached per step) is the score. Both: the mean "
                  "over seeds of per-seed means, [95% CI over seeds, inside the range by construction: a "
-                 "Student t interval on the log (throughput) or logit (success) scale] (simulated coverage); "
+                 "Student t interval on the logit scale (success), Cox's lognormal interval (throughput)] "
+                 "(simulated coverage); "
                  "rank 1 = highest mean throughput "
                  "among the methods at that configuration and mode (a planner's one mode ranks with every "
                  "learned mode).")
+
+
+def _below(cov: float) -> bool:
+    """Whether a coverage, as printed (one decimal of a percent), is under ``COVERAGE_TARGET``."""
+    return float(f"{100 * cov:.1f}") < 100 * COVERAGE_TARGET
 
 
 def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFrame, safety: pd.DataFrame) -> str:
@@ -239,8 +245,8 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
         if not np.isfinite(lo):
             return pct(v)
         vague = "; uninformative" if uninformative(lo, hi) else ""
-        shown = "" if not np.isfinite(cov) else f" (coverage {cov:.0%}" + (
-            f", below {COVERAGE_TARGET:.0%})" if cov < COVERAGE_TARGET else ")")
+        shown = "" if not np.isfinite(cov) else f" (coverage {cov:.1%}" + (
+            f", below {COVERAGE_TARGET:.0%})" if _below(cov) else ")")
         return pct(v) + f" [{pct(lo)}, {pct(hi)}{vague}]" + shown
 
     lines = ["# Leaderboard: every method of the run", "",
@@ -260,8 +266,8 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
                          f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} "
-                         f"(coverage {r.throughput_cov:.0%}"
-                         f"{', below 93%' if r.throughput_cov < COVERAGE_TARGET else ''}) | "
+                         f"(coverage {r.throughput_cov:.1%}"
+                         f"{', below 93%' if _below(r.throughput_cov) else ''}) | "
                          f"{ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
     else:
         lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
@@ -360,7 +366,7 @@ def success_figure(board: pd.DataFrame, against: str) -> Built:
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
     caption = (f"Success rate against {'team size N' if against == 'n_robots' else 'loss probability p'} "
-               f"for every method of the run, mean over seeds with a 95% Student t CI over seeds "
+               f"for every method of the run, mean over seeds with a 95% CI over seeds (t on the logit scale) "
                f"(seeds per point: {seed_text}); one row per execution mode, planners in every row.")
     return Built(fig, [], caption)
 

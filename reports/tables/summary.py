@@ -4,7 +4,7 @@ One row per configuration and execution mode (argmax, sample, sample@T; planner 
 every mode ran on the same evaluation scenarios, docs/decisions/0068). For each row: number of cells (all statuses)
 and of done seeds, evaluation episodes,
 and for success rate, team return, collision rate, correction rate and payload the mean
-over seeds of per-seed evaluation means with a 95% Student t CI over seeds (a bootstrap CI
+over seeds of per-seed evaluation means with a 95% CI over seeds inside the metric's range (a bootstrap CI
 over evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
 Success rate and team return also get the interquartile mean over pooled evaluation
 episodes (robust to a few degenerate episodes, as rliable recommends).

@@ -147,8 +147,8 @@ def test_readme__claims_table_is_the_committed_reports() -> None:
     sync = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(sync)  # type: ignore[union-attr]
     pages = sync.expected_blocks(ROOT / "paper")
-    full = {"full_leaders", "full_ordering"} if (ROOT / "full" / "report").is_dir() else set()
-    assert set(pages[sync.PAGE]) == set(sync.BLOCKS) and set(pages[sync.README]) == {"verdicts", "pooled", *full}
+    full = {"full_ordering"} if (ROOT / "full" / "report").is_dir() else set()
+    assert set(pages[sync.PAGE]) == set(sync.BLOCKS) and set(pages[sync.README]) == {"verdicts", *full}
     for page, blocks in pages.items():
         text = (ROOT.parent / page).read_text(encoding="utf-8")
         for name, table in blocks.items():
