@@ -32,7 +32,7 @@ from reports.figures.plotting import Built
 from reports.pages.index import Entry, markdown_tables
 from reports.sections import ReportContext, SectionOutput
 from reports.tables.summary import ci_display
-from reports.writers import save_figure, write_text
+from reports.writers import copy_file, save_figure, write_text
 
 __all__ = ["PaperSections"]
 
@@ -52,9 +52,13 @@ def mode_slug(mode: str) -> str:
 
 def _calibration(out: Path, run_dir: Path) -> tuple[str | None, bool]:
     """``calibration.md`` from ``<report>/calibration.json`` (``bench calibrate --run RUN
-    --out``; never copied from another run: docs/decisions/0230); returns its name for the
-    claims page (None without a table) and whether its ``meta.run`` is this run."""
+    --out``; a report written elsewhere with ``--out`` takes the run's own
+    ``RUN/report/calibration.json``; never another run's: docs/decisions/0230); returns its
+    name for the claims page (None without a table) and whether its ``meta.run`` is this run."""
     cached = out / "calibration.json"
+    own = Path(run_dir) / "report" / "calibration.json"  # the run's own table, when --out writes elsewhere
+    if not cached.exists() and own.is_file() and own.resolve() != cached.resolve():
+        copy_file(own, cached)
     if not cached.exists():
         return None, False
     rep = json.loads(cached.read_text(encoding="utf-8"))
