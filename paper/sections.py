@@ -41,7 +41,7 @@ ABLATION_LABELS = {"variant": "variant", "seeds": "seeds", "eval_episodes": "eva
 ABLATION_METRICS = {"success_rate": ("success rate", "pct"), "collision_rate": ("collision rate", "pct"),
                     "correction_rate": ("correction rate", "pct"), "fallback_rate": ("fallback rate", "pct"),
                     "payload_scalars_per_step": ("payload (scalars/step)", "payload")}
-CALIBRATION = Path(__file__).parent / "claims" / "calibration.json"  # `bench calibrate --out`, committed
+CALIBRATION = Path(__file__).parent / "claims" / "calibration.json"  # the paper run's, `bench calibrate --out`
 
 
 def mode_slug(mode: str) -> str:
@@ -50,17 +50,29 @@ def mode_slug(mode: str) -> str:
     return "".join(c if c.isalnum() else {"@": "_at_", ".": "p"}.get(c, "_") for c in mode)
 
 
-def _calibration(out: Path) -> str | None:
-    """``calibration.md`` from ``<report>/calibration.json`` (copied from the packaged
-    table when absent); returns its name for the claims page, None without a table."""
+def _calibration(out: Path, run_dir: Path) -> tuple[str | None, bool]:
+    """``calibration.md`` from ``<report>/calibration.json`` (``bench calibrate --run RUN
+    --out``; a report written elsewhere with ``--out`` takes the run's own
+    ``RUN/report/calibration.json``; never another run's: docs/decisions/0230); returns its
+    name for the claims page (None without a table) and whether its ``meta.run`` is this run."""
     cached = out / "calibration.json"
-    if not cached.exists() and CALIBRATION.exists():
-        copy_file(CALIBRATION, cached)
+    own = Path(run_dir) / "report" / "calibration.json"  # the run's own table, when --out writes elsewhere
+    if not cached.exists() and own.is_file() and own.resolve() != cached.resolve():
+        copy_file(own, cached)
     if not cached.exists():
-        return None
+        return None, False
     rep = json.loads(cached.read_text(encoding="utf-8"))
-    write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta")))
-    return "calibration.md"
+    write_text(out / "calibration.md", calibration_markdown(pd.DataFrame(rep["calibration"]), rep.get("meta"),
+                                                           pd.DataFrame(rep.get("coverage", []))))
+    return "calibration.md", is_own(rep.get("meta", {}).get("run", ""), run_dir)
+
+
+def is_own(meta_run: str, run_dir: Path) -> bool:
+    """Whether a calibration's ``meta.run`` names ``run_dir`` (the same path, or its tail)."""
+    if not meta_run:
+        return False
+    tail = Path(meta_run).parts
+    return Path(run_dir).resolve().parts[-len(tail):] == tail
 
 
 def _figure(stem: str, title: str, built: Built, out: Path) -> Entry:
@@ -101,8 +113,8 @@ class PaperSections:
         at = ctx.options.get("claims_at", "paper")
         claims = all_claims(train, evals, at=at, cells=ctx.cells) + method_claims(evals)
         front = ClaimsFront(claims)
-        cal = _calibration(out)
-        write_text(out / "claims.md", claims_markdown(claims, cal))
+        cal, own = _calibration(out, ctx.run_dir)
+        write_text(out / "claims.md", claims_markdown(claims, cal, own))
         write_text(out / "claims_table.md", claims_table_markdown(claims))  # the README's table
         checks = claims_frame(claims)
         write_text(out / "claims.csv", checks.to_csv(index=False))

@@ -55,6 +55,7 @@ from reports.tables.leaders import (
 )
 from reports.tables.mapf import CAPTION as MAPF_CAPTION
 from reports.tables.mapf import mapf_display, mapf_frame, mapf_markdown
+from reports.tables.ordering import ordering_frame, ordering_markdown
 from reports.tables.progress import progress_markdown
 from reports.tables.robustness import (
     ROBUSTNESS_CAPTION,
@@ -148,7 +149,8 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
     leaders = leaders_frame(evals)
     per_method = per_method_frame(evals, leaders)
-    write_text(out / "leaders.md", leaders_markdown(leaders, per_method))
+    write_text(out / "leaders.md", leaders_markdown(leaders, per_method) + "\n"
+               + ordering_markdown(ordering_frame(evals)))
     write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]

@@ -4,8 +4,9 @@ From ``RUN/matrix/`` (bench/execute/matrix.py): the score of every trained polic
 sizes N', loss rates p', loss models and message delays d'. The score is the success rate,
 or for a lifelong matrix (every 'ok' row has a throughput) the throughput in goals per step
 (``Score``). Statistics: a seed's value is the mean over the condition's K paired episodes;
-the table and bands give the mean over seeds with a Student t 95% interval (reports/stats.py
-``mean_ci``, cut at 0 and, for a rate, 1: ``cut_interval``; one seed: no interval). Figures
+the table and bands give the mean over seeds with a 95% interval inside the score's range by
+construction (reports/stats.py: ``rate_ci``, a Student t interval on the logit scale, for
+success; ``positive_ci``, Cox's lognormal interval, for throughput; one seed: no interval). Figures
 use the headline mode (argmax; planner for PIBT); the table lists every mode.
 
 Outputs: matrix_heatmaps (train condition x eval condition, Bernoulli loss, per method),
@@ -41,7 +42,7 @@ from reports.figures.plotting import (
     ranked_legend,
 )
 from reports.pages.index import Entry
-from reports.stats import cut_interval, mean_ci
+from reports.stats import mean_ci, positive_ci, rate_ci
 from reports.writers import save_figure, write_text
 
 KEYS = ["method", "train_n", "train_p", "train_delay", "train_delay_model", "eval_n", "eval_p", "loss_model",
@@ -91,8 +92,8 @@ def matrix_table(df: pd.DataFrame, score: Score | None = None) -> pd.DataFrame:
     score = score or score_of(df)
     rows = []
     for key, g in seed_values(df, score).groupby(KEYS):
-        m, lo, hi = mean_ci(g[score.metric].to_numpy())
-        lo, hi = cut_interval(lo, hi, 0.0, 1.0 if score.rate else np.inf)  # a rate, or a count per step
+        # inside the range by construction: logit t for a rate, Cox's lognormal for a count per step
+        m, lo, hi = (rate_ci if score.rate else positive_ci)(g[score.metric].to_numpy())
         rows.append({**dict(zip(KEYS, key, strict=True)), score.column: m, "lo": lo, "hi": hi, "seeds": len(g)})
     return pd.DataFrame(rows, columns=KEYS + [score.column, "lo", "hi", "seeds"])
 

@@ -17,9 +17,9 @@ import math
 
 import numpy as np
 import pandas as pd
-from scipy import stats
 
 from envs.errors import BenchError
+from reports.stats import rate_ci
 from studies.space import plain
 from studies.trial_columns import param_columns
 
@@ -27,17 +27,11 @@ CONFIDENCE = 0.95
 
 
 def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[float, float, float]:
-    """(mean, low, high) of Student's t interval for the mean of ``values`` ((n,) floats);
-    low = high = NaN for fewer than two values."""
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if len(v) == 0:
-        return math.nan, math.nan, math.nan
-    mean = float(v.mean())
-    if len(v) < 2:
-        return mean, math.nan, math.nan
-    half = float(stats.t.ppf(0.5 + confidence / 2, len(v) - 1) * v.std(ddof=1) / math.sqrt(len(v)))
-    return mean, mean - half, mean + half
+    """(mean, low, high) of the objective (an evaluation success rate) over replicates
+    ``values`` ((n,) floats): ``reports.stats.rate_ci``, a Student t interval on the logit
+    scale, inside [0, 1] by construction; low = high = NaN for fewer than two values."""
+    mean, low, high = rate_ci(values, confidence)
+    return mean, low, high
 
 
 def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:

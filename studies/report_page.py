@@ -163,7 +163,8 @@ def _best(trials: pd.DataFrame, replicates: int, names: list[str], n_points: int
     label = ", ".join(f"{n}={int(b[n])}" for n in names)
     return Section("Best configuration", [
         f"{label}: mean objective {b['value']:.4f} over {int(b['complete'])} replicates, 95% CI "
-        f"[{_f(b['ci_low'], 4)}, {_f(b['ci_high'], 4)}] (Student t); mean success rate {b['success_rate']:.3f}, "
+        f"[{_f(b['ci_low'], 4)}, {_f(b['ci_high'], 4)}] (Student t on the logit scale); "
+        f"mean success rate {b['success_rate']:.3f}, "
         f"mean team return {b['team_return']:.2f}; trials {b['trials']}.",
         f"Chosen by the mean over replicates among configurations with {replicates} complete and no "
         "pruned replicate; overlapping CIs in the table below mean the ranking is not settled."])

@@ -9,9 +9,9 @@ Simulated per-seed data with known truth is laid out as training / evaluation ta
 (the store's columns) and pushed through the claims' own functions
 (``paper.claims.claims.claim_*``), so the numbers describe exactly what the claims page runs.
 Episode noise within a training curve is AR(1) (phi = 0.8): a test that treated episodes
-as independent would show it. Also measures the coverage of the 95% interval over seeds
-(``reports.stats.mean_ci``, the Student t interval) against the seed bootstrap it
-replaced. Every stream is seeded: the same ``seed`` gives the same table.
+as independent would show it. Also measures the coverage of the 95% intervals the
+reports print (``reports.stats.rate_ci``, ``positive_ci``) at the run's own spread. Every
+stream is seeded: the same ``seed`` gives the same table.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from paper.claims import claim_power
 from paper.claims import claims as C
 from paper.claims import verdicts as V
 from paper.claims.method_claims import claim_above_baselines
-from reports.stats import bootstrap_ci, mean_ci, zero_events_bound
+from reports.stats import coverage, zero_events_bound
 
 SEED_COUNTS = (3, 5, 10)
 ALPHA = 0.05
@@ -271,26 +271,35 @@ def calibrate(sims: int = 1000, seed: int = 0, seed_counts: tuple[int, ...] = SE
     return pd.DataFrame(rows)
 
 
-def ci_coverage(sims: int = 2000, seed: int = 0, seed_counts: tuple[int, ...] = (2, 3, 5, 10)) -> pd.DataFrame:
-    """Coverage of the true mean by the 95% t interval over seeds (``mean_ci``) and by
-    the percentile seed bootstrap it replaced, for normal and lognormal seed means."""
+def ci_coverage(sims: int = 2000, seed: int = 0, run: Path | str | None = None) -> pd.DataFrame:
+    """Coverage of the true mean by the 95% intervals the reports print, at the spread of
+    the store under ``run`` (default the committed reproduction): per metric (success rate:
+    ``rate_ci``; mean candidates and throughput: ``positive_ci``) and seed count, the
+    lowest, median and share >= 93% of the simulated coverages over the run's groups
+    (method, N, p, mode), each at its own mean, s.d. and seeds (``reports.stats.coverage``)."""
+    from paper.claims.calibrate_data import RUN
+    from reports.data.store import load_store
+
+    ev = C.with_execution(load_store(run if run is not None else RUN).eval)
     rows = []
-    dists = {"normal": (lambda r, n: r.normal(0.0, 1.0, n), 0.0),
-             "lognormal": (lambda r, n: r.lognormal(0.0, 0.75, n), float(np.exp(0.75**2 / 2)))}
-    for d_i, (dist, (draw, truth)) in enumerate(dists.items()):
-        for s in seed_counts:
-            rng = np.random.default_rng(np.random.SeedSequence([seed, d_i, s]))
-            t_hits = b_hits = 0
-            for k in range(sims):
-                x = draw(rng, s)
-                _, lo, hi = mean_ci(x)
-                t_hits += lo <= truth <= hi
-                blo, bhi = bootstrap_ci(x, n_boot=1000, seed=k)
-                b_hits += blo <= truth <= bhi
-            rows += [{"interval": "t over seeds (used)", "distribution": dist, "seeds": s,
-                      "coverage": t_hits / sims, "sims": sims},
-                     {"interval": "percentile bootstrap over seeds (replaced)", "distribution": dist,
-                      "seeds": s, "coverage": b_hits / sims, "sims": sims}]
+    for metric, kind, name in (("success_rate", "rate", "rate_ci (logit t over seeds)"),
+                               ("mean_candidates", "positive", "positive_ci (Cox, over seeds)"),
+                               ("throughput", "positive", "positive_ci (Cox, over seeds)")):
+        if metric not in ev.columns:
+            continue
+        per = ev.groupby(["method", "n_robots", "loss_p", "execution", "cell_id"])[metric].mean().dropna()
+        if per.empty:
+            continue
+        stats = per.groupby(level=[0, 1, 2, 3]).agg(["mean", "std", "count"])
+        stats = stats[stats["count"] >= 2]
+        for s_count, g in stats.groupby("count"):
+            cov = np.array([coverage(kind, r["mean"], r["std"], int(s_count), sims, seed=seed)
+                            for _, r in g.iterrows()])
+            cov = cov[np.isfinite(cov)]
+            if cov.size:
+                rows.append({"interval": name, "metric": metric, "seeds": int(s_count), "groups": int(cov.size),
+                             "lowest": float(cov.min()), "median": float(np.median(cov)),
+                             "share_at_least_93": float(np.mean(cov >= 0.93)), "sims": sims})
     return pd.DataFrame(rows)
 
 
@@ -304,7 +313,7 @@ def calibration_report(sims: int = 5000, seed: int = 0, coverage_sims: int = 200
     from paper.claims.calibrate_data import RUN, SOURCES, calibrate_run
 
     cal = calibrate_run(run if run is not None else RUN, sims, seed)
-    cov = ci_coverage(coverage_sims, seed)
+    cov = ci_coverage(coverage_sims, seed, run)
     null = cal[cal["truth"] == "null"]
     return {"meta": {"sims": sims, "seed": seed, "alpha": ALPHA, "test_alpha": V.TEST_ALPHA,
                      "null_limit": round(null_limit(sims), 4),

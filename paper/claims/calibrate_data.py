@@ -19,11 +19,12 @@ The tests are re-stated vectorized over simulations (numpy over (sims, seeds)) a
 verdict for verdict with ``paper.claims.verdicts`` / ``paper.claims.verdicts_bounds``
 (tests/reports/test_calibrate_data.py). Checks of one claim are drawn independently
 (its execution modes share seeds in the store, a positive dependence under which the
-Bonferroni level is conservative). Verdict codes: 1 supported, 0 inconclusive,
+Bonferroni level is conservative). Verdict codes: 1 supported, 0 undecided,
 -1 contradicted.
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -65,8 +66,17 @@ def welch(groups: Sequence[np.ndarray], weights: Sequence[float], null: float = 
     counts = [g.shape[1] for g in groups]
     est, se, df = welch_parts(means, var, counts, np.asarray(weights, dtype=np.float64))
     d = est - null
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = d / se
+    w = [float(x) for x in weights]
+    with np.errstate(divide="ignore", invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # exact (variance-free) draws: decided below
+        if w in ([1.0], [-1.0]):  # scipy's one-sample t test, vectorized over simulations
+            r = sps.ttest_1samp(w[0] * groups[0], null, axis=1)
+            t, df = r.statistic, r.df
+        elif w == [1.0, -1.0]:  # scipy's Welch test
+            r = sps.ttest_ind(groups[0] - null, groups[1], axis=1, equal_var=False)
+            t, df = r.statistic, r.df
+        else:  # a contrast of three or more means: Welch-Satterthwaite (reports.stats.t_test)
+            t = d / se
         pg, pl = sps.t.sf(t, df), sps.t.cdf(t, df)
     exact = se == 0.0  # decided exactly, as t_test
     return np.where(exact, (d <= 0).astype(float), pg), np.where(exact, (d >= 0).astype(float), pl)
@@ -141,6 +151,41 @@ def v_convergence(g: Sequence[np.ndarray], contra: float) -> np.ndarray:
     return np.where(bad, -1, np.where((g_pg < TEST_ALPHA) & (a_pl < TEST_ALPHA) & (b_pg < TEST_ALPHA), 1, 0))
 
 
+def _contrast(g: Sequence[np.ndarray], w: Sequence[float]) -> np.ndarray:
+    return sum(wk * gk.mean(axis=1) for wk, gk in zip(w, g, strict=True))
+
+
+def point_contrast(w: Sequence[float]) -> Callable[[Sequence[np.ndarray]], np.ndarray]:
+    """Per simulation, whether the contrast estimate points toward the claim (> 0)."""
+    return lambda g: _contrast(g, w) > 0
+
+
+def point_curves(g: Sequence[np.ndarray]) -> np.ndarray:
+    return g[0][:, :, 0].mean(axis=1) - g[1][:, :, 0].mean(axis=1) > 0
+
+
+def point_region(low: float, high: float) -> Callable[[Sequence[np.ndarray]], np.ndarray]:
+    """The mean inside the claim's region (``paper.claims.sides``)."""
+    def p(g: Sequence[np.ndarray]) -> np.ndarray:
+        m = g[0].mean(axis=1)
+        return (low < m) & (m < high)
+    return p
+
+
+def point_convergence(g: Sequence[np.ndarray]) -> np.ndarray:
+    gain, drift = g[0][:, :, 0].mean(axis=1), g[0][:, :, 1].mean(axis=1)
+    return (gain > 0) & (np.abs(drift) < CONV_REL_TOL * gain)
+
+
+def sign_codes(points: np.ndarray) -> np.ndarray:
+    """``paper.claims.pooled.sign_test`` per simulation of (k, M) directions (True: toward)."""
+    k = points.shape[0]
+    toward = points.sum(axis=0)
+    p_toward = sps.binom.sf(toward - 1, k, 0.5)
+    p_against = sps.binom.cdf(toward, k, 0.5)
+    return np.where(p_toward < TEST_ALPHA, 1, np.where(p_against < TEST_ALPHA, -1, 0))
+
+
 def combine_codes(v: np.ndarray) -> np.ndarray:
     """``paper.claims.verdicts.combine`` of (k, M) check codes: any contradicted -> -1, all
     supported -> 1, else 0."""
@@ -162,6 +207,7 @@ class Spec:
     effect: np.ndarray
     verdict: Callable[[Sequence[np.ndarray], float], np.ndarray]
     z: np.ndarray = field(default_factory=lambda: np.zeros((0,)))
+    point: Callable[[Sequence[np.ndarray]], np.ndarray] | None = None  # direction of the estimate
 
     def draw(self, rng: np.random.Generator, sims: int, truth: str, source: str) -> list[np.ndarray]:
         mu = self.null if truth == "null" else self.effect
@@ -194,10 +240,14 @@ def _pooled(specs: list[tuple[str, list[np.ndarray]]]) -> np.ndarray:
     return z / np.where(s > 0, s, 1.0)
 
 
+_POINTS: dict[Callable, Callable | None] = {}  # verdict function -> its direction function (``add`` records them)
+
+
 def _spec(claim: str, check: str, gs: list[np.ndarray], null: list, effect: list,
           verdict: Callable) -> Spec:
     return Spec(claim, check, tuple(len(g) for g in gs), np.array([g.std(axis=0, ddof=1) for g in gs]),
-                np.array(null, dtype=np.float64), np.array(effect, dtype=np.float64), verdict)
+                np.array(null, dtype=np.float64), np.array(effect, dtype=np.float64), verdict,
+                point=_POINTS.get(verdict))
 
 
 def _finite(x: np.ndarray) -> np.ndarray:
@@ -210,46 +260,56 @@ def observed_specs(train: pd.DataFrame, evals: pd.DataFrame) -> dict[str, list[S
     ev = C.with_execution(evals)
     out: dict[str, list[tuple[str, list[np.ndarray], list, list, Callable]]] = {}
 
-    def add(key: str, label: str, gs: list[np.ndarray], null: list, effect: list, v: Callable) -> None:
+    def add(key: str, label: str, gs: list[np.ndarray], null: list, effect: list, v: Callable,
+            point: Callable | None = None) -> None:
         gs = [_finite(np.asarray(g, dtype=np.float64)) for g in gs]
         if min(len(g) for g in gs) >= 3:
+            _POINTS[v] = point
             out.setdefault(key, []).append((label, gs, null, effect, v))
 
     for n, p in C.PAPER["fig1a"]:
         a, b = (C.final_means(C.select(train, m, n, p)) for m in ("hierarchical", "decentralized"))
         mid, eff = float(np.mean([a.mean(), b.mean()])), REWARD_FRAC * abs(b.mean())
-        add("hier_above_dec", C._cfg(n, p), [a, b], [mid, mid], [mid + eff, mid], v_greater)
+        add("hier_above_dec", C._cfg(n, p), [a, b], [mid, mid], [mid + eff, mid], v_greater,
+            point_contrast([1.0, -1.0]))
     for large, small, p in C.PAPER["gap"]:
         gs = [C.final_means(C.select(train, m, n, p)) for n in (large, small) for m in ("hierarchical",
             "decentralized")]
         m = [float(g.mean()) for g in gs]
         base = m[1] + m[2] - m[3]  # gap(large) = gap(small)
         add("gap_widens", f"Gap({large}) vs Gap({small})", gs, [base, *m[1:]],
-            [base + REWARD_FRAC * abs(m[1]), *m[1:]], v_gap)
+            [base + REWARD_FRAC * abs(m[1]), *m[1:]], v_gap, point_contrast([1.0, -1.0, -1.0, 1.0]))
     for n, p in C.PAPER["fig1b"]:
         shapes = [curve_shape(c, FINAL_FRAC) for c in C.per_cell(C.select(train, "hierarchical", n, p), "team_return")]
         if shapes and all(s is not None for s in shapes):
             gd = np.array([[s.gain, s.drift] for s in shapes if s is not None])
             gain = abs(float(gd[:, 0].mean()))
-            add("convergence", C._cfg(n, p), [gd], [[gain, CONV_REL_TOL * gain]], [[gain, 0.0]], v_convergence)
+            add("convergence", C._cfg(n, p), [gd], [[gain, CONV_REL_TOL * gain]], [[gain, 0.0]], v_convergence,
+                point_convergence)
     for n, p in C.PAPER["fig2"]:
         h, i = C.select(ev, "hierarchical", n, p), C.select(ev, "ic3net", n, p)
         for mode, hh, ii in (C.mode_pairs(h, i) if len(h) and len(i) else []):
             vecs = [np.array([[x.mean(), *quantile_curve(x, BAND_PCT)] for x in C.per_cell(r, "success_rate")])
                     for r in (hh, ii)]
             base = vecs[1].mean(axis=0)
-            add("above_ic3net", f"{C._cfg(n, p)} {mode}", vecs, [base, base], [base + EFFECT_SUCCESS, base], v_curves)
+            add("above_ic3net", f"{C._cfg(n, p)} {mode}", vecs, [base, base], [base + EFFECT_SUCCESS, base], v_curves,
+                point_curves)
+    BELOW = {b: make_below(b) for b in (PRINT_BOUND, MAX_CORRECTION, FALLBACK_BOUND)}  # noqa: N806
     for n, p in C.PAPER["table1"]:
         for mode, rows in C._hier_modes(ev, n, p):
             label = f"{C._cfg(n, p)} {mode}"
             cr = C.seed_means(rows, "collision_rate")
-            add("collisions_printed", label, [cr], [PRINT_BOUND], [0.0], make_below(PRINT_BOUND))
+            add("collisions_printed", label, [cr], [PRINT_BOUND], [0.0], BELOW[PRINT_BOUND],
+                point_region(-np.inf, PRINT_BOUND))
             co = C.seed_means(rows, "correction_rate")
-            add("few_corrections", label, [co], [MAX_CORRECTION], [PAPER_TABLE1[n][1]], make_below(MAX_CORRECTION))
+            add("few_corrections", label, [co], [MAX_CORRECTION], [PAPER_TABLE1[n][1]], BELOW[MAX_CORRECTION],
+                point_region(-np.inf, MAX_CORRECTION))
             mc, target = C.seed_means(rows, "mean_candidates"), PAPER_TABLE1[n][2]
-            add("table1_candidates", label, [mc], [target * (1 + NEAR_TOL)], [target], make_near(target))
+            add("table1_candidates", label, [mc], [target * (1 + NEAR_TOL)], [target], make_near(target),
+                None)  # a two-sided band: no sign test (paper.claims.pooled)
             fb = C.seed_means(rows, "fallback_rate")
-            add("normal_search", label, [fb], [FALLBACK_BOUND], [FALLBACK_BOUND / 2], make_below(FALLBACK_BOUND))
+            add("normal_search", label, [fb], [FALLBACK_BOUND], [FALLBACK_BOUND / 2], BELOW[FALLBACK_BOUND],
+                point_region(-np.inf, FALLBACK_BOUND))
     ns = [n for n, _ in C.PAPER["table1"]]
     per_n = [dict(C._hier_modes(ev, n, 0.2)) for n in ns]
     for mode in C.MODE_ORDER:
@@ -257,7 +317,8 @@ def observed_specs(train: pd.DataFrame, evals: pd.DataFrame) -> dict[str, list[S
             gs = [C.seed_means(d[mode], "mean_candidates") for d in per_n]
             flat = [float(np.mean([g.mean() for g in gs]))] * len(gs)
             slope = [flat[0] + PAPER_SLOPE * (n - np.mean(ns)) for n in ns]
-            add("searches_grow", f"N = 40..100 {mode}", gs, flat, slope, make_trend(ns))
+            add("searches_grow", f"N = 40..100 {mode}", gs, flat, slope, make_trend(ns),
+                point_contrast(list(trend_weights(ns))))
     # "M above each baseline" (paper.claims.method_claims): the reproduction holds no method of
     # a user's, so the paper's method stands in for M, with its own spread, seeds and modes.
     baselines, _ = MC.methods_by_role(ev)
@@ -266,7 +327,7 @@ def observed_specs(train: pd.DataFrame, evals: pd.DataFrame) -> dict[str, list[S
             gs = [C.seed_means(mm, "success_rate"), C.seed_means(bb, "success_rate")]
             mid = float(np.mean([g[np.isfinite(g)].mean() for g in gs]))
             add(FAMILY, f"vs {bname} {C._cfg(n_b, p_b)} {m_mode}", gs, [mid, mid],
-                [mid + EFFECT_SUCCESS, mid], v_greater)
+                [mid + EFFECT_SUCCESS, mid], v_greater, point_contrast([1.0, -1.0]))
     specs: dict[str, list[Spec]] = {}
     for key, rows in out.items():
         z = _pooled([(r[0], r[1]) for r in rows])
@@ -315,6 +376,12 @@ def calibrate_specs(specs: dict[str, list[Spec]], sims: int = SIMS, seed: int = 
                     rows.append(_row(key, sp.check, seeds, source, truth, k, sims, v))
                     fam[truth].append(v)
                 fam["one"].append(fam["null"][-1] if j == 0 else fam["effect"][-1])
+            if k > 1 and all(sp.point is not None for sp in checks):
+                for label, truth in ((f"pooled sign test ({k} checks): every check at its boundary", "null"),
+                                     (f"pooled sign test ({k} checks): every check at the effect", "effect")):
+                    pts = np.stack([sp.point(sp.draw(_rng(seed, key, j, source, truth), sims, truth, source))
+                                    for j, sp in enumerate(checks) if sp.point is not None])
+                    rows.append(_row(key, label, "as each", source, truth, k, sims, sign_codes(pts)))
             if k > 1:
                 for label, truth, vs in (
                         (f"whole claim ({k} checks): the first at its boundary, the rest at the effect",

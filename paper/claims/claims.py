@@ -3,7 +3,7 @@ the data, one check per configuration and execution mode.
 
 Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.0125 in the
 paper's direction), **contradicted** (significant in the opposite direction),
-**inconclusive** (neither; a contradiction counts at 0.0125 / k for a claim of k checks, so
+**undecided** (neither; a contradiction counts at 0.0125 / k for a claim of k checks, so
 that its false-contradiction rate is <= 0.05 too), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side, or the configuration is missing). Two checks are not statistical: the payload
 ratio is **verified by construction** (the bench counts the scalars with the paper's
@@ -17,7 +17,7 @@ and is a Welch / one-sample t test (``reports.stats``). Its rate of
 (``paper.claims.calibrate``), which feeds simulated tables through these same functions.
 A claim's verdict combines its checks: any contradicted -> contradicted (each check
 decided at 0.0125 / k, Bonferroni over the claim's k checks); all supported -> supported
-(each at 0.0125, an intersection-union test); else inconclusive if any check is, else not
+(each at 0.0125, an intersection-union test); else undecided if any check is, else not
 enough seeds.
 """
 from __future__ import annotations
@@ -37,7 +37,17 @@ from paper.claims.claim_power import (
     power_gap,
     power_greater,
 )
+from paper.claims.pooled import Pooled, sign_test
 from paper.claims.power import COULD_NOT, LOW, NO_POWER, Power
+from paper.claims.sides import (
+    NO_SIDE,
+    SPANS_BOTH,
+    Side,
+    side_below,
+    side_contrast,
+    side_convergence,
+    side_curves,
+)
 from paper.claims.verdicts import (
     BAND_TOL,
     BY_CONSTRUCTION,
@@ -103,12 +113,22 @@ class Check:
     scope: str = "paper"
     power: float = float("nan")  # power to detect the stated effect (paper.claims.claim_power)
     power_text: str = "-"  # that power, its effect and the seeds 80% power would need
+    side: Side = NO_SIDE  # the estimate, its printed interval and the claim's region (paper.claims.sides)
 
     @property
     def verdict_words(self) -> str:
-        """The verdict as the page prints it: an inconclusive check whose power was below
-        50% says the design could not have decided it."""
-        return COULD_NOT if self.verdict == INCONCLUSIVE and self.power < LOW else self.verdict
+        """The verdict as the page prints it. An undecided check says which way its estimate
+        points and what its interval excludes; only one whose interval spans both the claim
+        and its negation, with power under 50%, says the design could not have decided it."""
+        if self.verdict != INCONCLUSIVE or not self.side.known:
+            return self.verdict
+        if self.side.excludes == SPANS_BOTH and self.power < LOW:
+            return f"{COULD_NOT} (points {self.side.points})"
+        if not self.side.excludes:
+            return f"{self.verdict}: points {self.side.points}"
+        what = "spans both the claim and its negation" if self.side.excludes == SPANS_BOTH \
+            else f"excludes {self.side.excludes}"
+        return f"{self.verdict}: points {self.side.points}; its 95% CI {what}"
 
 
 @dataclass
@@ -130,6 +150,13 @@ class Claim:
         """The verdict at the claim's home scope (the paper's configurations; a run
         method's claim: the run's), every execution mode."""
         return self.verdict_at(self.home) or NOT_ENOUGH
+
+    def pooled(self, scope: str | None = None) -> Pooled:
+        """The sign test across the checks of ``scope`` (default the claim's home)
+        (``paper.claims.pooled``): the directions their estimates point."""
+        scope = self.home if scope is None else scope
+        return sign_test([c.side.points for c in self.checks if c.scope == scope and c.verdict != NOT_ENOUGH
+                          and c.side.one_sided])
 
     def verdict_by_mode(self, scope: str | None = None) -> dict[str, str]:
         """Combined verdict per execution mode of the checks of ``scope`` (default the
@@ -209,8 +236,9 @@ def _modes(rows: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
 
 # ------------------------------------------------------------------- claims
 Configs = Sequence[tuple]
-# (config label, execution, verdict, numbers, test[, power]): one check of ``_each``'s fn
-CheckRow = tuple[str, str, str, str, str] | tuple[str, str, str, str, str, Power]
+# (config label, execution, verdict, numbers, test[, power[, side]]): one check of ``_each``'s fn
+CheckRow = tuple[str, str, str, str, str] | tuple[str, str, str, str, str, Power] | \
+    tuple[str, str, str, str, str, Power, Side]
 
 
 def _each(claim: Claim, paper: Configs, run: Configs,
@@ -224,8 +252,8 @@ def _each(claim: Claim, paper: Configs, run: Configs,
 def decide_scope(claim: Claim, scope: str, configs: Configs,
                  fn: Callable[[tuple, float], list[CheckRow]]) -> Claim:
     """Append fn(config, contra_alpha) -> [(config label, execution, verdict, numbers,
-    test[, power])] as the checks of ``scope`` (``power`` a ``paper.claims.power.Power``,
-    only with a verdict that has seeds).
+    test[, power[, side]])] as the checks of ``scope`` (``power`` a ``paper.claims.power.Power``,
+    ``side`` a ``paper.claims.sides.Side``, only with a verdict that has seeds).
 
     A scope's k checks decide one claim, and one contradicted check contradicts it, so
     each check may contradict only at TEST_ALPHA / k (Bonferroni; ``paper.claims.verdicts``):
@@ -234,9 +262,10 @@ def decide_scope(claim: Claim, scope: str, configs: Configs,
     k = sum(len(rows) for rows in first)
     decided = first if k <= 1 else [fn(c, TEST_ALPHA / k) for c in configs]  # one check: already at TEST_ALPHA
     for rows in decided:
-        for label, ex, v, nums, test, *power in rows:
-            pw = power[0] if power and v != NOT_ENOUGH else NO_POWER
-            claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text()))
+        for label, ex, v, nums, test, *extra in rows:
+            pw: Power = extra[0] if extra and v != NOT_ENOUGH else NO_POWER  # type: ignore[assignment]  # CheckRow's 6th
+            side: Side = extra[1] if len(extra) > 1 and v != NOT_ENOUGH else NO_SIDE  # type: ignore[assignment]  # 7th
+            claim.checks.append(Check(label, v, nums, test, ex, scope, pw.power, pw.text(), side))
     return claim
 
 
@@ -259,7 +288,7 @@ def claim_hier_above_dec(train: pd.DataFrame, configs: Configs = PAPER["fig1a"],
         n, p = c
         a, b = final_means(select(train, "hierarchical", n, p)), final_means(select(train, "decentralized", n, p))
         v, nums, test = check_greater(a, b, "final reward", contra_alpha)
-        return [(_cfg(n, p), TRAINING, v, nums, test, power_greater(a, b))]
+        return [(_cfg(n, p), TRAINING, v, nums, test, power_greater(a, b), side_contrast([a, b], [1.0, -1.0]))]
     return _each(claim, configs, run, one)
 
 
@@ -276,7 +305,8 @@ def claim_gap_widens(train: pd.DataFrame, configs: Configs = PAPER["gap"], run: 
         groups = [final_means(select(train, m, n, p))
                   for n in (large, small) for m in ("hierarchical", "decentralized")]
         v, nums, test = check_gap(groups, large, small, contra_alpha)
-        return [(f"Gap({large}) vs Gap({small}), p = {fmt_p(p)}", TRAINING, v, nums, test, power_gap(groups))]
+        return [(f"Gap({large}) vs Gap({small}), p = {fmt_p(p)}", TRAINING, v, nums, test, power_gap(groups),
+                 side_contrast(groups, [1.0, -1.0, -1.0, 1.0]))]
     return _each(claim, configs, run, one)
 
 
@@ -296,7 +326,7 @@ def claim_convergence(train: pd.DataFrame, configs: Configs = PAPER["fig1b"], ru
         curves = per_cell(select(train, "hierarchical", n, p), "team_return")
         v, nums, test = check_convergence(curves, contra_alpha=contra_alpha)
         pw = power_convergence(curves, CONV_REL_TOL, FINAL_FRAC) if v != NOT_ENOUGH else NO_POWER
-        return [(_cfg(n, p), TRAINING, v, nums, test, pw)]
+        return [(_cfg(n, p), TRAINING, v, nums, test, pw, side_convergence(curves))]
     return _each(claim, configs, run, one)
 
 
@@ -322,7 +352,7 @@ def claim_above_ic3net(evals: pd.DataFrame, configs: Configs = PAPER["fig2"], ru
             hs, is_ = per_cell(hh, "success_rate"), per_cell(ii, "success_rate")
             v, nums, test = check_curves(hs, is_, contra_alpha)
             out.append((_cfg(n, p), mode, v, nums, test,
-                        power_curves(hs, is_) if v != NOT_ENOUGH else NO_POWER))
+                        power_curves(hs, is_) if v != NOT_ENOUGH else NO_POWER, side_curves(hs, is_)))
         return out
     return _each(claim, configs, run, one)
 
@@ -363,7 +393,8 @@ def claim_few_corrections(evals: pd.DataFrame, configs: Configs = PAPER["table1"
 
         def check(rows: pd.DataFrame, a: float) -> tuple:
             m = seed_means(rows, "correction_rate")
-            return (*check_corrections(m, contra_alpha=a), power_below(m, MAX_CORRECTION, truth, words))
+            return (*check_corrections(m, contra_alpha=a), power_below(m, MAX_CORRECTION, truth, words),
+                    side_below(m, MAX_CORRECTION))
         return _per_filter_mode(ev, check)(c, contra_alpha)
     return _each(claim, configs, run, one)
 

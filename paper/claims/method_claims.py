@@ -33,6 +33,7 @@ from paper.claims.claims import (
     with_execution,
 )
 from paper.claims.power import NO_POWER
+from paper.claims.sides import side_contrast
 from paper.claims.verdicts import NOT_ENOUGH, TEST_ALPHA, check_greater
 from paper.roles import role
 from reports.data.store import select
@@ -102,7 +103,7 @@ def claim_above_baselines(evals: pd.DataFrame, method: str, baselines: list[str]
         a, z = seed_means(mm, "success_rate"), seed_means(bb, "success_rate")
         v, nums, test = check_greater(a, z, "mean success", contra_alpha)
         return [(f"vs {method_label(b)}, {_cfg(n, p)}", mode, v, nums, test,
-                 power_success(a, z) if v != NOT_ENOUGH else NO_POWER)]
+                 power_success(a, z) if v != NOT_ENOUGH else NO_POWER, side_contrast([a, z], [1.0, -1.0]))]
     return decide_scope(claim, SCOPE, checks, one)
 
 

@@ -23,9 +23,9 @@ from paper.claims.verdicts import MIN_SEEDS, TEST_ALPHA
 from reports.stats import welch_parts
 
 TARGET = 0.8  # the power whose seed count is reported
-LOW = 0.5  # below this an inconclusive verdict says the design could not decide it
+LOW = 0.5  # below this an undecided verdict whose interval spans both sides says the design could not decide it
 MAX_SEEDS = 1000  # seed counts searched for TARGET ("> 1000" beyond)
-COULD_NOT = "inconclusive: this design could not have decided it"
+COULD_NOT = "undecided: this design could not have decided it"
 
 
 @dataclass(frozen=True)

@@ -14,6 +14,7 @@ import pandas as pd
 
 from paper.claims import claims as C
 from paper.claims.claim_power import power_below, power_near, power_trend
+from paper.claims.sides import side_below, side_contrast, side_near
 from paper.claims.verdicts import NOT_ENOUGH
 from paper.claims.verdicts_bounds import (
     NEAR_TOL,
@@ -41,7 +42,7 @@ def claim_collisions_printed(evals: pd.DataFrame, configs: C.Configs = C.PAPER["
     def check(rows: pd.DataFrame, contra_alpha: float) -> tuple:
         m = C.seed_means(rows, "collision_rate")
         return (*check_below(m, PRINT_BOUND, "collision rate", contra_alpha),
-                power_below(m, PRINT_BOUND, 0.0, "a true rate of 0"))
+                power_below(m, PRINT_BOUND, 0.0, "a true rate of 0"), side_below(m, PRINT_BOUND))
     return C._each(claim, configs, run, C._per_filter_mode(C.with_execution(evals), check))
 
 
@@ -64,7 +65,8 @@ def claim_mean_candidates(evals: pd.DataFrame, configs: C.Configs = C.PAPER["tab
 
         def check(rows: pd.DataFrame, a: float) -> tuple:
             m = C.seed_means(rows, "mean_candidates")
-            return (*check_near(m, target, "mean candidates", a), power_near(m, target))
+            return (*check_near(m, target, "mean candidates", a), power_near(m, target),
+                    side_near(m, target * (1 - NEAR_TOL), target * (1 + NEAR_TOL)))
         return C._per_filter_mode(ev, check)(c, contra_alpha)
     return C._each(claim, configs, run, one)
 
@@ -90,7 +92,7 @@ def claim_searches_grow(evals: pd.DataFrame, configs: C.Configs = C.PAPER["table
         for mode in modes:
             groups = [C.seed_means(d[mode], "mean_candidates") for d in per_n]
             out.append((label, mode, *check_trend(groups, ns, "mean candidates", contra_alpha),
-                        power_trend(groups, ns, PAPER_SLOPE)))
+                        power_trend(groups, ns, PAPER_SLOPE), side_contrast(groups, list(trend_weights(ns)))))
         return out
     return C._each(claim, [tuple(configs)], (), one)
 
@@ -107,5 +109,6 @@ def claim_normal_search(evals: pd.DataFrame, configs: C.Configs = C.PAPER["table
     def check(rows: pd.DataFrame, contra_alpha: float) -> tuple:
         m = C.seed_means(rows, "fallback_rate")
         return (*check_below(m, FALLBACK_BOUND, "fallback rate", contra_alpha),
-                power_below(m, FALLBACK_BOUND, FALLBACK_BOUND / 2, f"a true rate of {FALLBACK_BOUND / 2:.1%}"))
+                power_below(m, FALLBACK_BOUND, FALLBACK_BOUND / 2, f"a true rate of {FALLBACK_BOUND / 2:.1%}"),
+                side_below(m, FALLBACK_BOUND))
     return C._each(claim, configs, run, C._per_filter_mode(C.with_execution(evals), check))

@@ -2,7 +2,8 @@
 
 Verdicts (docs/decisions/0040, 0041): **supported** (significant at level 0.05 in the
 paper's direction), **contradicted** (significant in the opposite direction),
-**inconclusive** (neither), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
+**undecided** (neither: its words say which way the estimate points and what its interval
+excludes, ``paper.claims.sides``), **not enough seeds** (fewer than ``MIN_SEEDS`` seeds on a
 side). Two checks are not statistical: **verified by construction** (the payload ratio)
 and Lemma 1's arithmetic (**condition not met** when its premise fails). Each kernel takes one number (or one array of
 episodes) per
@@ -30,15 +31,16 @@ from reports.stats import (
     TTest,
     convergence_test,
     curve_shape,
-    cut_interval,
     probability_of_improvement,
     quantile_curve,
+    rate_ci,
     simultaneous_band,
     t_test,
+    uninformative,
     zero_events_bound,
 )
 
-SUPPORTED, INCONCLUSIVE, CONTRADICTED = "supported", "inconclusive", "contradicted"
+SUPPORTED, INCONCLUSIVE, CONTRADICTED = "supported", "undecided", "contradicted"
 NOT_ENOUGH = "not enough seeds"
 BY_CONSTRUCTION = "verified by construction"
 CONDITION_NOT_MET = "condition not met"  # a lemma's premise fails on the settings (no data tested)
@@ -61,7 +63,7 @@ BAND_TOL = 0.05  # success-rate tolerance of "nowhere below"
 
 def combine(verdicts: Sequence[str]) -> str:
     """Contradicted dominates, then "condition not met"; all supported (or by
-    construction) supports; then inconclusive; else not enough seeds. All "by
+    construction) supports; then undecided; else not enough seeds. All "by
     construction" stays so."""
     vs = list(verdicts)
     if not vs:
@@ -97,6 +99,11 @@ def contra_note(contra_alpha: float) -> str:
 def _g(x: float) -> str:
     """Three significant digits ("nan", "inf" as they are)."""
     return f"{x:.3g}"
+
+
+def _vague(lo: float, hi: float, span: float = 1.0) -> str:
+    """"; uninformative" after an interval that covers most of its quantity's range."""
+    return "; uninformative" if uninformative(lo, hi, span) else ""
 
 
 def _too_few(*counts: int) -> bool:
@@ -205,8 +212,8 @@ def check_corrections(m: np.ndarray, bound: float = MAX_CORRECTION,
     t = t_test([m], [1.0], null=bound)
     verdict = (SUPPORTED if t.p_less < TEST_ALPHA  # >= 3 finite values: t is always valid
                else CONTRADICTED if t.p_greater < contra_alpha else INCONCLUSIVE)
-    lo, hi = cut_interval(t.lo, t.hi)  # shown within [0, 1]; the test above is unchanged
-    nums = (f"correction rate {m.mean():.2%} [95% CI {lo:.2%}, {hi:.2%}], "
+    _, lo, hi = rate_ci(m)  # a rate's interval, inside [0, 1] by construction; the test is the t above
+    nums = (f"correction rate {m.mean():.2%} [95% CI {lo:.2%}, {hi:.2%}{_vague(lo, hi)}], "
             f"one-sided p = {_g(t.p_less)}")
     return (verdict, nums,
             f"one-sample t over {m.size} seeds against {bound:.0%}{contra_note(contra_alpha)}")

@@ -29,7 +29,7 @@ from paper.claims.verdicts import (
     decide,
     seeds_msg,
 )
-from reports.stats import cut_interval, t_test
+from reports.stats import positive_ci, rate_ci, t_test, uninformative
 
 NEAR_TOL = 0.5  # "as in Table I": within +-50% of the paper's printed value
 
@@ -51,8 +51,10 @@ def check_below(m: np.ndarray, bound: float, what: str, contra_alpha: float = TE
         return NOT_ENOUGH, seeds_msg(m.size), "-"
     t = t_test([-m], [1.0], null=-bound)  # contrast -mean - (-bound) > 0: mean below the bound
     f = (lambda x: f"{_g(100 * x)}%") if pct else _g
-    lo, hi = cut_interval(-t.hi, -t.lo) if pct else (-t.hi, -t.lo)  # a rate's CI stops at [0, 1]
-    nums = (f"{what} {f(m.mean())} [95% CI {f(lo)}, {f(hi)}] vs {f(bound)}; one-sided p = "
+    # the interval shown: a rate's inside [0, 1], a count's >= 0, by construction (the test is the t above)
+    _, lo, hi = rate_ci(m) if pct else positive_ci(m)
+    vague = "; uninformative" if pct and uninformative(lo, hi) else ""
+    nums = (f"{what} {f(m.mean())} [95% CI {f(lo)}, {f(hi)}{vague}] vs {f(bound)}; one-sided p = "
             f"{_g(t.p_greater)}")
     return (decide(t, contra_alpha=contra_alpha), nums,
             f"one-sample t over {m.size} seeds against {f(bound)}{contra_note(contra_alpha)}")
@@ -75,7 +77,8 @@ def check_near(m: np.ndarray, target: float, what: str, contra_alpha: float = TE
         verdict = SUPPORTED
     else:
         verdict = INCONCLUSIVE
-    nums = (f"{what} {_g(m.mean())} [95% CI {_g(above.lo)}, {_g(above.hi)}] vs paper {_g(target)} "
+    _, lo, hi = positive_ci(m)  # a count's interval, >= 0 by construction (the tests are the t above)
+    nums = (f"{what} {_g(m.mean())} [95% CI {_g(lo)}, {_g(hi)}] vs paper {_g(target)} "
             f"(band {_g(lo_b)}..{_g(hi_b)}); p(above the band) = {_g(below.p_greater)}, "
             f"p(below it) = {_g(above.p_less)}")
     return verdict, nums, (f"equivalence, two one-sided t over {m.size} seeds, +-{tol:.0%} of the "

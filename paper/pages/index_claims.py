@@ -2,7 +2,7 @@
 
 One collapsible block per claim (``<details>``) whose summary line gives the claim's
 verdict and how many checks have each verdict. Inside it, a table of the checks that were
-decided (supported, inconclusive, contradicted, verified by construction) and one line
+decided (supported, undecided, contradicted, verified by construction) and one line
 naming the configurations whose check had too few seeds: a smoke run, where nearly every
 check is "not enough seeds", shows eight summary lines instead of ~70 table rows (over
 12,000 px before). A block is open when its claim has a decided check. When every check
@@ -27,7 +27,7 @@ def badge(verdict: str) -> str:
 
 
 def verdict_counts(verdicts: pd.Series) -> str:
-    """"2 supported, 1 inconclusive, 12 not enough seeds" in the order of ``VERDICTS``."""
+    """"2 supported, 1 undecided, 12 not enough seeds" in the order of ``VERDICTS``."""
     counts = verdicts.value_counts()
     order = [v for v in VERDICTS if v in counts] + sorted(set(counts.index) - set(VERDICTS))
     return ", ".join(f"{int(counts[v])} {v}" for v in order)

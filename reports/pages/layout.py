@@ -39,7 +39,7 @@ caption{caption-side:top;text-align:left;font-size:90%;color:#333;padding:2px 0}
 .figrow{display:flex;flex-wrap:wrap;gap:.5em 2em;align-items:flex-start}
 figure{margin:.5em 0;max-width:100%}img{display:block;max-width:100%;height:auto;border:1px solid #eee}
 .side{flex:1 1 18em;max-width:48em}figcaption,.side p,.side li{font-size:90%;color:#333}
-.supported{color:#1a7f37}.contradicted{color:#b42318}.inconclusive{color:#555}
+.supported{color:#1a7f37}.contradicted{color:#b42318}.undecided{color:#555}
 .not-enough-seeds{color:#8a6d00}.verified-by-construction{color:#1a5f7f}
 details.claim{margin:.3em 0;border-left:3px solid #ddd;padding-left:.6em}
 details.claim>summary{cursor:pointer}.counts{color:#555;font-size:90%}

@@ -4,13 +4,15 @@ Pure functions of the evaluation rows (one row per cell, execution mode and epis
 the cell's config columns; reports/data/store.py), seed as the unit everywhere:
 
 * ``leaderboard_frame``: per configuration (N, p) and execution mode, each method's
-  success rate: the mean over seeds of per-seed means with a 95% Student t CI over seeds
-  (``reports.stats.mean_ci``), and its rank within the configuration;
+  success rate: the mean over seeds of per-seed means with a 95% CI over seeds inside [0, 1]
+  by construction (``reports.stats.rate_ci``, a logit-scale t interval) and its simulated
+  coverage at the row's own mean, spread and seeds (``reports.stats.coverage``), and its
+  rank within the configuration;
 * ``aggregate_frame``: across the configurations every method of the run covers, per
   learned execution mode (a planner's one mode counts in each), the interquartile mean
-  of the (seed x configuration) success matrix (rliable's ``aggregate_iqm``) with a 95%
-  stratified bootstrap CI (seeds resampled within each configuration: ``scipy.stats.
-  bootstrap`` over one sample per configuration), and the probability of improvement of
+  of the (seed x configuration) success matrix (rliable's ``aggregate_iqm``), and over
+  seeds, the unit, each seed's IQM across the configurations (``reports.stats.iqm``) with
+  their mean and ``rate_ci`` and its simulated coverage; and the probability of improvement of
   each ordered pair (rliable's ``probability_of_improvement``, averaged over
   configurations) with its stratified bootstrap CI;
 * ``safety_frame``: per method, configuration and mode, the safety columns of Table I for
@@ -46,12 +48,14 @@ from reports.figures.plotting import (
     placeholder,
     ranked_legend,
 )
-from reports.stats import cut_interval, mean_ci
+from reports.stats import coverage, iqm, positive_ci, rate_ci, uninformative
 from reports.tables.mapf import is_lifelong
 from reports.tables.summary import fmt_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
+COVERAGE_SIMS = 2000  # simulations behind each printed coverage (MC s.e. <= 0.006 near 93%)
+COVERAGE_TARGET = 0.93  # a printed coverage below it says so (collapsed seeds: no 3-seed interval reaches it)
 PLANNER = "planner"
 SAFETY = ("collision_rate", "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step")
 
@@ -78,18 +82,22 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
         scores = scores.merge(seed_scores(evals, "throughput"))
     rows = []
     for (n, p, mode, method), g in scores.groupby(["n_robots", "loss_p", "execution", "method"], sort=True):
-        mean, lo, hi = mean_ci(g["success_rate"].to_numpy(), LEVEL)
-        lo, hi = cut_interval(lo, hi)  # a rate (NaN with one seed stays NaN)
+        x = g["success_rate"].to_numpy()
+        mean, lo, hi = rate_ci(x, LEVEL)  # inside [0, 1] by construction (NaN with one seed)
         rows.append({"n_robots": int(n), "loss_p": float(p), "execution": mode, "method": method,
                      "label": method_label(method), "seeds": len(g), "success": mean,
-                     "success_lo": lo, "success_hi": hi})
+                     "success_lo": lo, "success_hi": hi,
+                     "success_cov": coverage("rate", mean, float(np.std(x, ddof=1)) if len(x) > 1 else np.nan,
+                                             len(x), COVERAGE_SIMS, LEVEL)})
         if lifelong:
-            mean, lo, hi = mean_ci(g["throughput"].to_numpy(), LEVEL)
-            lo, hi = cut_interval(lo, hi, 0.0, np.inf)
-            rows[-1].update(throughput=mean, throughput_lo=lo, throughput_hi=hi)
+            x = g["throughput"].to_numpy()
+            mean, lo, hi = positive_ci(x, LEVEL)
+            rows[-1].update(throughput=mean, throughput_lo=lo, throughput_hi=hi,
+                            throughput_cov=coverage("positive", mean, float(np.std(x, ddof=1)) if len(x) > 1
+                                                    else np.nan, len(x), COVERAGE_SIMS, LEVEL))
     out = pd.DataFrame(rows, columns=["n_robots", "loss_p", "execution", "method", "label", "seeds",
-                                      "success", "success_lo", "success_hi"]
-                       + (["throughput", "throughput_lo", "throughput_hi"] if lifelong else []))
+                                      "success", "success_lo", "success_hi", "success_cov"]
+                       + (["throughput", "throughput_lo", "throughput_hi", "throughput_cov"] if lifelong else []))
     key = "throughput" if lifelong else "success"
     if out.empty:
         return out.assign(rank=pd.Series(dtype="int64"))
@@ -161,13 +169,6 @@ def _profile(taus: np.ndarray):
     return stat
 
 
-def _iqm(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
-    """rliable's ``aggregate_iqm`` (the 25%-trimmed mean of every score of the matrix) of
-    the matrix whose columns are ``cols`` (each (..., seeds)), batched over leading axes."""
-    flat = np.concatenate([np.moveaxis(c, axis, -1) for c in cols], axis=-1)
-    return sps.trim_mean(flat, 0.25, axis=-1)
-
-
 def _poi(k: int):
     """rliable's ``probability_of_improvement`` of X's first ``k`` columns over Y's ``k``,
     batched: per configuration P(X > Y) + P(X = Y) / 2 over all seed pairs, averaged."""
@@ -190,11 +191,14 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     for mode in modes:
         mats, cfgs, used = score_matrices(evals, mode, metric)
         for m, mat in mats.items():
-            cols = [mat[:, j] for j in range(mat.shape[1])]
-            lo, hi = _stratified_ci(cols, _iqm)
+            per_seed = np.array([iqm(row) for row in mat])  # each seed's IQM across the configurations
+            kind = "positive" if metric == "throughput" else "rate"  # goals per step: no upper bound
+            mean, lo, hi = (positive_ci if kind == "positive" else rate_ci)(per_seed, LEVEL)
+            sd = float(per_seed.std(ddof=1)) if len(per_seed) > 1 else np.nan
             iqm_rows.append({"execution": mode, "method": m, "label": method_label(m), "configurations": len(cfgs),
                              "seeds": used[m], "iqm": float(rly_metrics.aggregate_iqm(mat)),
-                                 "iqm_lo": lo, "iqm_hi": hi})
+                             "seed_iqm": mean, "iqm_lo": lo, "iqm_hi": hi,
+                             "iqm_cov": coverage(kind, mean, sd, len(per_seed), COVERAGE_SIMS, LEVEL)})
         for x, y in permutations(mats, 2):
             a, b = mats[x], mats[y]
             k = a.shape[1]
@@ -222,9 +226,17 @@ def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
 
 LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one, so success (robots at their "
                  "goal at the end) says little; throughput (goals reached per step) is the score. Both: the mean "
-                 "over seeds of per-seed means, [95% Student t CI over seeds]; rank 1 = highest mean throughput "
+                 "over seeds of per-seed means, [95% CI over seeds, inside the range by construction: a "
+                 "Student t interval on the logit scale (success), Cox's lognormal interval (throughput)] "
+                 "(simulated coverage); "
+                 "rank 1 = highest mean throughput "
                  "among the methods at that configuration and mode (a planner's one mode ranks with every "
                  "learned mode).")
+
+
+def _below(cov: float) -> bool:
+    """Whether a coverage, as printed (one decimal of a percent), is under ``COVERAGE_TARGET``."""
+    return float(f"{100 * cov:.1f}") < 100 * COVERAGE_TARGET
 
 
 def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFrame, safety: pd.DataFrame) -> str:
@@ -232,12 +244,23 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
     def pct(v: float) -> str:
         return "—" if not np.isfinite(v) else f"{100 * v:.1f}%"
 
-    def ci(v: float, lo: float, hi: float) -> str:
-        return pct(v) + ("" if not np.isfinite(lo) else f" [{pct(lo)}, {pct(hi)}]")
+    def ci(v: float, lo: float, hi: float, cov: float = np.nan) -> str:
+        if not np.isfinite(lo):
+            return pct(v)
+        vague = "; uninformative" if uninformative(lo, hi) else ""
+        return pct(v) + f" [{pct(lo)}, {pct(hi)}{vague}]" + coverage_text(cov)
+
+    def coverage_text(cov: float) -> str:
+        return "" if not np.isfinite(cov) else f" (coverage {cov:.1%}" + (
+            f", below {COVERAGE_TARGET:.0%})" if _below(cov) else ")")
 
     lines = ["# Leaderboard: every method of the run", "",
              "Success rate (robots at their goal per episode): the mean over seeds of per-seed means, "
-             "[95% Student t CI over seeds]; rank 1 = highest mean among the methods at that "
+             "[95% CI over seeds: a Student t interval on the logit scale, inside 0-100% by construction; "
+             "'uninformative' where it spans more than 80 points], (its coverage of the true mean simulated "
+             "at the row's own mean, spread and seeds, Beta-distributed; below 93% where seeds collapse: "
+             "with one seed near 0 and the others high, three seeds often all land on one side, and no "
+             "interval over three values then covers); rank 1 = highest mean among the methods at that "
              "configuration and mode (a planner's one mode ranks with every learned mode).", ""]
     if board.empty:
         return "\n".join(lines + ["No evaluated cell yet.", ""])
@@ -247,27 +270,36 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
                   "|---|---|---|---|---|---|---|---|"]
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} | "
-                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')} "
+                         f"(coverage {r.throughput_cov:.1%}"
+                         f"{', below 93%' if _below(r.throughput_cov) else ''}) | "
+                         f"{ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
     else:
         lines += ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                         f"{ci(r.success, r.success_lo, r.success_hi)} | {r.rank} |")
+                         f"{ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
     score = "throughput" if "throughput" in board else "success"
+    interval = ("Cox's lognormal interval" if score == "throughput"
+                else "a Student t interval on the logit scale")
     lines += ["", "## Across configurations", "",
               f"Interquartile mean (rliable) of the seed x configuration {score} matrix over the "
-              "configurations every method covers, [95% stratified bootstrap CI: seeds resampled "
-              "within each configuration]; seeds: those every such configuration of the method has.", ""]
+              "configurations every method covers; seeds: those every such configuration of the method "
+              "has. The interval is over seeds, the unit: each seed's IQM across the configurations, "
+              f"their mean [95% CI: {interval}] (its simulated coverage at "
+              "their own mean, spread and seeds). A stratified bootstrap over 3 seeds per configuration "
+              "covered 80-88% (docs/decisions/0232).", ""]
     if iqm.empty:
         lines += ["No configuration is covered by every method.", ""]
     else:
         head = "IQM throughput (goals/step)" if score == "throughput" else "IQM success"
-        lines += [f"| execution | method | configurations | seeds | {head} [95% CI] |", "|---|---|---|---|---|"]
+        lines += [f"| execution | method | configurations | seeds | {head} | seeds' mean IQM [95% CI] |",
+                  "|---|---|---|---|---|---|"]
         for r in iqm.itertuples(index=False):
-            value = (fmt_ci(r.iqm, r.iqm_lo, r.iqm_hi, "num") if score == "throughput"
-                     else ci(r.iqm, r.iqm_lo, r.iqm_hi))
-            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {value} |")
+            point = f"{r.iqm:.3g}" if score == "throughput" else pct(r.iqm)
+            interval_txt = (fmt_ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, "num") + coverage_text(r.iqm_cov)
+                            if score == "throughput" else ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, r.iqm_cov))
+            lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {point} | {interval_txt} |")
         lines += ["", "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
                   "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
                   "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
@@ -349,8 +381,9 @@ def success_figure(board: pd.DataFrame, against: str, score: str = "success") ->
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])
     seed_text = "; ".join(f"{method_label(m)} {r['min']}" + (f"-{r['max']}" if r["max"] != r["min"] else "")
                           for m, r in seeds.iterrows())
+    kind = "t on the logit scale" if score == "success" else "Cox's lognormal interval"
     caption = (f"{name.capitalize()} against {'team size N' if against == 'n_robots' else 'loss probability p'} "
-               f"for every method of the run, mean over seeds with a 95% Student t CI over seeds "
+               f"for every method of the run, mean over seeds with a 95% CI over seeds ({kind}) "
                f"(seeds per point: {seed_text}); one row per execution mode, planners in every row.")
     return Built(fig, [], caption)
 

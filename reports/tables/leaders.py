@@ -6,10 +6,10 @@ the unit, as the rest of the leaderboard:
 
 * ``leaders_frame``: per (N, p) and learned execution mode, among the learned methods with
   that mode, the leader (highest mean success over seeds) and the runner-up, the leader's
-  margin over the runner-up with a 95% Welch t CI over seeds (``reports.stats.t_test``),
+  margin over the runner-up with a 95% CI over seeds (Newcombe's square-and-add of the two
+  rates' ``reports.stats.rate_ci``, inside [-1, 1] by construction),
   and the best planner at that configuration (kept out of the race: PIBT plans with full
-  information, a ceiling rather than a rival) with the leader's gap to it, also with a
-  Welch CI;
+  information, a ceiling rather than a rival) with the leader's gap to it, with the same CI;
 * ``leaders_markdown`` / ``leaders_display``: one N x p matrix per mode, how many
   configurations each method leads, and where another method than the one leading most
   leads (where the ordering changes with N or p);
@@ -28,7 +28,7 @@ import pandas as pd
 
 from reports.data.store import execution_order, fmt_p
 from reports.figures.plotting import label_order, method_label
-from reports.stats import cut_interval, t_test
+from reports.stats import rate_ci
 from reports.tables.leaderboard import PLANNER, seed_scores
 
 PER_METHOD_COLUMNS = ["execution", "method", "configurations", "contested", "leads", "separated_leads",
@@ -80,7 +80,7 @@ def per_method_frame(evals: pd.DataFrame, leaders: pd.DataFrame) -> pd.DataFrame
     ``separated_leads`` among those (``leaders``: ``leaders_frame(evals)``), and at the
     ``with_planner`` configurations a planner shares with it, its own success minus the
     best planner's: the range of the means (``gap_min``, ``gap_max``) and at how many the
-    95% Welch CI lies below 0 (``below_planner``) or above 0 (``above_planner``)."""
+    95% CI lies below 0 (``below_planner``) or above 0 (``above_planner``)."""
     scores = seed_scores(evals)
     planners = {key: _ranked(cfg)[0][1] for key, cfg in _by_config(scores[scores["execution"] == PLANNER])}
     rows = []
@@ -137,10 +137,13 @@ def _by_config(scores: pd.DataFrame) -> list[tuple[tuple[int, float], pd.DataFra
 
 
 def _diff(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
-    """mean(a) - mean(b) with its 95% Welch t CI over seeds, cut at [-1, 1] (a difference
-    of two rates; ``cut_interval``)."""
-    t = t_test([a, b], [1.0, -1.0])
-    return (float(np.nanmean(a) - np.nanmean(b)), *cut_interval(t.lo, t.hi, floor=-1.0))
+    """mean(a) - mean(b) of two rates with its 95% interval over seeds: Newcombe's
+    square-and-add (MOVER) combination of each side's ``rate_ci``, inside [-1, 1] by
+    construction (docs/decisions/0232)."""
+    m1, l1, u1 = rate_ci(a)
+    m2, l2, u2 = rate_ci(b)
+    d = float(m1 - m2)
+    return d, float(d - np.hypot(m1 - l1, u2 - m2)), float(d + np.hypot(u1 - m1, m2 - l2))
 
 
 def _pp(v: float) -> str:
@@ -261,7 +264,8 @@ def leaders_markdown(frame: pd.DataFrame, per_method: pd.DataFrame) -> str:
     lines = ["# Who leads where", "",
              "Per configuration (team size N, loss probability p) and learned execution mode: the learned method "
              "with the highest mean success over seeds, then the runner-up, and the leader's margin in percentage "
-             "points [95% Welch t CI over seeds]. \">\" where that interval excludes 0, \"≈\" where it does not. "
+             "points [95% CI over seeds: the square-and-add of the two rates' logit t intervals, inside "
+             "±100 points by construction]. \">\" where that interval excludes 0, \"≈\" where it does not. "
              "The leader is picked by its mean and the intervals are pointwise (not corrected for the number of "
              "configurations; where no method is better, \">\" appears at under 5% of them, simulated): this "
              "describes the run, the calibrated verdicts are in claims.md. Planners are "
@@ -271,7 +275,7 @@ def leaders_markdown(frame: pd.DataFrame, per_method: pd.DataFrame) -> str:
     lines += [PER_METHOD_HEADING, "",
               "Per learned method and mode: how many of the configurations it shares with another learned method "
               "it leads (and by a margin whose CI excludes 0), and at the configurations it shares with a planner, "
-              "its own success minus the best planner's (the range of the means, and at how many the 95% Welch CI "
+              "its own success minus the best planner's (the range of the means, and at how many the 95% CI "
               "lies below or above 0).", "", per_method_markdown(per_method)]
     display = leaders_display(frame, full=True)
     ps = [c for c in display.columns if c.startswith("p = ")]

@@ -6,7 +6,7 @@ Eval rows carry ``csr``, ``sum_of_costs``, ``makespan`` (one-shot episodes) and
 in every row of a store written before these columns (bench/store/schema.py
 ``ADDED_EVAL_COLUMNS``). One row per (method, N, p, variant, execution mode) whose rows hold
 a finite value of any of them; every metric is the mean over seeds of per-seed means with a
-95% Student t CI over seeds (a bootstrap over episodes with a single seed), by the summary's
+95% CI over seeds inside the metric's range (a bootstrap over episodes with a single seed), by the summary's
 ``metric_estimate`` (reports.stats). Variants (e.g. ``delay=2``) are never pooled.
 
 A store without any finite MAPF value gives an empty frame, and the report then writes
@@ -29,7 +29,8 @@ HEAD = {"csr": "CSR", "sum_of_costs": "sum of costs", "makespan": "makespan",
         "throughput": "throughput (goals/step)"}
 CAPTION = ("MAPF metrics: one-shot cells: CSR (episodes where every robot reached its goal), sum of "
            "costs and makespan (steps); lifelong cells: throughput (goals reached per step). Mean over "
-           "seeds [95% CI]: a Student t interval over seeds with two or more seeds, else a bootstrap "
+           "seeds [95% CI]: over seeds with two or more seeds (a Student t interval on the logit scale for "
+           "CSR, Cox's lognormal interval for costs and throughput: inside their range), else a bootstrap "
            "over the single seed's evaluation episodes (column \"CI over\"); — where a metric does not "
            "apply to the cell's task.")
 

@@ -4,7 +4,8 @@
 results table (copied by ``scripts/sync_readme_claims.py``, kept equal by
 ``tests/reproduction``), so no success rate in the README is typed by hand. Every number
 is the summary's (``summary_frame``): the mean over seeds of each seed's mean success over
-its evaluation episodes, with the 95% Student t interval over seeds (a bootstrap over
+its evaluation episodes, with the 95% interval over seeds (a Student t interval on the logit
+scale, inside [0, 1] by construction; a bootstrap over
 episodes for a single seed, marked). Configurations with no evaluation rows yet are listed
 as pending, so the table also says what is missing.
 """
@@ -20,8 +21,9 @@ from reports.tables.summary import fmt_ci
 
 CAPTION = (
     "Success rate (% of robots at their goal at the end of an evaluation episode): mean over seeds "
-    "of each seed's mean over its evaluation episodes [95% Student t interval over seeds, cut at 0 "
-    "and 100%]; every mode on the same evaluation scenarios and loss draws. * : one seed, bootstrap "
+    "of each seed's mean over its evaluation episodes [95% interval over seeds: a Student t interval on "
+    "the logit scale, inside 0-100% by construction]; every mode on the same evaluation scenarios and "
+    "loss draws. * : one seed, bootstrap "
     "interval over its episodes. pending: no evaluation rows yet; empty: not a mode of that method.")
 
 

@@ -4,7 +4,7 @@ One row per configuration and execution mode (argmax, sample, sample@T; planner 
 every mode ran on the same evaluation scenarios, docs/decisions/0068). For each row: number of cells (all statuses)
 and of done seeds, evaluation episodes,
 and for success rate, team return, collision rate, correction rate and payload the mean
-over seeds of per-seed evaluation means with a 95% Student t CI over seeds (a bootstrap CI
+over seeds of per-seed evaluation means with a 95% CI over seeds inside the metric's range (a bootstrap CI
 over evaluation episodes when a group has a single seed: the column ``ci_over`` says which).
 Success rate and team return also get the interquartile mean over pooled evaluation
 episodes (robust to a few degenerate episodes, as rliable recommends).
@@ -16,7 +16,7 @@ import pandas as pd
 
 from reports.data.store import execution_order, fmt_pct
 from reports.data.variants import cell_variants, variant_suffix
-from reports.stats import bootstrap_ci, cut_interval, iqm, mean_ci
+from reports.stats import bootstrap_ci, iqm, mean_ci, positive_ci, rate_ci
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
@@ -27,15 +27,18 @@ KEYS = ["method", "n_robots", "loss_p"]
 def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[float, float, float, str]:
     """(mean, lo, hi, unit) of ``metric`` over evaluation rows of one configuration.
 
-    Mean over seeds (cells) of per-seed means with a Student t CI over seeds (calibrated;
-    a seed bootstrap covers 50-75% at 2-3 seeds), cut at ``metric_range``; with a single seed, the mean and a
+    Mean over seeds (cells) of per-seed means with a Student t CI over seeds (a seed
+    bootstrap covers 50-75% at 2-3 seeds), on the logit scale for a rate and the log scale
+    for a count (``metric_range``), so inside the range by construction; with a single seed, the mean and a
     bootstrap CI over its evaluation episodes (unit "episodes"). NaNs are ignored.
     """
     per_seed = rows.groupby("cell_id")[metric].mean().dropna()
     floor, ceil = metric_range(metric)
     if len(per_seed) >= 2:
-        mean, lo, hi = mean_ci(per_seed.to_numpy())
-        return (mean, *cut_interval(lo, hi, floor, ceil), "seeds")
+        x = per_seed.to_numpy()
+        ci = rate_ci if (floor, ceil) == (0.0, 1.0) else positive_ci if floor == 0.0 else mean_ci
+        mean, lo, hi = ci(x)  # a rate's and a count's interval inside its range by construction
+        return mean, lo, hi, "seeds"
     vals = rows[metric].to_numpy(dtype=np.float64)
     vals = vals[np.isfinite(vals)]
     if vals.size == 0:
@@ -46,7 +49,7 @@ def metric_estimate(rows: pd.DataFrame, metric: str, seed: int = 0) -> tuple[flo
 
 def metric_range(metric: str) -> tuple[float, float]:
     """The values ``metric`` can take: [0, 1] for a rate, [0, inf) for counts and payloads,
-    else unbounded; a CI is shown cut at them (``reports.stats.cut_interval``)."""
+    else unbounded; a CI stays inside them by construction (``reports.stats.rate_ci``, ``positive_ci``)."""
     if metric.endswith("_rate") or metric == "csr":
         return 0.0, 1.0
     if metric.startswith(("payload", "mean_candidates", "predictor_error", "sum_of_costs", "makespan", "throughput")):
@@ -106,7 +109,9 @@ SUMMARY_HEAD = ["method", "N", "p", "execution", "seeds (done/cells)", "eval epi
                 "success IQM", "team return", "return IQM", "collision rate", "correction rate",
                 "payload (scalars/step)", "CI over"]
 SUMMARY_CAPTION = (
-    "Mean over seeds [95% CI]; the CI is a Student t interval over seeds when a configuration has "
+    "Mean over seeds [95% CI]; the CI is a Student t interval over seeds (on the logit scale for "
+    "rates, Cox's lognormal interval for counts and payloads, so inside their range by construction) when a "
+    "configuration has "
     "two or more done seeds, else a bootstrap over the evaluation episodes of its single seed "
     "(column \"CI over\"). IQM: interquartile mean over pooled evaluation episodes. n/a: the "
     "method has no safety filter. Execution: how controls were picked (argmax; sample = "

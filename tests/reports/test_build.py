@@ -99,12 +99,29 @@ def test_build_report__two_seeds_never_print_supported(paper_run):
     build_report(run)
 
 
-def test_build_report__claims_page_links_the_calibration_table(paper_run):
-    _, out = paper_run
-    assert "[calibration](calibration.md)" in (out / "claims.md").read_text()
+def test_build_report__calibration_is_the_runs_own_or_none(tmp_path):
+    """No calibration is copied from another run; a run's own table is linked as its own, a
+    table whose meta names another run is labelled so."""
+    import json
+
+    from paper.sections import CALIBRATION
+
+    run = tmp_path / "run"
+    write_store(run, *frames(seeds=2, episodes=30, eval_eps=6))
+    out = build_report(run)
+    claims = (out / "claims.md").read_text()
+    assert not (out / "calibration.json").exists() and "has no calibration of its own yet" in claims
+    rep = json.loads(CALIBRATION.read_text())
+    rep["meta"]["run"] = str(run)
+    (out / "calibration.json").write_text(json.dumps(rep))
+    claims = (build_report(run) / "claims.md").read_text()
+    assert "[calibration](calibration.md) (this run's own, at its seed counts)" in claims
     cal = (out / "calibration.md").read_text()
     assert "| no_collisions | 300 episodes | null | binomial |" in cal and "**NO**" not in cal
-    assert (out / "calibration.json").exists()
+    assert "## Coverage of the 95% intervals" in cal
+    rep["meta"]["run"] = "reproduction/paper"
+    (out / "calibration.json").write_text(json.dumps(rep))
+    assert "**not this run's own**" in (build_report(run) / "claims.md").read_text()
 
 
 def test_build_report__is_deterministic(paper_run):

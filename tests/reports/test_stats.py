@@ -18,7 +18,6 @@ from reports.stats import (
     bootstrap_ci,
     convergence_test,
     curve_shape,
-    cut_interval,
     iqm,
     mean_ci,
     percentile_curve,
@@ -320,15 +319,6 @@ def test_t_test__rate_under_the_null_and_power_by_simulation():
     assert power > 0.6
 
 
-def test_cut_interval__stops_a_rate_at_0_and_1_and_keeps_what_is_inside():
-    assert cut_interval(-0.2, 0.4) == (0.0, 0.4)
-    assert cut_interval(0.7, 1.3) == (0.7, 1.0)
-    assert cut_interval(0.1, 0.9) == (0.1, 0.9)
-    assert cut_interval(-5.0, 3.0, 0.0, float("inf")) == (0.0, 3.0)  # a payload: [0, inf)
-    lo, hi = cut_interval(float("nan"), float("nan"))
-    assert np.isnan(lo) and np.isnan(hi)  # one seed: no interval to cut
-
-
 def test_mean_ci__covers_the_mean_95_percent_at_three_seeds():
     rng = np.random.default_rng(1)
     hits = 0
@@ -360,27 +350,28 @@ def test_convergence__significance_is_strictly_below_alpha():
         assert not con.contradicted(alpha=at) and con.contradicted(alpha=at + 1e-9), k
 
 
-def test_metric_estimate__cuts_a_seed_t_interval_at_the_metrics_range() -> None:
-    """Three seeds with success 0.0, 0.1, 0.9: the t interval reaches below 0, the reported
-    one stops at 0% (and at 100% above); the mean is untouched. A return is unbounded."""
+def test_metric_estimate__a_seed_interval_stays_inside_the_metrics_range() -> None:
+    """Three seeds with success 0.0, 0.1, 0.9: the t interval would reach below 0; the
+    reported one (logit scale) lies inside [0, 1] without cutting, and a count's (log
+    scale) above 0; the mean is untouched. A return is unbounded: the plain t interval."""
     import pandas as pd
 
     from reports.tables.summary import metric_estimate
 
     rows = pd.DataFrame({"cell_id": ["a", "b", "c"], "success_rate": [0.0, 0.1, 0.9],
-                         "team_return": [0.0, 0.1, 0.9], "mean_candidates": [0.0, 0.1, 0.9]})
+                         "team_return": [0.0, 0.1, 0.9], "mean_candidates": [0.5, 0.1, 0.9]})
     mean, lo, hi, unit = metric_estimate(rows, "success_rate")
     assert unit == "seeds" and mean == pytest.approx(1 / 3)
-    assert (lo, hi) == (0.0, 1.0)
+    assert 0.0 < lo < mean < hi < 1.0
     _, lo_r, hi_r, _ = metric_estimate(rows, "team_return")
     assert lo_r < -0.5 and hi_r > 1.0
     _, lo_c, hi_c, _ = metric_estimate(rows, "mean_candidates")
-    assert lo_c == 0.0 and hi_c == hi_r
+    assert 0.0 < lo_c < 0.5 < hi_c
 
 
 def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -> None:
-    """Two seeds are enough for the seed t interval (cut at the range: a payload is never
-    negative); one seed falls back to a bootstrap over its episodes, inside their range."""
+    """Two seeds are enough for the seed interval (Cox's: a payload is never negative,
+    by construction); one seed falls back to a bootstrap over its episodes, inside their range."""
     import pandas as pd
 
     from reports.tables.summary import metric_estimate
@@ -389,7 +380,7 @@ def test_metric_estimate__two_seeds_use_the_t_interval_one_seed_its_episodes() -
                         "predictor_error": [0.0, 10.0]})
     for metric in ("payload_scalars_per_step", "predictor_error"):
         mean, lo, hi, unit = metric_estimate(two, metric)
-        assert (mean, lo, unit) == (5.0, 0.0, "seeds") and hi > 10.0
+        assert (mean, unit) == (5.0, "seeds") and 0.0 <= lo < 1e-6 and hi > 10.0
     one = pd.DataFrame({"cell_id": ["a"] * 4, "success_rate": [0.0, 1.0, 1.0, float("nan")]})
     mean, lo, hi, unit = metric_estimate(one, "success_rate")
     assert unit == "episodes" and mean == pytest.approx(2 / 3) and 0.0 <= lo <= mean <= hi <= 1.0
@@ -409,3 +400,27 @@ def test_metric_estimate__no_finite_value_gives_nan_and_the_bootstrap_is_seeded(
     assert metric_estimate(single, "success_rate")[:3] == (0.5, 0.5, 0.5)  # one finite value
     one = pd.DataFrame({"cell_id": ["a"] * 40, "success_rate": np.random.default_rng(3).random(40)})
     assert metric_estimate(one, "success_rate") == metric_estimate(one, "success_rate")
+
+
+# ------------------------------------------------------ intervals with a range
+def test_rate_ci__inside_0_1_by_construction_and_covers_at_3_seeds():
+    from reports.stats import coverage, positive_ci, rate_ci, uninformative
+
+    m, lo, hi = rate_ci([0.0, 0.6, 1.0])  # a t interval would be [-0.67, 1.7]
+    assert m == pytest.approx(1.6 / 3) and 0.0 <= lo < m < hi <= 1.0
+    assert uninformative(lo, hi)
+    m, lo, hi = rate_ci([0.02, 0.03, 0.025])
+    assert 0.0 < lo < 0.025 < hi < 0.06 and not uninformative(lo, hi)
+    assert rate_ci([0.4, 0.4, 0.4]) == (pytest.approx(0.4), pytest.approx(0.4), pytest.approx(0.4))
+    assert np.isnan(rate_ci([0.5])[1]) and np.isnan(rate_ci([])[0])
+    m, lo, hi = positive_ci([1.0, 20.0, 60.0])  # a t interval would reach below 0
+    assert 0.0 < lo < m < hi
+    # simulated coverage at 3 seeds and a wide spread: the logit t interval reaches 93%,
+    # the plain t interval does not (the reason for the change)
+    assert coverage("rate", 0.6, 0.35, 3, sims=2000) >= 0.93
+    assert coverage("positive", 16.0, 12.0, 3, sims=2000) >= 0.93
+    rng = np.random.default_rng(1)
+    k = 0.6 * 0.4 / 0.35**2 - 1
+    x = rng.beta(0.6 * k, 0.4 * k, (2000, 3))
+    hits = [lo <= 0.6 <= hi for lo, hi in (mean_ci(r)[1:] for r in x)]
+    assert np.mean(hits) < 0.92

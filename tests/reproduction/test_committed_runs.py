@@ -147,7 +147,7 @@ def test_readme__claims_table_is_the_committed_reports() -> None:
     sync = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(sync)  # type: ignore[union-attr]
     pages = sync.expected_blocks(ROOT / "paper")
-    full = {"full_leaders"} if (ROOT / "full" / "report").is_dir() else set()
+    full = {"full_ordering"} if (ROOT / "full" / "report").is_dir() else set()
     assert set(pages[sync.PAGE]) == set(sync.BLOCKS) and set(pages[sync.README]) == {"verdicts", *full}
     for page, blocks in pages.items():
         text = (ROOT.parent / page).read_text(encoding="utf-8")

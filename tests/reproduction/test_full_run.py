@@ -48,7 +48,7 @@ INTERVAL = re.compile(r"[-+]?\d+\.\d(?:%| pp) \[[-+]?\d+\.\d%?, [-+]?\d+\.\d%?\]
 
 
 # Where typed prose quotes the full grid: page, the heading it starts after, the text it ends before.
-PROSE = [("README.md", "## Headline result", "<!-- full_leaders:begin -->"),
+PROSE = [("README.md", "## Headline result", "<!-- full_ordering:begin -->"),
          ("docs/reproduction.md", "## The full grid", "## Ablation of the hierarchical method")]
 
 

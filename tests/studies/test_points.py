@@ -20,9 +20,15 @@ def _trials(rows: list[tuple[int, int, str, float]]) -> pd.DataFrame:
 
 
 def test_t_interval__by_hand() -> None:
+    """The objective is a success rate: the t interval on the logit scale, inside [0, 1] (the plain
+    t interval of these two replicates would be -0.83 .. 1.24)."""
     mean, lo, hi = t_interval(np.array([0.125, 0.288]))
-    half = 12.706204736 * np.std([0.125, 0.288], ddof=1) / math.sqrt(2)  # t_{0.975, 1}
-    assert mean == pytest.approx(0.2065) and lo == pytest.approx(0.2065 - half) and hi == pytest.approx(0.2065 + half)
+    z = np.log(np.array([0.125, 0.288]) / np.array([0.875, 0.712]))
+    half = 12.706204736 * np.std(z, ddof=1) / math.sqrt(2)  # t_{0.975, 1}
+    assert mean == pytest.approx(0.2065)
+    assert lo == pytest.approx(1 / (1 + np.exp(-(z.mean() - half))))
+    assert hi == pytest.approx(1 / (1 + np.exp(-(z.mean() + half))))
+    assert 0.0 < lo < 0.125 and 0.288 < hi < 1.0
     assert math.isnan(t_interval(np.array([0.4]))[1])
 
 

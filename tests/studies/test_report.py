@@ -60,7 +60,8 @@ def test_build_study_report__writes_figures_markdown_and_html(tmp_path: Path) ->
     text = (tmp_path / "report" / "study.md").read_text()
     # replicates default to 2: only (4, 1) has two complete, unpruned ones; (8, 2) scores more once
     assert "ref_size=4, search_radius=1: mean objective 0.6000 over 2 replicates" in text
-    assert "| 4 | 1 | 2 | 0 | 0 | 0.6000 | [-0.6706, 1.8706] |" in text  # t_{.975,1} * 0.1414 / sqrt 2
+    # the objective is a success rate: the t interval on the logit scale, inside [0, 1] (a plain one: -0.67, 1.87)
+    assert "| 4 | 1 | 2 | 0 | 0 | 0.6000 | [0.0070, 0.9970] |" in text
     # update 1 vs final over the 3 complete trials: ranks (1,3,2) vs (1,2,3), rho = 1 - 6*2/24
     assert "| 1 |  | 3 | 0.50 |" in text
     page = (tmp_path / "report" / "study.html").read_text()

@@ -296,7 +296,7 @@ def _synthetic(success: dict[tuple[str, int, float], list[float]]) -> pd.DataFra
 
 def test_report__interval_is_over_seed_means_and_the_sentence_quotes_the_kept_share() -> None:
     from reports.matrix import matrix_table, summary_sentences
-    from reports.stats import mean_ci
+    from reports.stats import rate_ci
 
     # seed means at p'=0.2: 0.8, 0.6, 1.0; at p'=0.8: 0.4, 0.3, 0.5 -> kept 50% in every seed
     data = {("hierarchical", 0, 0.2): [0.8, 0.8], ("hierarchical", 1, 0.2): [0.4, 0.8],
@@ -305,10 +305,10 @@ def test_report__interval_is_over_seed_means_and_the_sentence_quotes_the_kept_sh
             ("decentralized", 0, 0.2): [1.0, 1.0], ("decentralized", 0, 0.8): [0.25, 0.25]}
     df = _synthetic(data)
     t = matrix_table(df).set_index(["method", "eval_p"])
-    m, lo, hi = mean_ci([0.8, 0.6, 1.0])
+    m, lo, hi = rate_ci([0.8, 0.6, 1.0])
     row = t.loc[("hierarchical", 0.2)]
-    assert hi > 1  # a success rate's interval is cut at 1 (reports.stats.cut_interval)
-    assert (row.success, row.lo, row.hi, row.seeds) == pytest.approx((m, lo, 1.0, 3))
+    assert 0.0 <= lo < m < hi <= 1.0  # a success rate's interval stays inside [0, 1] by construction
+    assert (row.success, row.lo, row.hi, row.seeds) == pytest.approx((m, lo, hi, 3))
     assert math.isnan(t.loc[("decentralized", 0.2)].lo)  # one seed: no interval
     (sentence,) = summary_sentences(df)
     assert sentence.startswith("Trained at N=4, p=0.2 and evaluated at p'=0.8 (Bernoulli, N'=4): ")

@@ -50,10 +50,12 @@ def test_null_limit__two_mc_standard_errors():
     assert null_limit(1000) == pytest.approx(0.05 + 2 * (0.05 * 0.95 / 1000) ** 0.5)
 
 
-def test_ci_coverage__t_interval_holds_and_seed_bootstrap_undercovers():
-    cov = ci_coverage(sims=300, seed=0, seed_counts=(3,)).set_index(["interval", "distribution"])["coverage"]
-    assert cov[("t over seeds (used)", "normal")] >= 0.91
-    assert cov[("percentile bootstrap over seeds (replaced)", "normal")] <= 0.85
+def test_ci_coverage__the_printed_intervals_at_the_runs_own_spread():
+    cov = ci_coverage(sims=200, seed=0)
+    rates = cov[cov["metric"] == "success_rate"]
+    assert len(rates) and set(rates["seeds"]) <= {3, 5} | set(rates["seeds"])
+    assert (rates["median"] >= 0.93).all()  # the logit t interval at the paper grid's groups
+    assert (rates["lowest"] <= rates["median"]).all()
 
 
 def test_cli_calibrate__json_and_out_file(capsys, tmp_path):

@@ -158,3 +158,24 @@ def test_committed_calibration__every_claim_checked_within_the_limit(committed):
                                   "above_baselines"}
     assert "5 vs 3" in set(cal["seeds"])  # the unequal seed counts of Fig. 2 at N = 40, p = 0.2
     assert set(cal["source"]) == {"resampled", "normal", "binomial"}
+
+
+def test_committed_calibration__pooled_sign_tests_within_the_limit(committed):
+    cal = pd.DataFrame(committed["calibration"])
+    pooled = cal[cal["check"].str.startswith("pooled sign test")]
+    assert set(pooled["test"]) >= {"above_ic3net", "few_corrections", "normal_search", "collisions_printed"}
+    assert "table1_candidates" not in set(pooled["test"])  # a two-sided band: no sign test
+    null = pooled[pooled["truth"] == "null"]
+    assert (null["rate"] <= D.null_limit(5000)).all() and (null["contradicted"] <= D.null_limit(5000)).all()
+
+
+def test_sign_codes__agree_with_the_pooled_sign_test():
+    from paper.claims.pooled import sign_test
+
+    rng = np.random.default_rng(0)
+    pts = rng.random((18, 400)) < rng.random(400)  # (k checks, sims): toward or against
+    codes = D.sign_codes(pts)
+    words = {1: "supported", 0: "undecided", -1: "contradicted"}
+    for j in range(pts.shape[1]):
+        r = sign_test(["toward the claim" if p else "against the claim" for p in pts[:, j]])
+        assert words[int(codes[j])] == r.verdict

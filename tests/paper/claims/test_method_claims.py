@@ -86,7 +86,7 @@ def test_the_contradiction_level_is_the_claims_bonferroni_level() -> None:
     four = claim_above_baselines(_fixed(values, [(20, 0.2), (40, 0.2)], LEARNED), "mine", ["decentralized"])
     assert one.checks[0].verdict == CONTRADICTED
     assert len(four.checks) == 4 and four.checks[0].numbers == one.checks[0].numbers
-    assert {k.verdict for k in four.checks} == {"inconclusive"}
+    assert {k.verdict for k in four.checks} == {"undecided"}
 
 
 def test_too_few_seeds_and_no_baseline() -> None:

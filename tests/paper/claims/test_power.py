@@ -26,6 +26,7 @@ from paper.claims.power import (
     seeds_for,
     weakest,
 )
+from paper.claims.sides import Side
 from paper.claims.verdicts import INCONCLUSIVE, MIN_SEEDS, SUPPORTED, TEST_ALPHA
 from reports.stats import t_test
 
@@ -90,11 +91,44 @@ def test_power_text__effect_seed_need_and_bound():
     assert NO_POWER.text() == "-"
 
 
-def test_verdict_words__an_underpowered_inconclusive_check_says_so():
-    assert Check("c", INCONCLUSIVE, "", "", power=0.49).verdict_words == COULD_NOT
-    assert Check("c", INCONCLUSIVE, "", "", power=0.5).verdict_words == INCONCLUSIVE
-    assert Check("c", SUPPORTED, "", "", power=0.1).verdict_words == SUPPORTED
-    assert Check("c", INCONCLUSIVE, "", "").verdict_words == INCONCLUSIVE  # no power: nothing said
+def test_verdict_words__could_not_decide_only_where_the_interval_spans_both_sides():
+    both = Side(-0.2, -1.0, 1.0, 0.0, np.inf)  # points against, interval across 0
+    assert Check("c", INCONCLUSIVE, "", "", power=0.49, side=both).verdict_words == \
+        f"{COULD_NOT} (points against the claim)"
+    assert Check("c", INCONCLUSIVE, "", "", power=0.5, side=both).verdict_words == \
+        "undecided: points against the claim; its 95% CI spans both the claim and its negation"
+    # the audit's case: 74.8% [35.2, 100] against "< 8%": low power, yet the interval excludes the claim
+    wrong_side = Side(0.748, 0.352, 1.0, -np.inf, 0.08)
+    words = Check("c", INCONCLUSIVE, "", "", power=0.03, side=wrong_side).verdict_words
+    assert COULD_NOT not in words and words == "undecided: points against the claim; its 95% CI excludes the claim"
+    right_side = Side(0.03, 0.01, 0.05, -np.inf, 0.08)
+    assert Check("c", INCONCLUSIVE, "", "", power=0.1, side=right_side).verdict_words.endswith(
+        "points toward the claim; its 95% CI excludes the claim's negation")
+    assert Check("c", SUPPORTED, "", "", power=0.1, side=both).verdict_words == SUPPORTED
+    assert Check("c", INCONCLUSIVE, "", "").verdict_words == INCONCLUSIVE  # no estimate: nothing said
+
+
+def test_sides__convergence_points_against_when_the_drift_is_beyond_tolerance():
+    from paper.claims.sides import side_convergence
+
+    t = np.arange(100.0)
+    flat = [np.minimum(t, 50.0) + k for k in range(3)]
+    rising = [t * (1.0 + 0.1 * k) for k in range(3)]
+    assert side_convergence(flat).points == "toward the claim"
+    assert side_convergence(rising).points == "against the claim"  # gain > 0 but still rising
+    assert not side_convergence(flat[:2]).known
+
+
+def test_pooled_sign_test__exact_binomial_both_ways():
+    from paper.claims.pooled import MIN_DECIDABLE, sign_test
+
+    r = sign_test(["against the claim"] * 16 + ["toward the claim"] * 2)
+    assert r.verdict == "contradicted" and r.p_against == pytest.approx(sps.binom.cdf(2, 18, 0.5))
+    assert "16 of 18 checks point against the claim" in r.text()
+    assert sign_test(["toward the claim"] * 7).verdict == SUPPORTED  # 0.5^7 = 0.0078 < 0.0125
+    assert sign_test(["toward the claim"] * 6).verdict == INCONCLUSIVE  # 0.5^6 = 0.0156
+    assert MIN_DECIDABLE == 7
+    assert sign_test(["", "toward the claim"]).toward == 1 and sign_test([""]).verdict == "not enough seeds"
 
 
 def test_claim_power__stated_effects_of_each_check():

@@ -29,11 +29,12 @@ from reports.stats import t_test
 def test_check_below__direction_numbers_and_its_contradiction_level():
     v, nums, test = check_below(np.array([0.01, 0.02, 0.03]), 0.07, "fallback rate")
     assert v == SUPPORTED
-    assert nums.startswith("fallback rate 2% [95% CI 0%, 4.48%] vs 7%; one-sided p = ")  # t: -0.484%, 4.48%
+    # the logit-scale interval (inside [0, 1]; the t interval would be -0.484%, 4.48%); the test is the t
+    assert nums.startswith("fallback rate 2% [95% CI 0.453%, 7.03%] vs 7%; one-sided p = 0.00654")
     near_one = check_below(np.array([0.6, 0.9, 1.0]), 0.995, "r")[1]
-    assert "r 83.3% [95% CI 31.6%, 100%] vs 99.5%" in near_one  # t: 31.6%, 135%
+    assert "r 83.3% [95% CI 2.9%, 100%; uninformative] vs 99.5%" in near_one  # t: 31.6%, 135%
     not_a_rate = check_below(np.array([0.01, 0.02, 0.03]), 0.07, "x", pct=False)[1]
-    assert "[95% CI -0.00484, 0.0448] vs 0.07" in not_a_rate  # pct=False: the t interval as it is
+    assert "[95% CI 0.00458, 0.0981] vs 0.07" in not_a_rate  # pct=False: a count's Cox interval, >= 0
     assert test == "one-sample t over 3 seeds against 7%"
     assert check_below(np.array([0.07, 0.08, 0.09]), 0.03, "x")[0] == CONTRADICTED
     assert check_below(np.array([0.0, 0.05, 0.1]), 0.05, "x")[0] == INCONCLUSIVE
@@ -56,7 +57,7 @@ def test_check_near__inside_outside_and_between_the_band():
     assert check_near(np.array([0.5, 0.6, 0.7]), 3.79, "c")[0] == CONTRADICTED  # below
     assert check_near(np.array([1.0, 4.0, 9.0]), 3.79, "c")[0] == INCONCLUSIVE
     v, nums, test = check_near(np.array([3.7, 3.8, 3.9]), 4.0, "mean candidates")
-    assert nums.startswith("mean candidates 3.8 [95% CI 3.55, 4.05] vs paper 4 (band 2..6); p(above the band) = ")
+    assert nums.startswith("mean candidates 3.8 [95% CI 3.56, 4.06] vs paper 4 (band 2..6); p(above the band) = ")
     assert test == "equivalence, two one-sided t over 3 seeds, +-50% of the paper's value"
     assert NEAR_TOL == 0.5
     assert check_near(np.array([1.0, 2.0]), 4.0, "x")[0] == NOT_ENOUGH

@@ -21,8 +21,8 @@ from bench.design.grids import Grid
 from envs.errors import BenchError
 from reports.data.against import merge_against
 from reports.data.store import load_store
+from reports.stats import iqm, rate_ci
 from reports.tables.leaderboard import (
-    _iqm,
     _poi,
     _profile,
     _stratified_band,
@@ -45,7 +45,7 @@ def _evals(rows: list[tuple[str, int, float, str, int, float]]) -> pd.DataFrame:
 def test_iqm_and_improvement__equal_rliables_metrics_on_a_hand_made_matrix() -> None:
     x = np.array([[0.1, 0.9], [0.5, 0.7], [0.3, 0.2], [0.8, 0.4]])  # 4 seeds x 2 configurations
     y = np.array([[0.2, 0.6], [0.4, 0.7], [0.1, 0.3]])
-    assert _iqm(*x.T) == pytest.approx(rly_metrics.aggregate_iqm(x))
+    assert [iqm(row) for row in x] == pytest.approx([float(rly_metrics.aggregate_iqm(r[None, :])) for r in x])
     # per configuration: #(x > y) + #ties / 2 over 12 pairs: (8 + 0.5) / 12 and (6 + 0.5) / 12
     assert _poi(2)(*x.T, *y.T) == pytest.approx(rly_metrics.probability_of_improvement(x, y))
     assert rly_metrics.probability_of_improvement(x, y) == pytest.approx((8.5 / 12 + 6.5 / 12) / 2)
@@ -157,10 +157,10 @@ def test_against__a_configuration_the_reference_lacks_is_refused(runs, tmp_path:
 
 # --- the exact frames the report pages and the README's headline numbers are built from ---
 BOARD_COLUMNS = ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success", "success_lo",
-                 "success_hi", "rank"]
+                 "success_hi", "success_cov", "rank"]
 
 
-def test_leaderboard__columns_order_and_the_t_interval_over_seeds_cut_to_a_rate() -> None:
+def test_leaderboard__columns_order_and_the_logit_t_interval_over_seeds_inside_a_rates_range() -> None:
     ev = _evals([("decentralized", 4, 0.2, "sample", s, v) for s, v in enumerate((0.4, 0.5, 0.6))]
                 + [("hierarchical", 4, 0.2, "sample", s, v) for s, v in enumerate((0.1, 0.2, 0.3))]
                 + [("hierarchical", 4, 0.2, "argmax", s, v) for s, v in enumerate((0.0, 0.3, 0.0))]
@@ -175,10 +175,13 @@ def test_leaderboard__columns_order_and_the_t_interval_over_seeds_cut_to_a_rate(
         (4, "sample", "hierarchical"), (4, "sample", "decentralized"), (4, "planner", "pibt")]
     assert board["label"].tolist()[-3:] == ["Hierarchical (ours)", "Decentralized", "PIBT"]
     row = board.set_index(["n_robots", "execution", "method"]).loc[(4, "sample", "decentralized")]
-    half = stats.t.ppf(0.975, 2) * 0.1 / np.sqrt(3)  # sd of (0.4, 0.5, 0.6) is 0.1
-    assert (row["success"], row["success_lo"], row["success_hi"]) == pytest.approx((0.5, 0.5 - half, 0.5 + half))
+    z = np.log(np.array([0.4, 0.5, 0.6]) / np.array([0.6, 0.5, 0.4]))  # the t interval on the logit scale
+    half = stats.t.ppf(0.975, 2) * z.std(ddof=1) / np.sqrt(3)
+    lo, hi = 1 / (1 + np.exp(half)), 1 / (1 + np.exp(-half))
+    assert (row["success"], row["success_lo"], row["success_hi"]) == pytest.approx((0.5, lo, hi))
+    assert 0.9 <= row["success_cov"] <= 1.0  # its simulated coverage at this spread
     argmax = board.set_index(["n_robots", "execution", "method"]).loc[(4, "argmax", "hierarchical")]
-    assert argmax["success_lo"] == 0.0 and argmax["success_hi"] < 1.0  # cut at 0: a rate
+    assert 0.0 < argmax["success_lo"] < 0.1 < argmax["success_hi"] < 1.0  # inside [0, 1], not cut
     one = board.iloc[0]
     assert one["seeds"] == 1 and np.isnan(one["success_lo"]) and np.isnan(one["success_hi"])
 
@@ -202,7 +205,7 @@ def test_leaderboard__ties_share_the_best_rank_and_a_planner_ranks_against_the_f
     assert list(empty.columns) == BOARD_COLUMNS and empty.empty and empty["rank"].dtype == np.int64
 
 
-def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_with_stratified_cis() -> None:
+def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_with_intervals_over_seeds() -> None:
     seeds = range(3)
     ev = _evals([("decentralized", n, 0.2, "argmax", s, 0.8 + 0.05 * s) for n in (4, 6) for s in seeds]
                 + [("hierarchical", n, 0.2, "argmax", s, 0.1 + 0.05 * s) for n in (4, 6) for s in seeds]
@@ -211,7 +214,8 @@ def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_wit
                 + [("decentralized", n, 0.2, "sample", s, 0.05) for n in (4, 6) for s in seeds]
                 + [("ic3net", n, 0.2, "sample", s, 0.5) for n in (4, 6) for s in seeds])
     iqm, poi = aggregate_frame(ev)
-    assert list(iqm.columns) == ["execution", "method", "label", "configurations", "seeds", "iqm", "iqm_lo", "iqm_hi"]
+    assert list(iqm.columns) == ["execution", "method", "label", "configurations", "seeds", "iqm", "seed_iqm",
+                                 "iqm_lo", "iqm_hi", "iqm_cov"]
     assert list(poi.columns) == ["execution", "method", "over", "label", "over_label", "configurations", "poi",
                                  "poi_lo", "poi_hi"]
     # the paper's method first, then the baselines in their legend order; argmax before sample
@@ -222,6 +226,8 @@ def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_wit
     mat = np.array([[0.8, 0.8], [0.85, 0.85], [0.9, 0.9]])
     assert a.loc[("argmax", "decentralized"), "iqm"] == pytest.approx(rly_metrics.aggregate_iqm(mat))
     assert a.loc[("argmax", "decentralized"), "iqm_lo"] <= 0.85 <= a.loc[("argmax", "decentralized"), "iqm_hi"]
+    _, lo, hi = rate_ci(np.array([0.8, 0.85, 0.9]))  # each seed's IQM over the configurations, then over seeds
+    assert a.loc[("argmax", "decentralized"), ["iqm_lo", "iqm_hi"]].tolist() == pytest.approx([lo, hi])
     assert a.loc[("sample", "hierarchical"), "iqm"] == pytest.approx(0.95)  # each mode its own matrix
     assert a.loc[("sample", "hierarchical"), ["iqm_lo", "iqm_hi"]].tolist() == pytest.approx([0.95, 0.95])
     assert len(poi) == 2 * 6  # every ordered pair of 3 methods, per mode
@@ -268,22 +274,21 @@ def test_safety_frame__columns_and_rows_sorted_whatever_order_the_rows_came_in()
     assert out["label"].tolist() == ["Decentralized", "Decentralized", "PIBT"]
 
 
+def _pooled_mean(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
+    """A batched statistic of a matrix whose columns are ``cols``: the mean of every value."""
+    return np.concatenate([np.moveaxis(c, axis, -1) for c in cols], axis=-1).mean(axis=-1)
+
+
 def test_stratified_band__two_seeds_are_enough_seeded_and_nan_on_both_sides_below() -> None:
     cols = [np.array([0.1, 0.5]), np.array([0.2, 0.9])]
-    lo, hi = _stratified_band(cols, _iqm)
+    lo, hi = _stratified_band(cols, _pooled_mean)
     assert np.isfinite(lo) and np.isfinite(hi) and lo < hi
     # the published protocol, so the committed reports rebuild byte for byte: 2,000 percentile
     # resamples at 95%, seeded with 0
     varied = [np.array([0.11, 0.52, 0.37, 0.94, 0.23, 0.68]), np.array([0.05, 0.81, 0.44, 0.29, 0.99, 0.6])]
-    ref = stats.bootstrap(varied, _iqm, n_resamples=2000, confidence_level=0.95, method="percentile",
+    ref = stats.bootstrap(varied, _pooled_mean, n_resamples=2000, confidence_level=0.95, method="percentile",
                           vectorized=True, random_state=np.random.default_rng(0)).confidence_interval
-    assert _stratified_band(varied, _iqm) == (ref.low, ref.high) and _stratified_ci(varied, _iqm) == (ref.low, ref.high)
-    lo, hi = _stratified_band([np.array([0.1, 0.5]), np.array([0.3])], _iqm)
+    assert _stratified_band(varied, _pooled_mean) == (ref.low, ref.high)
+    assert _stratified_ci(varied, _pooled_mean) == (ref.low, ref.high)
+    lo, hi = _stratified_band([np.array([0.1, 0.5]), np.array([0.3])], _pooled_mean)
     assert np.isnan(lo) and np.isnan(hi)
-
-
-def test_iqm__batched_columns_give_each_batch_rows_own_iqm() -> None:
-    x = np.array([[0.1, 0.9, 0.3, 0.4], [0.5, 0.5, 0.6, 0.0]])  # 2 batch rows x 4 seeds
-    y = np.array([[0.2, 0.2, 0.8, 0.7], [0.1, 0.3, 0.3, 0.9]])
-    out = _iqm(x, y)
-    assert out == pytest.approx([rly_metrics.aggregate_iqm(np.stack([x[i], y[i]], axis=1)) for i in range(2)])

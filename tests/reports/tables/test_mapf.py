@@ -90,7 +90,7 @@ def test_old_store__no_mapf_table_and_the_leaderboard_unchanged(one_shot: Path) 
     board = leaderboard_frame(old)
     pd.testing.assert_frame_equal(board, leaderboard_frame(pre.assign(throughput=np.nan)))
     assert list(board.columns) == ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success",
-                                   "success_lo", "success_hi", "rank"]
+                                   "success_lo", "success_hi", "success_cov", "rank"]
     md = leaderboard_markdown(board, pd.DataFrame(), pd.DataFrame(), pd.DataFrame(columns=["method"]))
     assert "throughput" not in md and "throughput" not in leaderboard_display(board).to_string()
 
@@ -112,11 +112,11 @@ def test_lifelong_aggregates_and_figure__throughput(lifelong: Path, one_shot: Pa
         for r in g.itertuples():
             assert r.iqm == pytest.approx(rly_metrics.aggregate_iqm(mats[r.method]))
     assert agg["iqm"].gt(0).all()
-    assert "| IQM throughput (goals/step) [95% CI] |" in (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert "| IQM throughput (goals/step) | seeds' mean IQM [95% CI] |" in (out / "leaderboard.md").read_text(encoding="utf-8")
     assert (out / "throughput_vs_n.png").stat().st_size > 0
     assert "![Leaderboard: every method of the run](throughput_vs_n.png)" in (out / "index.md").read_text()
     assert "Throughput (goals/step) against team size N" in (out / "throughput_vs_n.txt").read_text()
     plain = build_report(one_shot)
     assert not (plain / "throughput_vs_n.png").exists()
     assert "![Leaderboard: every method of the run](success_vs_n.png)" in (plain / "index.md").read_text()
-    assert "| IQM success [95% CI] |" in (plain / "leaderboard.md").read_text(encoding="utf-8")
+    assert "| IQM success | seeds' mean IQM [95% CI] |" in (plain / "leaderboard.md").read_text(encoding="utf-8")
