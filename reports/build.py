@@ -223,7 +223,7 @@ def _summary(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "success_by_mode.md", success_markdown(summary, cells))  # the README's results table
     shown = summary_display(summary)
     keys, ci_over = SUMMARY_HEAD[:4], SUMMARY_HEAD[-1:]
-    # Two tables of the same rows: all 14 columns did not fit a 1400 px window (issue 51).
+    # Two tables of the same rows: all 14 columns did not fit a 1400 px window.
     tables = (("Summary of every configuration: success and return. " + SUMMARY_CAPTION,
                shown[keys + SUMMARY_HEAD[4:10] + ci_over]),
               ("Summary of every configuration, continued: collisions, corrections and payload, the same "

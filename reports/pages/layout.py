@@ -21,7 +21,7 @@ import pandas as pd
 # Figures keep their natural width (the PNG's: 700 px for a paper column, 1400-2040 px
 # for the many-panel ones) up to the column's width, with the caption and notes beside them
 # when the window has room, else under them; each links to its full-size image. Table
-# cells wrap (issue 51: wide tables hid columns in a scroll box at 1400 px).
+# cells wrap (wide tables hid columns in a scroll box at 1400 px).
 PAGE_CSS = """*{box-sizing:border-box}body{font-family:system-ui,sans-serif;margin:0;line-height:1.4;
 display:grid;grid-template-columns:16rem minmax(0,1fr)}
 nav.toc{position:sticky;top:0;align-self:start;max-height:100vh;overflow-y:auto;padding:1em;

@@ -1,4 +1,4 @@
-"""The MAPF metrics of a run (issue 53): CSR, sum of costs and makespan of one-shot cells,
+"""The MAPF metrics of a run: CSR, sum of costs and makespan of one-shot cells,
 throughput of lifelong cells, per configuration.
 
 Eval rows carry ``csr``, ``sum_of_costs``, ``makespan`` (one-shot episodes) and
@@ -36,7 +36,7 @@ CAPTION = ("MAPF metrics: one-shot cells: CSR (episodes where every robot reache
 
 
 def has_mapf(evals: pd.DataFrame) -> bool:
-    """Whether any eval row holds a finite MAPF metric (a store written since issue 53)."""
+    """Whether any eval row holds a finite MAPF metric (a store written since they exist)."""
     cols = [c for c in MAPF_METRICS if c in evals]
     return bool(cols) and bool(np.isfinite(evals[cols].to_numpy(dtype=np.float64)).any())
 

@@ -15,7 +15,7 @@ TINY = dict(n_robots=4, layout="tiny", horizon=40)
 
 
 def test_torchrl__wrapper_rolls_out_the_raw_env():
-    # Issue 15's reproduction, as written: the mask was in infos too and TorchRL crashed.
+    # A user's reproduction, as written: the mask was in infos too and TorchRL crashed.
     env = PettingZooWrapper(env=parallel_env(n_robots=8, layout="tiny"), use_mask=True)
     td = env.rollout(5)
     assert td[G, "action_mask"].shape == (len(td), 8, 5)
