@@ -169,14 +169,16 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
              else "Success rate per configuration and execution mode")
     return Entry("Leaderboard: every method of the run", tuple(files),
                  tables=(("Per learned method and mode: how many of the configurations it shares with another "
-                          "learned method it leads (by a margin whose 95% Welch CI over seeds excludes 0), and its "
+                          "learned method it leads (by a margin whose 95% CI over seeds excludes 0: the square-and-add "
+                          "of the two rates' logit t intervals), and its "
                           "success minus the best planner's where one ran (range of the means; at how many the CI "
                           "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
                          (f"{score}: mean over seeds [95% CI over seeds] "
                           "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
                           "columns of every method: leaderboard.md.", leaderboard_display(board)),
                          ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
-                          "the runner-up (the margin's 95% Welch CI over seeds excludes 0, or not; pointwise). "
+                          "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "
+                          "pointwise). "
                           "Counts and the distance to the planners: leaders.md.", leaders_display(leaders))),
                  image=f"{figures[0][0]}.png", caption=captions[0])
 
