@@ -112,7 +112,8 @@ def test_lifelong_aggregates_and_figure__throughput(lifelong: Path, one_shot: Pa
         for r in g.itertuples():
             assert r.iqm == pytest.approx(rly_metrics.aggregate_iqm(mats[r.method]))
     assert agg["iqm"].gt(0).all()
-    assert "| IQM throughput (goals/step) | seeds' mean IQM [95% CI] |" in (out / "leaderboard.md").read_text(encoding="utf-8")
+    board = (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert "| IQM throughput (goals/step) | seeds' mean IQM [95% CI] |" in board
     assert (out / "throughput_vs_n.png").stat().st_size > 0
     assert "![Leaderboard: every method of the run](throughput_vs_n.png)" in (out / "index.md").read_text()
     assert "Throughput (goals/step) against team size N" in (out / "throughput_vs_n.txt").read_text()
