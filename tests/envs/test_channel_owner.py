@@ -10,6 +10,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from tests.source_scan import code_matches
+
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("algorithms", "bench", "reports", "studies", "scripts", "examples")
 BUILDS = re.compile(r"\b(LossProcess|GroupChannel|Channel)(\.from_config)?\(")
@@ -18,13 +20,7 @@ BUILDS = re.compile(r"\b(LossProcess|GroupChannel|Channel)(\.from_config)?\(")
 def channel_builders(base: Path, folders: tuple[str, ...]) -> list[str]:
     """'path:line' (relative to ``base``) of every construction of a channel class in the
     Python files under ``base / folder`` (comments ignored)."""
-    hits = []
-    for folder in folders:
-        for path in sorted((base / folder).rglob("*.py")):
-            for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-                if BUILDS.search(line.split("#", 1)[0]):
-                    hits.append(f"{path.relative_to(base)}:{k}")
-    return hits
+    return [f"{rel}:{k}" for rel, k, _ in code_matches(base, folders, BUILDS)]
 
 
 def test_channel_is_constructed_only_in_envs():

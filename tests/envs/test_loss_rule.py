@@ -13,6 +13,7 @@ import pytest
 from bench.design.cells import Cell
 from envs.config import EnvConfig, loss_error
 from envs.errors import BenchError
+from tests.source_scan import code_matches
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("envs", "algorithms", "bench", "reports", "studies", "paper", "scripts")
@@ -22,14 +23,7 @@ ENTRIES = {"envs/config.py", "bench/execute/matrix.py"}  # EnvConfig; bench matr
 
 def rule_callers(base: Path, folders: tuple[str, ...]) -> set[str]:
     """Files under ``base / folder`` that call the loss rule (comments and definitions ignored)."""
-    out = set()
-    for folder in folders:
-        for path in sorted((base / folder).rglob("*.py")):
-            for line in path.read_text(encoding="utf-8").splitlines():
-                code = line.split("#", 1)[0]
-                if CALLS.search(code) and not code.lstrip().startswith("def "):
-                    out.add(path.relative_to(base).as_posix())
-    return out
+    return {rel for rel, _, code in code_matches(base, folders, CALLS) if not code.lstrip().startswith("def ")}
 
 
 def test_the_loss_rule_is_called_only_where_a_loss_enters():

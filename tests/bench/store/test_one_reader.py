@@ -12,6 +12,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from tests.source_scan import code_matches
+
 ROOT = Path(__file__).resolve().parents[3]
 FOLDERS = ("bench", "reports")
 READS = re.compile(r"\b(pq\.read_table|read_parquet|ParquetDataset|pq\.ParquetFile|concat_tables)\(")
@@ -22,16 +24,7 @@ ALLOWED = {"bench/store/run_store.py", "bench/store/integrity.py"}
 
 def parquet_readers(base: Path, folders: tuple[str, ...]) -> list[str]:
     """'path:line' of every Parquet row read outside ``ALLOWED`` (comments ignored)."""
-    hits = []
-    for folder in folders:
-        for path in sorted((base / folder).rglob("*.py")):
-            rel = path.relative_to(base).as_posix()
-            if rel in ALLOWED:
-                continue
-            for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
-                if READS.search(line.split("#", 1)[0]):
-                    hits.append(f"{rel}:{k}")
-    return hits
+    return [f"{rel}:{k}" for rel, k, _ in code_matches(base, folders, READS, frozenset(ALLOWED))]
 
 
 def test_rows_are_read_only_by_the_run_store():
