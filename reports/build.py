@@ -167,19 +167,21 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
         captions.append(built.caption)
     score = ("Throughput (goals reached per step) per configuration and execution mode" if lifelong
              else "Success rate per configuration and execution mode")
+    tables = (("Per learned method and mode: how many of the configurations it shares with another "
+               "learned method it leads (by a margin whose 95% CI over seeds excludes 0: the square-and-add "
+               "of the two rates' logit t intervals), and its "
+               "success minus the best planner's where one ran (range of the means; at how many the CI "
+               "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
+              (f"{score}: mean over seeds [95% CI over seeds] "
+               "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
+               "columns of every method: leaderboard.md.", leaderboard_display(board)),
+              ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
+               "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "
+               "pointwise). "
+               "Counts and the distance to the planners: leaders.md.", leaders_display(leaders)))
+    # a table without rows (no learned method, e.g. a planner-only run) is left out of the page
     return Entry("Leaderboard: every method of the run", tuple(files),
-                 tables=(("Per learned method and mode: how many of the configurations it shares with another "
-                          "learned method it leads (by a margin whose 95% CI over seeds excludes 0: the square-and-add "
-                          "of the two rates' logit t intervals), and its "
-                          "success minus the best planner's where one ran (range of the means; at how many the CI "
-                          "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
-                         (f"{score}: mean over seeds [95% CI over seeds] "
-                          "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
-                          "columns of every method: leaderboard.md.", leaderboard_display(board)),
-                         ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
-                          "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "
-                          "pointwise). "
-                          "Counts and the distance to the planners: leaders.md.", leaders_display(leaders))),
+                 tables=tuple((caption, t) for caption, t in tables if len(t)),
                  image=f"{figures[0][0]}.png", caption=captions[0])
 
 
