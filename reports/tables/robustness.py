@@ -109,7 +109,8 @@ def seeds_frame(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Series | 
     for (method, label, n, p), g in cells.groupby(["method", "label", "n_robots", "loss_p"], sort=True):
         g = g.sort_values("seed")
         falls = [falling[c] for c in map(str, g["cell_id"]) if c in falling]
-        modes = {m for c in g["cell_id"] for (cc, m) in per_cell.index if cc == c}
+        modes = set(per_cell[per_cell.index.get_level_values("cell_id").isin(g["cell_id"])].index
+                    .get_level_values("execution"))
         for mode in execution_order(modes):
             rates = np.array([per_cell[(c, mode)] for c in g["cell_id"] if (c, mode) in per_cell.index])
             rows.append({"method": str(method), "label": str(label), "n_robots": int(n), "loss_p": float(p),
