@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from enum import Enum
 from pathlib import Path
@@ -85,10 +86,11 @@ def run(
     rerun_changed: bool = typer.Option(False, "--rerun-changed",
         help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's "
              "(a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
-    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1,
+    stack_seeds: str = typer.Option("auto", "--stack-seeds",
         help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the "
-             "hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell; for machines "
-             "with fewer cores than cells)."),
+             "hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell). auto "
+             "(default): the W longest cells (W = workers) run first, each alone (the critical path), and the "
+             "other hierarchical cells in stacks of 3 when there are more of them than workers; 1: no stacking."),
     repair: bool = typer.Option(False, "--repair",
         help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of "
              "another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is "
@@ -130,9 +132,10 @@ def run(
         raise BenchError("give exactly one of --grid {smoke,paper,full,ablation} or --grid-file PATH")
     from bench.design.limits import check_count
 
+    stacking = _stack_seeds(stack_seeds)
     for option, field, value in (("--workers", "workers", workers),
                                  ("--checkpoint-every", "checkpoint_every", checkpoint_every),
-                                 ("--stack-seeds", "stack_seeds", stack_seeds)):
+                                 ("--stack-seeds", "stack_seeds", stacking if isinstance(stacking, int) else None)):
         check_count(option, field, value)
     if grid is not None:
         g = get_grid(grid, seeds)
@@ -162,7 +165,7 @@ def run(
         with sigterm_as_interrupt():
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(verbose),
-                               command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stack_seeds,
+                               command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stacking,
                                repair=repair, observer=observer, overrides=overrides, device=device)
     except KeyboardInterrupt:
         if sigterm_received():
@@ -183,13 +186,24 @@ def run(
         raise typer.Exit(1)
 
 
+def _stack_seeds(text: str) -> int | str:
+    """``--stack-seeds``: auto or a count; a bad value is one BenchError line."""
+    from bench.design.costs import parse_stack_seeds
+
+    try:
+        return parse_stack_seeds(text)
+    except ValueError as exc:
+        raise BenchError(str(exc)) from None
+
+
 # ------------------------------------------------------------------- grids
 @app.command()
 def grids(
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Count with K seeds instead of each grid's default."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="Also list a user grid file."),
-    stack_seeds: int = typer.Option(1, "--stack-seeds", min=1, help="Estimate for `bench run --stack-seeds K` "
-                                    "(seed-stacked hierarchical training: its measured per-cell gain)."),
+    stack_seeds: str = typer.Option("1", "--stack-seeds", help="Estimate for `bench run --stack-seeds K` "
+                                    "(seed-stacked hierarchical training: its measured per-cell gain); auto: "
+                                    "bench run's default with one worker per CPU of this machine."),
     rates_from: Path | None = typer.Option(None, "--rates-from", help="Estimate with the rates a run directory's "
                                            "done cells observed (your machine), where it has them; the "
                                            "built-in rates elsewhere."),
@@ -207,6 +221,8 @@ def grids(
     from bench.design.grid_files import load_grid_file
     from bench.design.grids import get_grid, grid_builders
 
+    stacking = _stack_seeds(stack_seeds)
+    workers = os.cpu_count() or 1
     rates = None
     source = f"{costs.LABEL} on {costs.RATES_RUN}"
     if rates_from is None and rates_stack_seeds > 1:
@@ -222,7 +238,8 @@ def grids(
         rates = merged_rates(observed_rates(observed))
         stacked_run = f" (made with --stack-seeds {rates_stack_seeds})" if rates_stack_seeds > 1 else ""
         source = f"rates of the {len(observed)} done cells of {rates_from}{stacked_run}, built-in elsewhere"
-    stacked = f", --stack-seeds {stack_seeds}" if stack_seeds > 1 else ""
+    stacked = (f", --stack-seeds auto with {workers} workers" if stacking == costs.AUTO else
+               f", --stack-seeds {stacking}" if stacking != 1 else "")
     table = Table(title=f"grids (cost: (episodes + eval episodes x modes) x horizon x N / agent-steps per s, "
                         f"{source}{stacked}; summed over cells = configurations x seeds)")
     for col in ("grid", "cells", "methods", "N", "p", "configs", "seeds", "worker-hours"):
@@ -235,7 +252,7 @@ def grids(
         ps = sorted({c.loss_p for c in g.cells})
         table.add_row(g.name, str(len(g)), ",".join(g.methods), ",".join(map(str, ns)),
                       ",".join(map(str, ps)), str(g.configurations), str(g.seeds),
-                      f"{costs.grid_cell_hours(g.cells, rates, stack_seeds):.3g}")
+                      f"{costs.grid_cell_hours(g.cells, rates, stacking, workers):.3g}")
     console = Console(width=None if sys.stdout.isatty() else 140)  # logs: no truncated cells
     console.print(table)
     for g in listed:

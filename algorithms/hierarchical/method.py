@@ -150,9 +150,8 @@ class HierarchicalMethod(Method):
 
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
-        # Shared parameters stack too (``stack_view``), but bench run and the grid's cost
-        # estimates keep stacking per-group configurations only (docs/decisions/0202).
-        return not cls.parse_params(params).share_params  # type: ignore[attr-defined]  # Params is HierarchicalParams
+        # Per-group and shared parameters alike (``stack_view``; docs/decisions/0202, 0247).
+        return True
 
     @classmethod
     def stack_view(cls, methods: Sequence[Method]) -> HierarchicalMethod:

@@ -7,7 +7,9 @@ cell (``cell_agent_steps``: episodes x horizon x N, an upper bound) by these sec
 *effective* rates, so that ``costs.cell_seconds`` of a cell at an observed rate is the
 seconds such a cell took. A cell trained in a seed stack (``bench run --stack-seeds``)
 took its share of the stack's time; its training rate is scaled back to one seed by the
-stack's gain (``costs.stack_gain``), so that estimates apply the gain once.
+stack's gain (``costs.stack_gain``), so that estimates apply the gain once. The stacks are
+the ones the manifest's run records list (``stacks``, written since ``--stack-seeds auto``,
+docs/decisions/0247), else the ones ``bench run --stack-seeds K`` forms over the run's cells.
 ``observed_rates`` takes the median per (method, N), over the cells the run trained itself
 where it has any (cells copied in from another run may have run stacked or not);
 ``bench grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
@@ -42,15 +44,26 @@ def observed_costs(run_dir: Path | str, stack_seeds: int = 1, copied: Iterable[s
     cells = store.read_cells()
     if cells is None:
         raise BenchError(f"no results store at {str(run_dir)!r}: cells.parquet not found")
-    return costs_of(cells, store.read_train(), stack_seeds, copied)
+    return costs_of(cells, store.read_train(), stack_seeds, copied, recorded_stacks(store.read_manifest()))
+
+
+def recorded_stacks(manifest: dict | None) -> dict[str, int]:
+    """cell id -> the size of the last seed stack a run record of the manifest lists it in
+    (``bench run`` records the stacks it forms; older runs recorded none)."""
+    out: dict[str, int] = {}
+    for record in (manifest or {}).get("runs", []):
+        for stack in record.get("stacks") or []:
+            out.update(dict.fromkeys(stack, len(stack)))
+    return out
 
 
 def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
-             copied: Iterable[str] = ()) -> pd.DataFrame:
-    """``observed_costs`` of a run's ``cells.parquet`` rows and training rows."""
+             copied: Iterable[str] = (), recorded: dict[str, int] | None = None) -> pd.DataFrame:
+    """``observed_costs`` of a run's ``cells.parquet`` rows and training rows (``recorded``:
+    the stacks its manifest lists, which take precedence over those ``stack_seeds`` forms)."""
     skip = set(copied)
     every = [Cell.model_validate_json(j) for j in cells["config_json"]]
-    stacks = run_stacks(cells, every, stack_seeds, skip)
+    stacks = {**run_stacks(cells, every, stack_seeds, skip), **(recorded or {})}
     done = cells["status"] == "done"
     train_s = train[train["cell_id"].isin(cells.loc[done, "cell_id"])].groupby("cell_id")["wall_s"].sum()
     rows = []

@@ -127,16 +127,57 @@ def cell_seconds(cell: Cell, rates: Rates | None = None, stacked: int = 1) -> fl
             + ev / rate(cell.method, "eval", cell.n_robots, rates))
 
 
-def stack_sizes(cells: Sequence[Cell], stack_seeds: int) -> list[int]:
+# `bench run --stack-seeds auto` (its default; docs/decisions/0247): the stack size it uses
+# where stacking pays, the size whose gain is measured (STACK_GAIN_3).
+AUTO = "auto"
+AUTO_STACK = 3
+StackSeeds = int | str  # a count, or AUTO
+
+
+def parse_stack_seeds(text: str | int) -> StackSeeds:
+    """``--stack-seeds``: ``auto`` or a count of at least 1; ValueError naming the value else."""
+    if isinstance(text, str) and text.strip().lower() == AUTO:
+        return AUTO
+    try:
+        k = int(text)
+    except ValueError:
+        k = 0
+    if k < 1:
+        raise ValueError(f"--stack-seeds {text!r}: give auto or a count of at least 1")
+    return k
+
+
+def auto_stacking(seconds: Sequence[float], stackable: Sequence[bool], workers: int) -> tuple[list[int], int]:
+    """What ``--stack-seeds auto`` does with cells still to train (``seconds``: their
+    estimated unstacked seconds left, in grid order): (the cells that run first, each alone,
+    longest first; the stack size of the others). The ``workers`` longest cells are the
+    run's critical path: each gets a worker of its own, unstacked (stacking would lengthen
+    it). The other cells of stackable methods train in seed stacks of up to AUTO_STACK when
+    there are more of them than workers (stacking then saves CPU without idling a worker),
+    else alone."""
+    order = sorted(range(len(seconds)), key=lambda i: (-seconds[i], i))
+    solo = order[:max(1, workers)]
+    alone = set(solo)
+    rest = sum(1 for i, ok in enumerate(stackable) if ok and i not in alone)
+    return solo, AUTO_STACK if rest > workers else 1
+
+
+def stack_sizes(cells: Sequence[Cell], stack_seeds: StackSeeds, workers: int = 1) -> list[int]:
     """For each cell, the size of the seed stack ``bench run --stack-seeds`` trains it in:
     the cells of one configuration (all but the seed) of a stackable method, in grid
-    order, in stacks of up to ``stack_seeds``; 1 otherwise."""
+    order, in stacks of up to ``stack_seeds``; 1 otherwise. ``auto`` (with ``workers``):
+    ``auto_stacking`` over the whole grid, its critical cells alone."""
     sizes = [1] * len(cells)
+    solo: list[int] | set[int] = []
+    if stack_seeds == AUTO:
+        solo, stack_seeds = auto_stacking([cell_seconds(c) for c in cells], [c.stackable() for c in cells], workers)
+    assert isinstance(stack_seeds, int)
+    solo = set(solo)
     if stack_seeds < 2:
         return sizes
     groups: dict[str, list[int]] = {}
     for i, c in enumerate(cells):
-        if c.stackable():
+        if c.stackable() and i not in solo:
             groups.setdefault(c.model_copy(update={"seed": 0}).canonical_json(), []).append(i)
     for members in groups.values():
         for lo in range(0, len(members), stack_seeds):
@@ -146,8 +187,10 @@ def stack_sizes(cells: Sequence[Cell], stack_seeds: int) -> list[int]:
     return sizes
 
 
-def grid_cell_hours(cells: Iterable[Cell], rates: Rates | None = None, stack_seeds: int = 1) -> float:
-    """Estimated worker-hours of a whole grid (with ``bench run --stack-seeds stack_seeds``)."""
+def grid_cell_hours(cells: Iterable[Cell], rates: Rates | None = None, stack_seeds: StackSeeds = 1,
+                    workers: int = 1) -> float:
+    """Estimated worker-hours of a whole grid (with ``bench run --stack-seeds stack_seeds
+    --workers workers``)."""
     cells = list(cells)
-    return sum(cell_seconds(c, rates, k) for c, k in zip(cells, stack_sizes(cells, stack_seeds), strict=True)
-               ) / 3600.0
+    sizes = stack_sizes(cells, stack_seeds, workers)
+    return sum(cell_seconds(c, rates, k) for c, k in zip(cells, sizes, strict=True)) / 3600.0

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from algorithms.registry import method_class
+from bench.design.costs import AUTO, StackSeeds, auto_stacking
 from bench.design.grids import Grid
 from bench.design.overrides import check_resume_overrides
 from bench.execute.executor import (
@@ -81,7 +82,7 @@ EventHook = Callable[[str, CellState], None]
 def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers: int | None = None,
              fresh: bool = False, checkpoint_every: int = 10, progress: Progress | None = None,
              on_event: EventHook | None = None, command: list[str] | None = None,
-             rerun_changed: bool = False, stack_seeds: int = 1, repair: bool = False,
+             rerun_changed: bool = False, stack_seeds: StackSeeds = 1, repair: bool = False,
              observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
              device: str = "cpu") -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
@@ -89,6 +90,13 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     ``device`` (``bench run --device``): the torch device of the learned methods' networks in
     every worker, each worker asking Ray for an equal share of one accelerator; an execution
     choice, recorded in the manifest's run record (absent: cpu), never in a cell.
+
+    ``stack_seeds`` (``bench run --stack-seeds``): train up to K cells that differ only in their
+    seed in one worker (seed_stack), or ``"auto"`` (the command's default, docs/decisions/0247):
+    the ``workers`` cells with the longest estimated training and evaluation left run first,
+    each alone, and the others of stackable methods in stacks of up to 3 when there are more
+    of them than workers (``costs.auto_stacking``). The numbers are the same either way; the
+    manifest's run record says what was chosen (``stack_seeds``, ``stacks``).
 
     ``observer`` (bench/tracking/observers.py) receives each cell's start, stored training rows,
     evaluation summary and end, from the driver (loggers: ``bench run --log``). ``overrides``
@@ -134,7 +142,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                         raise
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
-                           progress or NullProgress(), on_event, command or sys.argv, max(1, stack_seeds),
+                           progress or NullProgress(), on_event, command or sys.argv, stack_seeds,
                            observer, overrides, device)
                 summary = run.execute()
                 summary.repaired = repaired
@@ -178,16 +186,20 @@ def move_damaged(store: RunStore, damage: list[Damage]) -> list[str]:
 class _Run:
     def __init__(self, grid: Grid, store: RunStore, states: list[CellState], others: list[dict[str, Any]],
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
-                 on_event: EventHook | None, command: list[str], stack_seeds: int = 1,
+                 on_event: EventHook | None, command: list[str], stack_seeds: StackSeeds = 1,
                  observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
                  device: str = "cpu") -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
         self.device = device  # the networks' (bench run --device)
         self.overrides = overrides if overrides and any(overrides.values()) else None
-        self.stack_seeds = stack_seeds  # cells differing only in their seed trained together
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command, self.observer = on_event, command, observer
         self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
+        self.stack_arg = stack_seeds  # as given (a count, or "auto")
+        # cells differing only in their seed trained together, up to stack_seeds; cell id ->
+        # rank of the cells that run first, each alone (auto: the critical path)
+        self.stack_seeds, self.first = self._plan_stacking(stack_seeds)
+        self.stacks: list[list[str]] = []  # the seed stacks this run formed (its run record)
         self.versions = versions_json()
         self.t0 = time.monotonic()
         self.start_progress = sum(s.progress() * s.weight for s in states)
@@ -195,6 +207,16 @@ class _Run:
         self.last_error = ""
 
     # ------------------------------------------------------------------ setup
+    def _plan_stacking(self, stack_seeds: StackSeeds) -> tuple[int, dict[str, int]]:
+        """(stack size, the cells that run first and alone by rank): a count as given; auto
+        decided over the cells still to train, by their estimated seconds left."""
+        if stack_seeds != AUTO:
+            return max(1, int(stack_seeds)), {}
+        todo = [s for s in self.states if s.phase == "pending" and not s.trained]
+        solo, k = auto_stacking([s.weight * (1.0 - s.progress()) for s in todo],
+                                [_stackable(s.spec) for s in todo], self.n_workers)
+        return k, {todo[i].cell_id: rank for rank, i in enumerate(solo)}
+
     def _prepare_store(self) -> None:
         store = self.store
         if self.fresh:
@@ -215,6 +237,8 @@ class _Run:
                            "git": v["git"], "machine": machine(), "workers": self.n_workers,
                            "cells_done_before": sum(s.phase == "done" for s in self.states),
                            RUN_FLAG: 1}  # checksums.json is kept by this bench (bench/store/integrity.py)
+        if self.stack_arg != 1:  # bench run --stack-seeds (absent: 1, no stacking)
+            self.run_record["stack_seeds"] = self.stack_arg
         if self.device != "cpu":  # bench run --device (absent: the cpu)
             self.run_record["device"] = self.device
         if self.overrides is not None:  # bench run --set/--axis (absent: none)
@@ -241,6 +265,8 @@ class _Run:
             "wall_s": round(time.monotonic() - self.t0, 1),
             "cells_done_in_run": done - self.run_record["cells_done_before"], "cells_done_after": done,
         })
+        if self.stacks:  # cell ids trained seed-stacked together in this run
+            self.run_record["stacks"] = self.stacks
         manifest["runs"][-1] = self.run_record
         self.store.write_manifest(manifest)
 
@@ -293,11 +319,14 @@ class _Run:
         pending = [s for s in self.states if s.phase == "pending"]
         if not pending:
             return False
-        st = min(pending, key=lambda s: not s.has_checkpoint)  # resumed cells first
+        # resumed cells first, then (auto) the critical cells, longest first; else grid order
+        st = min(pending, key=lambda s: (not s.has_checkpoint, self.first.get(s.cell_id, len(self.first))))
         if st.trained:  # trained before the interruption: evaluate now
             self._start(st)
             return True
         group = [st] + self._stack_mates(st, pending)
+        if len(group) > 1:
+            self.stacks.append([c.cell_id for c in group])
         for mate in group:
             self._start(mate)
         self._submit_train(ex, ("train", tuple(c.cell_id for c in group)), group)
@@ -305,12 +334,13 @@ class _Run:
 
     def _stack_mates(self, st: CellState, pending: list[CellState]) -> list[CellState]:
         """Up to ``stack_seeds - 1`` other pending, untrained cells that differ from ``st``
-        only in their seed, when its method trains seed-stacked (``--stack-seeds``)."""
-        if self.stack_seeds < 2 or not _stackable(st.spec):
+        only in their seed, when its method trains seed-stacked (``--stack-seeds``); none for
+        or among the cells that run alone (``first``)."""
+        if self.stack_seeds < 2 or st.cell_id in self.first or not _stackable(st.spec):
             return []
         key = _stack_key(st.spec)
-        return [s for s in pending if s is not st and not s.trained and _stack_key(s.spec) == key
-                ][: self.stack_seeds - 1]
+        return [s for s in pending if s is not st and not s.trained and s.cell_id not in self.first
+                and _stack_key(s.spec) == key][: self.stack_seeds - 1]
 
     def _start(self, st: CellState) -> None:
         import ray

@@ -251,3 +251,27 @@ def test_grids__rates_from_a_folder_without_done_cells_is_a_clear_error(
         capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, _, err = _cli(capsys, "grids", "--rates-from", str(tmp_path))
     assert code == 2 and "--rates-from" in err and "cells.parquet not found" in err
+
+
+def test_stack_seeds__auto_or_a_count_else_one_line_and_status_2(capsys: pytest.CaptureFixture[str],
+                                                                 tmp_path: Path) -> None:
+    """bench run and bench grids take --stack-seeds auto (bench run's default) or a count;
+    anything else is refused in one line before a grid is built; bench grids estimates auto
+    for one worker per CPU."""
+    import os
+
+    for command in (("run", "--grid", "smoke", "--out", str(tmp_path / "r")), ("grids",)):
+        code, _, err = _cli(capsys, *command, "--stack-seeds", "two")
+        assert code == 2 and err.strip().splitlines() == ["bench: error: --stack-seeds 'two': give auto or a "
+                                                          "count of at least 1"], err
+        assert not (tmp_path / "r").exists()
+    code, stdout, err = _cli(capsys, "grids", "--stack-seeds", "auto")
+    assert code == 0, err
+    assert f"--stack-seeds auto with {os.cpu_count()} workers" in " ".join(stdout.split())
+    rows = {line.split("│")[1].strip(): line for line in stdout.splitlines() if line.count("│") > 3}
+    expected = costs.grid_cell_hours(get_grid("paper").cells, None, costs.AUTO, os.cpu_count() or 1)
+    assert float(rows["paper"].split("│")[8]) == pytest.approx(expected, rel=1e-2)
+    import inspect
+
+    from bench.cli import run
+    assert inspect.signature(run).parameters["stack_seeds"].default.default == "auto"

@@ -58,6 +58,7 @@ def _same(a: tuple, b: tuple) -> None:
 
 @pytest.mark.parametrize("kw, params", [
     ({}, {}),
+    ({}, {"protocol": "mappo"}),  # decision 0220's levels normalized apart, critic on minibatches
     ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30}, {"messages": "oracle", "ref_hold": 3}),
     ({}, {"share_params": True}),  # one set of weights per seed, repeated over the groups
     ({"layout": "tiny", "n_robots": 6, "on_goal": "stay", "horizon": 30},

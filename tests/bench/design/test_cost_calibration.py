@@ -74,6 +74,60 @@ def test_stack_sizes__configurations_of_stackable_methods_in_stacks_of_up_to_k()
     assert all(sizes == [2, 2, 1] for sizes in by_config.values())  # seeds 0, 1 | 2
 
 
+def test_parse_stack_seeds__auto_or_a_count_of_at_least_one() -> None:
+    assert costs.parse_stack_seeds("auto") == costs.parse_stack_seeds(" AUTO ") == costs.AUTO
+    assert costs.parse_stack_seeds("3") == costs.parse_stack_seeds(3) == 3
+    for bad in ("0", "-2", "two", ""):
+        with pytest.raises(ValueError, match="give auto or a count of at least 1"):
+            costs.parse_stack_seeds(bad)
+
+
+def test_auto_stacking__the_longest_cells_alone_first_and_stacks_only_where_they_pay() -> None:
+    """The ``workers`` longest cells run first, alone, longest first (ties in grid order);
+    the others stack in threes only when more stackable cells than workers are left."""
+    seconds = [5.0, 9.0, 1.0, 9.0, 2.0, 2.0, 2.0]
+    stackable = [True, True, True, True, False, True, True]
+    assert costs.auto_stacking(seconds, stackable, 2) == ([1, 3], costs.AUTO_STACK)  # 4 stackable left > 2
+    assert costs.auto_stacking(seconds, stackable, 1) == ([1], costs.AUTO_STACK)
+    assert costs.auto_stacking(seconds, stackable, 4) == ([1, 3, 0, 4], 1)  # 3 left, 4 workers: no stacks
+    assert costs.auto_stacking([], [], 2) == ([], 1)
+
+
+def test_stack_sizes__auto_keeps_the_grids_longest_cells_alone() -> None:
+    """On the paper grid with 2 workers: the two longest cells (hierarchical, N = 100) alone,
+    every other hierarchical cell stacked, the same stacks as --stack-seeds 3 elsewhere; with
+    more workers than hierarchical cells nothing stacks."""
+    cells = get_grid("paper").cells
+    sizes, three = costs.stack_sizes(cells, costs.AUTO, 2), costs.stack_sizes(cells, 3)
+    longest = sorted(range(len(cells)), key=lambda i: -costs.cell_seconds(cells[i]))[:2]
+    assert all(cells[i].method == "hierarchical" and cells[i].n_robots == 100 for i in longest)
+    assert [sizes[i] for i in longest] == [1, 1]
+    mates = [i for i, c in enumerate(cells) if i not in longest and c.model_copy(update={"seed": 0})
+             == cells[longest[0]].model_copy(update={"seed": 0})]
+    assert all(sizes[i] == 1 + (len(mates) > 1) for i in mates)  # what is left of their stack
+    others = [i for i in range(len(cells)) if i not in longest and i not in mates]
+    assert [sizes[i] for i in others] == [three[i] for i in others]
+    assert costs.stack_sizes(cells, costs.AUTO, 100) == [1] * len(cells)
+    assert costs.grid_cell_hours(cells, stack_seeds=costs.AUTO, workers=2) < costs.grid_cell_hours(cells)
+
+
+def test_recorded_stacks__the_stacks_a_run_record_lists_override_the_formed_ones() -> None:
+    """A run made with --stack-seeds auto lists its stacks in its run record: a cell's stack
+    is the last one listed; the calibration scales those cells, and only those."""
+    from bench.design import cost_calibration
+
+    assert cost_calibration.recorded_stacks(None) == {}
+    manifest = {"runs": [{"stacks": [["a", "b", "c"]]}, {"workers": 2}, {"stacks": [["a", "b"]]}]}
+    assert cost_calibration.recorded_stacks(manifest) == {"a": 2, "b": 2, "c": 3}
+    h = _hierarchical_seeds(get_grid("paper").cells)
+    cells = pd.DataFrame([dict(cell_id=c.cell_id, status="done", wall_s=200.0, config_json=c.canonical_json())
+                          for c in h])
+    train = pd.DataFrame(dict(cell_id=[c.cell_id for c in h], wall_s=[100.0] * 3))
+    out = cost_calibration.costs_of(cells, train, recorded={h[0].cell_id: 2, h[1].cell_id: 2})
+    assert list(out["stack"]) == [2, 2, 1]
+    assert out["train_rate"][0] == pytest.approx(out["train_rate"][2] / costs.stack_gain("hierarchical", 40, 2))
+
+
 def test_grid_cost__stacking_shortens_only_the_hierarchical_training() -> None:
     cells = get_grid("paper").cells
     plain, stacked = costs.grid_cell_hours(cells), costs.grid_cell_hours(cells, stack_seeds=3)

@@ -216,11 +216,11 @@ def test_run__rerun_changed_trains_a_cell_with_changed_defaults_again_and_keeps_
     assert run_grid(grid, out, workers=1, checkpoint_every=2).rerun == {}
 
 
-def _hier_seeds(episodes: int = 6) -> Grid:
+def _hier_seeds(episodes: int = 6, **params: object) -> Grid:
     """Three seeds of one hierarchical configuration and a fourth cell that differs in N."""
     base = dict(method="hierarchical", loss_p=0.3, layout="tiny", episodes=episodes, horizon=15,
                 eval_episodes=2, params={"batch_episodes": 2, "eval_chunk": 2, "hidden": 8,
-                                         "critic_hidden": 8, "predictor_hidden": 8})
+                                         "critic_hidden": 8, "predictor_hidden": 8, **params})
     return _grid(*(dict(base, n_robots=4, seed=s) for s in (0, 1, 2)), dict(base, n_robots=6, seed=0))
 
 
@@ -257,6 +257,45 @@ def test_run__stacked_seeds_give_the_numbers_of_cells_trained_one_by_one(tmp_pat
     with pytest.raises(KeyboardInterrupt):
         run_grid(grid, tmp_path / "cut", workers=1, checkpoint_every=1, stack_seeds=3, on_event=interrupt)
     run_grid(grid, tmp_path / "cut", workers=1, checkpoint_every=1, stack_seeds=3)
+    _, tc, ec = _frames(tmp_path / "cut")
+    pd.testing.assert_frame_equal(ta, tc)
+    pd.testing.assert_frame_equal(ea, ec)
+
+
+def test_run__auto_stacking_runs_the_longest_cell_first_alone_and_stacks_the_rest(tmp_path: Path) -> None:
+    """--stack-seeds auto with one worker: the longest cell (N = 6) trains first, alone; the
+    three seeds of the shared-parameter configuration then train as one stack; the rows are
+    the unstacked run's, the run record lists the stack, and a run cut part-way and resumed
+    with --stack-seeds 1 (stacking changed on resume) stores them too."""
+    grid = _hier_seeds(share_params=True)
+    alone = run_grid(grid, tmp_path / "alone", workers=2, checkpoint_every=1)
+    events: list[tuple[str, str]] = []
+    auto = run_grid(grid, tmp_path / "auto", workers=1, checkpoint_every=1, stack_seeds="auto",
+                    on_event=lambda kind, st: events.append((kind, st.cell_id)))
+    assert (alone.done, auto.done) == (4, 4)
+    _, ta, ea = _frames(tmp_path / "alone")
+    _, ts, es = _frames(tmp_path / "auto")
+    pd.testing.assert_frame_equal(ta, ts)
+    pd.testing.assert_frame_equal(ea, es)
+    starts = [cid for kind, cid in events if kind == "started"]
+    seeds = [c.cell_id for c in grid.cells[:3]]
+    assert starts[0] == grid.cells[3].cell_id and set(starts[1:4]) == set(seeds)
+    first_seed = events.index(("started", starts[1]))
+    assert [kind for kind, _ in events[first_seed:first_seed + 4]] == ["started"] * 3 + ["train_chunk"]
+    record = RunStore(tmp_path / "auto").read_manifest()["runs"][-1]
+    assert record["stack_seeds"] == "auto" and record["stacks"] == [starts[1:4]]
+    assert "stack_seeds" not in RunStore(tmp_path / "alone").read_manifest()["runs"][-1]
+
+    seen = []
+
+    def interrupt(kind: str, st: object) -> None:
+        seen.append(kind)
+        if seen.count("train_chunk") == 5:  # the stack's first chunks are in
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_grid(grid, tmp_path / "cut", workers=1, checkpoint_every=1, stack_seeds="auto", on_event=interrupt)
+    run_grid(grid, tmp_path / "cut", workers=2, checkpoint_every=1, stack_seeds=1)
     _, tc, ec = _frames(tmp_path / "cut")
     pd.testing.assert_frame_equal(ta, tc)
     pd.testing.assert_frame_equal(ea, ec)
