@@ -26,6 +26,7 @@ received from all other robots over lossy all-to-all links, without the group hi
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -58,6 +59,7 @@ from algorithms.common.robot_obs import (
     own_history_into,
     robots_on_target_index,
 )
+from algorithms.common.seed_stack import new_view
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -207,7 +209,38 @@ class DecentralizedMethod(Method):
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.ppo_lr if self.mappo else p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max) if p.safety_filter else None
+        self._seeds: list[tuple[DecentralizedActor, int, int]] | None = None  # a stack view's seeds
         self.place_modules()
+
+    # ------------------------------------------------------------ seed stacking
+    STACK_AXIS = 0  # the episodes' axis of its logits (B, N, K)
+
+    @classmethod
+    def stackable(cls, params: Mapping[str, Any]) -> bool:
+        return True
+
+    @classmethod
+    def stack_view(cls, methods: Sequence[Method]) -> DecentralizedMethod:
+        """The rollout of S seeds of one configuration as one batch (seed_stack): the
+        environment, observations, channel and filter run on all S B episodes at once, and
+        each seed's actor computes the logits of its own B episodes (the shapes of its own
+        run; its activations go to its rows of the buffer)."""
+        view: DecentralizedMethod = new_view(cls, methods)
+        return view
+
+    def load_stack(self, methods: Sequence[Method]) -> None:
+        b = self.params.batch_episodes
+        self._seeds = [(m.actor, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]  # stack_view's
+
+    def rollout_logits(self, obs: torch.Tensor, mask: torch.Tensor,
+                       hidden: tuple[torch.Tensor, torch.Tensor] | None) -> torch.Tensor:
+        """The actor's rollout logits of the batch; a stack view's from each seed's actor on
+        its own episodes."""
+        if self._seeds is None:
+            return self.actor.rollout_logits(obs, mask, hidden)
+        return torch.cat([actor.rollout_logits(obs[lo:hi], mask[lo:hi],
+                                               None if hidden is None else (hidden[0][lo:hi], hidden[1][lo:hi]))
+                          for actor, lo, hi in self._seeds])
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         return {"actor": self.actor, "critic": self.critic,
@@ -256,7 +289,7 @@ class DecentralizedMethod(Method):
             hidden = None if buf is None or "hidden0" not in buf.data else \
                 (torch.from_numpy(buf.row("hidden0")), torch.from_numpy(buf.row("hidden1")))
             dev = self.device
-            logits = self.actor.rollout_logits(torch.from_numpy(obs).to(dev), torch.from_numpy(mask).to(dev), hidden)
+            logits = self.rollout_logits(torch.from_numpy(obs).to(dev), torch.from_numpy(mask).to(dev), hidden)
             actions = choice(logits).numpy()
             if buf is not None and "logp" in buf.data:  # mappo: the rollout policy's log-probs
                 buf.row("logp")[...] = torch.log_softmax(logits, -1).cpu().gather(

@@ -88,9 +88,10 @@ def run(
              "(a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: str = typer.Option("auto", "--stack-seeds",
         help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the "
-             "hierarchical method; the same numbers as one by one, about 1.2-1.5x less CPU per cell). auto "
-             "(default): the W longest cells (W = workers) run first, each alone (the critical path), and the "
-             "other hierarchical cells in stacks of 3 when there are more of them than workers; 1: no stacking."),
+             "hierarchical and decentralized methods; the same numbers as one by one; the hierarchical method "
+             "about 1.1-1.5x less CPU per cell). auto (default): the W longest cells (W = workers) run first, each "
+             "alone (the critical path), and the other hierarchical cells in stacks of 3 when there are more of "
+             "them than workers; 1: no stacking. A resumed run may stack differently."),
     repair: bool = typer.Option(False, "--repair",
         help="Move every damaged or misplaced stored file of the grid's cells (checksum mismatch, unreadable, rows of "
              "another cell) to RUN/superseded/repair-<time>/ and recompute those cells only. Without it such a run is "

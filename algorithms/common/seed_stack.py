@@ -13,7 +13,10 @@ rows s B..(s+1) B), and leaves each method exactly where its own ``train_iterati
   all once every episode of that seed has ended (its own run would have stopped; the
   generator's state stays what it would be);
 * forwards: ``Method.stack_view`` stacks the seeds' weights so that one batched matmul
-  computes each seed's slice with the shapes of its own run (group_layers);
+  computes each seed's slice with the shapes of its own run (the hierarchical method,
+  group_layers), or runs each seed's own network on its slice (the decentralized baseline,
+  whose rollout shares the environment, observations and channel but not its one matmul
+  chain);
 * updates: each method updates from its own slice of the rollout buffer (contiguous copies,
   its own step count), with its own optimizer.
 
@@ -80,17 +83,31 @@ class StackedBatch(EpisodeBatch):
         return [(int(e - b), int(e)) for b, e in zip(self.sizes, ends, strict=True)]
 
 
+def new_view(cls: Any, methods: Sequence[Any]) -> Any:
+    """A fresh ``cls`` for ``methods`` (cells that differ only in their seed) to become their
+    stack view; building it does not move torch's global stream. ValueError when they differ
+    in more."""
+    first = methods[0]
+    if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
+        raise ValueError("stack_view: the methods must differ only in their seed")
+    rng = torch.get_rng_state()
+    view = cls(first.env, first.params.model_dump(), seed=first.seed, device=first.device)
+    torch.set_rng_state(rng)
+    return view
+
+
 @dataclass(frozen=True)
 class StackedChoice:
-    """Training samples (T = 1) of a stacked rollout: logits (X, S B, ..., K) are split along
-    axis 1 and each seed's slice is sampled with that seed's generator, while any of its
-    episodes runs."""
+    """Training samples (T = 1) of a stacked rollout: logits (X, S B, ..., K) (``axis`` 1, the
+    hierarchical method's) or (S B, ..., K) (``axis`` 0) are split along the episodes and each
+    seed's slice is sampled with that seed's generator, while any of its episodes runs."""
 
     gens: Sequence[torch.Generator]
     batch: StackedBatch
     mode: ExecutionMode = ExecutionMode(TRAIN, 1.0)
     gen: None = None
     training: bool = True
+    axis: int = 1
 
     @property
     def name(self) -> str:
@@ -100,12 +117,12 @@ class StackedChoice:
         ended = self.batch.core.ended
         out = []
         for gen, (lo, hi) in zip(self.gens, self.batch.bounds(), strict=True):
-            part = logits[:, lo:hi].contiguous()
+            part = logits.narrow(self.axis, lo, hi - lo).contiguous()
             if ended[lo:hi].all():  # this seed's run has stopped: no draw
                 out.append(torch.zeros(part.shape[:-1], dtype=torch.int64))
             else:
                 out.append(sample_categorical(part, 1.0, gen))
-        return torch.cat(out, dim=1)
+        return torch.cat(out, dim=self.axis)
 
 
 def split_buffer(buf: RolloutBuffer, lo: int, hi: int) -> RolloutBuffer:
@@ -131,7 +148,8 @@ def train_stacked(methods: Sequence[Any], view: Any | None = None) -> list[list[
     view.load_stack(methods)
     batch = StackedBatch([m.train_batch() for m in methods])
     with torch.inference_mode():
-        state, rows = view.run(batch, StackedChoice([m.torch_gen for m in methods], batch))
+        choice = StackedChoice([m.torch_gen for m in methods], batch, axis=getattr(view, "STACK_AXIS", 1))
+        state, rows = view.run(batch, choice)
     shared = (time.perf_counter() - t0) / len(methods)  # the rollout, shared by the seeds
     out = []
     for m, (lo, hi) in zip(methods, batch.bounds(), strict=True):

@@ -34,6 +34,7 @@ from algorithms.base import REFERENCE, Method
 from algorithms.common.episodes import Decision, EpisodeBatch
 from algorithms.common.execution import ActionChoice, sample_categorical
 from algorithms.common.ppo import MAPPO, RobotCritic
+from algorithms.common.seed_stack import new_view
 from algorithms.common.trainer import CRITIC_FEATURES, CentralCritic, RolloutBuffer, critic_features
 from algorithms.hierarchical.fallback import offenders_wait
 from algorithms.hierarchical.mappo import mappo_policy_update
@@ -147,6 +148,7 @@ class HierarchicalMethod(Method):
 
     # ------------------------------------------------------------ seed stacking
     STACKED = ("reference", "local", "predictor")  # the modules a rollout runs
+    STACK_AXIS = 1  # the episodes' axis of its logits (Z, B, ..., K)
 
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
@@ -159,12 +161,7 @@ class HierarchicalMethod(Method):
         whose per-group weights are the seeds' stacked group-major (Z S groups, see
         ``group_layers``; shared parameters: S sets, ``per_slice``); each seed's predictor
         decodes its own lost links."""
-        first = methods[0]
-        if any(type(m) is not cls or m.env != first.env or m.params != first.params for m in methods):
-            raise ValueError("stack_view: the methods must differ only in their seed")
-        rng = torch.get_rng_state()  # building the view must not move the global stream
-        view = cls(first.env, first.params.model_dump(), seed=first.seed, device=first.device)
-        torch.set_rng_state(rng)
+        view: HierarchicalMethod = new_view(cls, methods)
         for name in cls.STACKED:
             for mod in getattr(view, name).modules():
                 if hasattr(mod, "seeds"):

@@ -83,14 +83,21 @@ def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
                                        "train_rate", "eval_rate", "stack", "trained_here"])
 
 
+def stacked_before_0247(cell: Cell) -> bool:
+    """What ``bench run --stack-seeds K`` stacked before its runs recorded their stacks
+    (docs/decisions/0247): the hierarchical method with per-group parameters only."""
+    return cell.method == "hierarchical" and not cell.method_params().model_dump().get("share_params", False)
+
+
 def run_stacks(cells: pd.DataFrame, every: list[Cell], stack_seeds: int,
                copied: set[str] | None = None) -> dict[str, int]:
-    """cell id -> the size of the seed stack ``bench run --stack-seeds stack_seeds`` trains it
+    """cell id -> the size of the seed stack ``bench run --stack-seeds stack_seeds`` trained it
     in, formed over the run's cells (``every``: their parsed configs) but the ``copied`` ones,
-    which another run trained and are left out."""
+    which another run trained and are left out, with the rule of the runs that did not record
+    their stacks (``stacked_before_0247``)."""
     own = [i for i, cid in enumerate(cells["cell_id"]) if not copied or cid not in copied]
-    return dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds),
-                    strict=True))
+    return dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds,
+                                                                  stackable=stacked_before_0247), strict=True))
 
 
 def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates | None = None,

@@ -13,7 +13,7 @@ checkpoint writes and the load of the machine the cells ran on.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -162,22 +162,31 @@ def auto_stacking(seconds: Sequence[float], stackable: Sequence[bool], workers: 
     return solo, AUTO_STACK if rest > workers else 1
 
 
-def stack_sizes(cells: Sequence[Cell], stack_seeds: StackSeeds, workers: int = 1) -> list[int]:
+def stack_pays(cell: Cell) -> bool:
+    """Whether ``--stack-seeds auto`` stacks this cell's seeds: its method stacks them and
+    a stack of AUTO_STACK is measured to save CPU (``STACK_GAIN_3``)."""
+    return cell.stackable() and stack_gain(cell.method, cell.n_robots, AUTO_STACK) > 1.0
+
+
+def stack_sizes(cells: Sequence[Cell], stack_seeds: StackSeeds, workers: int = 1,
+                stackable: Callable[[Cell], bool] | None = None) -> list[int]:
     """For each cell, the size of the seed stack ``bench run --stack-seeds`` trains it in:
-    the cells of one configuration (all but the seed) of a stackable method, in grid
-    order, in stacks of up to ``stack_seeds``; 1 otherwise. ``auto`` (with ``workers``):
-    ``auto_stacking`` over the whole grid, its critical cells alone."""
+    the cells of one configuration (all but the seed) of a stackable method (``stackable``,
+    default ``Cell.stackable``), in grid order, in stacks of up to ``stack_seeds``; 1
+    otherwise. ``auto`` (with ``workers``): ``auto_stacking`` over the whole grid with the
+    cells where stacking pays (``stack_pays``), its critical cells alone."""
     sizes = [1] * len(cells)
     solo: list[int] | set[int] = []
     if stack_seeds == AUTO:
-        solo, stack_seeds = auto_stacking([cell_seconds(c) for c in cells], [c.stackable() for c in cells], workers)
+        stackable = stack_pays
+        solo, stack_seeds = auto_stacking([cell_seconds(c) for c in cells], [stackable(c) for c in cells], workers)
     assert isinstance(stack_seeds, int)
     solo = set(solo)
     if stack_seeds < 2:
         return sizes
     groups: dict[str, list[int]] = {}
     for i, c in enumerate(cells):
-        if c.stackable() and i not in solo:
+        if (c.stackable() if stackable is None else stackable(c)) and i not in solo:
             groups.setdefault(c.model_copy(update={"seed": 0}).canonical_json(), []).append(i)
     for members in groups.values():
         for lo in range(0, len(members), stack_seeds):

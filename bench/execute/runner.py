@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from algorithms.registry import method_class
-from bench.design.costs import AUTO, StackSeeds, auto_stacking
+from bench.design.costs import AUTO, StackSeeds, auto_stacking, stack_pays
 from bench.design.grids import Grid
 from bench.design.overrides import check_resume_overrides
 from bench.execute.executor import (
@@ -214,7 +214,7 @@ class _Run:
             return max(1, int(stack_seeds)), {}
         todo = [s for s in self.states if s.phase == "pending" and not s.trained]
         solo, k = auto_stacking([s.weight * (1.0 - s.progress()) for s in todo],
-                                [_stackable(s.spec) for s in todo], self.n_workers)
+                                [stack_pays(s.cell) for s in todo], self.n_workers)
         return k, {todo[i].cell_id: rank for rank, i in enumerate(solo)}
 
     def _prepare_store(self) -> None:
@@ -336,7 +336,8 @@ class _Run:
         """Up to ``stack_seeds - 1`` other pending, untrained cells that differ from ``st``
         only in their seed, when its method trains seed-stacked (``--stack-seeds``); none for
         or among the cells that run alone (``first``)."""
-        if self.stack_seeds < 2 or st.cell_id in self.first or not _stackable(st.spec):
+        if self.stack_seeds < 2 or st.cell_id in self.first or not (
+                stack_pays(st.cell) if self.stack_arg == AUTO else _stackable(st.spec)):
             return []
         key = _stack_key(st.spec)
         return [s for s in pending if s is not st and not s.trained and s.cell_id not in self.first

@@ -4,6 +4,8 @@ training rows, parameters, optimizer states and generator states, whatever it is
 with and whatever progress the others have."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 import torch
@@ -68,12 +70,18 @@ def _same(a: tuple, b: tuple) -> None:
 ])
 def test_stacked_training__is_bit_for_bit_each_seed_trained_alone(kw, params) -> None:
     env = _env(**kw)
-    alone = _methods(env, [3, 4, 5], **params)
-    rows_alone = [[r for _ in range(2) for r in m.train_iteration()] for m in alone]
-    stacked = _methods(env, [3, 4, 5], **params)
-    view = HierarchicalMethod.stack_view(stacked)
-    rows_stacked = [[], [], []]
-    for _ in range(2):
+    assert_stacked_is_alone(lambda: _methods(env, [3, 4, 5], **params))
+
+
+def assert_stacked_is_alone(make: Callable[[], list], iterations: int = 2) -> None:
+    """The methods ``make()`` builds, trained ``iterations`` times alone and (built again)
+    seed-stacked through one ``stack_view``: each seed bit for bit."""
+    alone = make()
+    rows_alone = [[r for _ in range(iterations) for r in m.train_iteration()] for m in alone]
+    stacked = make()
+    view = type(stacked[0]).stack_view(stacked)
+    rows_stacked: list[list[dict]] = [[] for _ in stacked]
+    for _ in range(iterations):
         for k, rows in enumerate(train_stacked(stacked, view)):
             rows_stacked[k] += rows
     for m_a, r_a, m_s, r_s in zip(alone, rows_alone, stacked, rows_stacked, strict=True):

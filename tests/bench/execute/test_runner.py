@@ -224,20 +224,30 @@ def _hier_seeds(episodes: int = 6, **params: object) -> Grid:
     return _grid(*(dict(base, n_robots=4, seed=s) for s in (0, 1, 2)), dict(base, n_robots=6, seed=0))
 
 
+def _stacked_as_alone(grid: Grid, tmp_path: Path, stack_seeds: int | str
+                      ) -> tuple[list[tuple[str, str]], pd.DataFrame, pd.DataFrame]:
+    """Run ``grid`` unstacked on 2 workers (tmp_path/alone) and with ``stack_seeds`` on one
+    (tmp_path/stacked): every cell done, the same train and eval rows. Returns the stacked
+    run's (event, cell id) and the unstacked run's train and eval frames."""
+    alone = run_grid(grid, tmp_path / "alone", workers=2, checkpoint_every=1)
+    events: list[tuple[str, str]] = []
+    stacked = run_grid(grid, tmp_path / "stacked", workers=1, checkpoint_every=1, stack_seeds=stack_seeds,
+                       on_event=lambda kind, st: events.append((kind, st.cell_id)))
+    assert (alone.done, stacked.done) == (len(grid.cells), len(grid.cells))
+    _, ta, ea = _frames(tmp_path / "alone")
+    _, ts, es = _frames(tmp_path / "stacked")
+    pd.testing.assert_frame_equal(ta, ts)
+    pd.testing.assert_frame_equal(ea, es)
+    return events, ta, ea
+
+
 def test_run__stacked_seeds_give_the_numbers_of_cells_trained_one_by_one(tmp_path: Path) -> None:
     """--stack-seeds 3: the three seeds of a configuration train in one worker with one rollout
     batch (algorithms/common/seed_stack.py); every row is what the unstacked run stores, and an
     interrupted stacked run resumes to the same rows."""
     grid = _hier_seeds()
-    alone = run_grid(grid, tmp_path / "alone", workers=2, checkpoint_every=1)
-    stacked_events: list[tuple[str, str]] = []
-    stacked = run_grid(grid, tmp_path / "stacked", workers=1, checkpoint_every=1, stack_seeds=3,
-                       on_event=lambda kind, st: stacked_events.append((kind, st.cell_id)))
-    assert (alone.done, stacked.done) == (4, 4)
-    _, ta, ea = _frames(tmp_path / "alone")
-    cs, ts, es = _frames(tmp_path / "stacked")
-    pd.testing.assert_frame_equal(ta, ts)
-    pd.testing.assert_frame_equal(ea, es)
+    stacked_events, ta, ea = _stacked_as_alone(grid, tmp_path, 3)
+    cs = _frames(tmp_path / "stacked")[0]
     # the three seeds started together (one stack, before any chunk came back), the N = 6
     # cell on its own after them
     seeds = {c.cell_id for c in grid.cells[:3]}
@@ -268,21 +278,13 @@ def test_run__auto_stacking_runs_the_longest_cell_first_alone_and_stacks_the_res
     the unstacked run's, the run record lists the stack, and a run cut part-way and resumed
     with --stack-seeds 1 (stacking changed on resume) stores them too."""
     grid = _hier_seeds(share_params=True)
-    alone = run_grid(grid, tmp_path / "alone", workers=2, checkpoint_every=1)
-    events: list[tuple[str, str]] = []
-    auto = run_grid(grid, tmp_path / "auto", workers=1, checkpoint_every=1, stack_seeds="auto",
-                    on_event=lambda kind, st: events.append((kind, st.cell_id)))
-    assert (alone.done, auto.done) == (4, 4)
-    _, ta, ea = _frames(tmp_path / "alone")
-    _, ts, es = _frames(tmp_path / "auto")
-    pd.testing.assert_frame_equal(ta, ts)
-    pd.testing.assert_frame_equal(ea, es)
+    events, ta, ea = _stacked_as_alone(grid, tmp_path, "auto")
     starts = [cid for kind, cid in events if kind == "started"]
     seeds = [c.cell_id for c in grid.cells[:3]]
     assert starts[0] == grid.cells[3].cell_id and set(starts[1:4]) == set(seeds)
     first_seed = events.index(("started", starts[1]))
     assert [kind for kind, _ in events[first_seed:first_seed + 4]] == ["started"] * 3 + ["train_chunk"]
-    record = RunStore(tmp_path / "auto").read_manifest()["runs"][-1]
+    record = RunStore(tmp_path / "stacked").read_manifest()["runs"][-1]
     assert record["stack_seeds"] == "auto" and record["stacks"] == [starts[1:4]]
     assert "stack_seeds" not in RunStore(tmp_path / "alone").read_manifest()["runs"][-1]
 

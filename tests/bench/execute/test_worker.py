@@ -75,16 +75,18 @@ def test_peak_rss__is_a_positive_number_of_megabytes() -> None:
     assert 10.0 < mb < 100_000.0 and not math.isnan(mb)
 
 
-def test_train_stack__stacks_seeds_of_a_stackable_method_and_equals_one_by_one(toy: str, monkeypatch) -> None:
-    """A stack of three hierarchical seeds trains through ``train_stacked`` (one rollout batch
-    per iteration) and returns, cell by cell, what ``train_chunk`` returns for each alone; a
-    toy stack (not stackable) trains one by one."""
+@pytest.mark.parametrize("method", ["hierarchical", "decentralized"])
+def test_train_stack__stacks_seeds_of_a_stackable_method_and_equals_one_by_one(toy: str, monkeypatch,
+                                                                               method: str) -> None:
+    """A stack of three seeds of a stackable method trains through ``train_stacked`` (one
+    rollout batch per iteration) and returns, cell by cell, what ``train_chunk`` returns for
+    each alone; a toy stack (not stackable) trains one by one."""
     import algorithms.common.seed_stack as stack_mod  # the worker imports it when a stack trains
 
     calls = []
     real = stack_mod.train_stacked
     monkeypatch.setattr(stack_mod, "train_stacked", lambda ms, view: calls.append(len(ms)) or real(ms, view))
-    kw = toy_spec(method="hierarchical", episodes=4, horizon=10, params={"batch_episodes": 2, "eval_chunk": 2})
+    kw = toy_spec(method=method, episodes=4, horizon=10, params={"batch_episodes": 2, "eval_chunk": 2})
     specs = [cell_spec(Cell.make(**{**kw, "seed": s})) for s in (0, 1, 2)]
     stacked = CellWorker().train_stack(specs, [[], [], []], [0, 0, 0], 3)
     assert calls == [3, 3]  # two iterations of 2 episodes each, all three seeds in one batch
