@@ -86,7 +86,7 @@ def run(
     rerun_changed: bool = typer.Option(False, "--rerun-changed",
         help="Train again, from the start, the stored cells whose resolved method parameters differ from this code's "
              "(a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
-    stack_seeds: str = typer.Option("auto", "--stack-seeds",
+    stack_seeds: str = typer.Option("auto", "--stack-seeds", metavar="auto|K",
         help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the "
              "hierarchical and decentralized methods; the same numbers as one by one; the hierarchical method "
              "about 1.1-1.5x less CPU per cell). auto (default): the W longest cells (W = workers) run first, each "
@@ -202,9 +202,10 @@ def _stack_seeds(text: str) -> int | str:
 def grids(
     seeds: int | None = typer.Option(None, "--seeds", min=1, help="Count with K seeds instead of each grid's default."),
     grid_file: Path | None = typer.Option(None, "--grid-file", help="Also list a user grid file."),
-    stack_seeds: str = typer.Option("1", "--stack-seeds", help="Estimate for `bench run --stack-seeds K` "
-                                    "(seed-stacked hierarchical training: its measured per-cell gain); auto: "
-                                    "bench run's default with one worker per CPU of this machine."),
+    stack_seeds: str = typer.Option("1", "--stack-seeds", metavar="auto|K",
+                                    help="Estimate for `bench run --stack-seeds K` (seed-stacked training: its "
+                                    "measured per-cell gain); auto: bench run's default with one worker per CPU "
+                                    "of this machine."),
     rates_from: Path | None = typer.Option(None, "--rates-from", help="Estimate with the rates a run directory's "
                                            "done cells observed (your machine), where it has them; the "
                                            "built-in rates elsewhere."),
