@@ -7,16 +7,19 @@ docstring) and returns numbers or arrays; randomness comes from a seeded
 The seed is the unit of every inference: callers pass one number per seed (a per-seed
 mean), never pooled episodes. Intervals and tests are Student/Welch t on those numbers
 (calibrated at 3 seeds, where a percentile bootstrap over 3 values covers the mean only
-about 75% of the time: measured by ``bench calibrate``). rliable supplies the IQM and the
-probability of improvement (``rliable.metrics``; its ``library`` module, which holds the
-stratified bootstrap and performance profiles, needs ``arch``, which does not import
-under pandas 3, so the seed bootstrap here is written out).
+about 75% of the time: measured by ``bench calibrate``), each from one scipy call in one
+place: ``contrast_t`` (every t test, vectorized), ``t_interval`` (every Student t interval
+of a mean). rliable supplies the IQM and the probability of improvement
+(``rliable.metrics``; its ``library`` module, which holds the stratified bootstrap and
+performance profiles, needs ``arch``, which does not import under pandas 3, so the
+bootstraps are scipy's ``bootstrap``).
 """
 from __future__ import annotations
 
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from rliable import metrics as rly_metrics
@@ -60,6 +63,18 @@ class TTest:
 _NAN_TEST = TTest(*(np.nan,) * 7)
 
 
+class Contrast(NamedTuple):
+    """``TTest``'s fields as arrays: one test per position (``contrast_t``)."""
+
+    estimate: np.ndarray
+    se: np.ndarray
+    df: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    p_greater: np.ndarray
+    p_less: np.ndarray
+
+
 def welch_parts(means: Sequence[np.ndarray] | np.ndarray, variances: Sequence[np.ndarray] | np.ndarray,
                 counts: Sequence[int] | np.ndarray, weights: np.ndarray,
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -80,9 +95,47 @@ def welch_parts(means: Sequence[np.ndarray] | np.ndarray, variances: Sequence[np
     return np.asarray(est), np.sqrt(var), df
 
 
+def contrast_t(samples: Sequence[np.ndarray], weights: Sequence[float], null: float = 0.0,
+               level: float = LEVEL, axis: int = -1) -> Contrast:
+    """The t test and ``level`` CI of the contrast sum_k w_k mean(x_k) against ``null``,
+    vectorized: each sample's values run along ``axis`` (every other axis is a separate
+    test: simulations, percentiles), and each field of the result is an array over those.
+
+    One sample with weight +-1 is scipy's one-sample test (``ttest_1samp``), two with
+    (1, -1) scipy's Welch test (``ttest_ind(equal_var=False)``; the null shifts the first
+    sample); three or more (a gap, a slope) have no scipy test, so their Welch-Satterthwaite
+    df comes from ``welch_parts`` and the test and CI from scipy's t distribution. A contrast
+    without variance is decided exactly (p 0 or 1, df inf, the CI its estimate). No NaN
+    handling: ``t_test`` cleans one test's samples.
+    """
+    xs = [np.asarray(s, dtype=np.float64) for s in samples]
+    w = [float(x) for x in weights]
+    est, se, df = welch_parts([x.mean(axis=axis) for x in xs], [x.var(axis=axis, ddof=1) for x in xs],
+                              [x.shape[axis] for x in xs], np.asarray(w))
+    with np.errstate(divide="ignore", invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # variance-free contrasts: decided below
+        if w in ([1.0], [-1.0]):
+            r = sps.ttest_1samp(w[0] * xs[0], null, axis=axis)
+            ci, shift = r.confidence_interval(level), 0.0
+        elif w == [1.0, -1.0]:
+            r = sps.ttest_ind(xs[0] - null, xs[1], axis=axis, equal_var=False)
+            ci, shift = r.confidence_interval(level), null
+        else:
+            r = None
+            ci, shift = sps.t.interval(level, df, loc=est, scale=se), 0.0
+        t, tdf = ((est - null) / se, df) if r is None else (r.statistic, r.df)
+        lo, hi = np.asarray(ci[0]) + shift, np.asarray(ci[1]) + shift
+        pg, pl = sps.t.sf(t, tdf), sps.t.cdf(t, tdf)
+    d = est - null
+    exact = se == 0.0
+    return Contrast(d, se, np.where(exact, np.inf, tdf), np.where(exact, est, lo), np.where(exact, est, hi),
+                    np.where(exact, (d <= 0).astype(float), pg), np.where(exact, (d >= 0).astype(float), pl))
+
+
 def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[float],
            null: float = 0.0, level: float = LEVEL) -> TTest:
-    """Welch t test and CI of the contrast sum_k w_k mean(x_k) against ``null``.
+    """Welch t test and CI of the contrast sum_k w_k mean(x_k) against ``null`` for one
+    test (``contrast_t`` on its finite values).
 
     ``samples``: K 1-D arrays (n_k,), one number per seed. One sample with weight 1 is
     the one-sample t test; two with (1, -1) Welch's two-sample test; four with
@@ -94,27 +147,19 @@ def t_test(samples: Sequence[Sequence[float] | np.ndarray], weights: Sequence[fl
         raise ValueError("samples and weights must have the same length")
     if not arrays or any(a.size < 2 for a in arrays):
         return _NAN_TEST
-    means = np.array([a.mean() for a in arrays])
-    variances = np.array([a.var(ddof=1) for a in arrays])
-    counts = np.array([a.size for a in arrays])
-    est, se, df = (float(v) for v in welch_parts(means, variances, counts, np.asarray(weights)))
-    if se == 0.0:
-        d = est - null
-        return TTest(d, 0.0, np.inf, est, est, float(d <= 0), float(d >= 0))
-    w = [float(x) for x in weights]
-    if w in ([1.0], [-1.0]):  # one sample: scipy's one-sample t test
-        r = sps.ttest_1samp(w[0] * arrays[0], null)
-    elif w == [1.0, -1.0]:  # two samples: scipy's Welch test (the null shifts the first sample)
-        r = sps.ttest_ind(arrays[0] - null, arrays[1], equal_var=False)
-    else:  # a contrast of three or more means (a gap, a slope): no scipy call, Welch-Satterthwaite above
-        tstat = (est - null) / se
-        _, q = sps.t.interval(level, df)
-        return TTest(est - null, se, df, est - q * se, est + q * se,
-                     float(sps.t.sf(tstat, df)), float(sps.t.cdf(tstat, df)))
-    ci = r.confidence_interval(level)
-    return TTest(est - null, se, float(r.df), float(ci.low) + (null if len(w) == 2 else 0.0),
-                 float(ci.high) + (null if len(w) == 2 else 0.0),
-                 float(sps.t.sf(r.statistic, r.df)), float(sps.t.cdf(r.statistic, r.df)))
+    return TTest(*(float(v) for v in contrast_t(arrays, weights, null, level)))
+
+
+def t_interval(z: np.ndarray, level: float = LEVEL, axis: int = -1, omit_nan: bool = False
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi): the Student t interval of the mean of ``z`` along ``axis``, scipy's
+    ``ttest_1samp(...).confidence_interval``; ``omit_nan`` drops NaNs per slice (a slice
+    with fewer than two values: NaN bounds)."""
+    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)  # constant or short slices
+        ci = sps.ttest_1samp(z, 0.0, axis=axis, nan_policy="omit" if omit_nan else "propagate"
+                             ).confidence_interval(level)
+    return np.asarray(ci.low), np.asarray(ci.high)
 
 
 def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[float, float, float]:
@@ -131,9 +176,8 @@ def mean_ci(x: Sequence[float] | np.ndarray, level: float = LEVEL) -> tuple[floa
     m = float(a.mean())
     if a.size < 2:
         return m, np.nan, np.nan
-    _, q = sps.t.interval(level, a.size - 1)
-    half = float(q) * float(a.std(ddof=1)) / np.sqrt(a.size)
-    return m, m - half, m + half
+    lo, hi = t_interval(a, level)
+    return m, float(lo), float(hi)
 
 
 # A seed at exactly 0% or 100% has no logit: it moves in by RATE_EPS (half a point), or by half
@@ -150,14 +194,10 @@ def _transformed_ci(a: np.ndarray, fwd: Callable[[np.ndarray], np.ndarray],
     """Mean of ``a`` along ``axis`` and the Student t interval of the mean of ``fwd(a)``
     mapped back by ``back``: inside ``back``'s range by construction. Where every value is
     equal the interval is that value."""
-    z = fwd(a)
-    n = a.shape[axis]
-    m = z.mean(axis=axis)
-    _, q = sps.t.interval(level, n - 1)
-    half = q * z.std(axis=axis, ddof=1) / np.sqrt(n)
+    lo, hi = t_interval(fwd(a), level, axis)
     mean = a.mean(axis=axis)
     same = a.max(axis=axis) == a.min(axis=axis)
-    return mean, np.where(same, mean, back(m - half)), np.where(same, mean, back(m + half))
+    return mean, np.where(same, mean, back(lo)), np.where(same, mean, back(hi))
 
 
 def _logit(x: np.ndarray) -> np.ndarray:
@@ -223,6 +263,21 @@ def uninformative(lo: float, hi: float, span: float = 1.0) -> bool:
     return bool(np.isfinite(lo) and np.isfinite(hi) and hi - lo > UNINFORMATIVE * span)
 
 
+COVERAGE_TARGET = 0.93  # a 95% interval whose simulated coverage is under this is not printed as one
+
+
+def trusted(cov: float) -> bool:
+    """Whether a simulated coverage, as printed (one decimal of a percent), reaches
+    ``COVERAGE_TARGET``: only then is the interval printed as a 95% interval (no coverage,
+    NaN, is no verdict on it). docs/decisions/0233."""
+    return not np.isfinite(cov) or float(f"{100 * cov:.1f}") >= 100 * COVERAGE_TARGET
+
+
+def untrusted_text(cov: float) -> str:
+    """What a row prints instead of an interval whose coverage is not ``trusted``."""
+    return f"interval not trusted: simulated coverage {cov:.1%} < {COVERAGE_TARGET:.0%}"
+
+
 def coverage(kind: str, mean: float, sd: float, seeds: int, sims: int = 2000, level: float = LEVEL,
              seed: int = 0) -> float:
     """Simulated coverage of ``rate_ci`` (``kind`` "rate": seed values Beta with this mean and
@@ -244,24 +299,23 @@ def coverage(kind: str, mean: float, sd: float, seeds: int, sims: int = 2000, le
     return float(np.mean((lo <= m) & (m <= hi)))
 
 
-def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA
+def simultaneous_band(a: np.ndarray, b: np.ndarray, alpha: float = ALPHA, axis: int = 0
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Difference of mean curves a - b with one-sided simultaneous bounds (Bonferroni).
 
     ``a`` (S_a, G), ``b`` (S_b, G): one curve per seed (e.g. success quantiles at G
-    percentiles). Returns (diff, lower, upper), each (G,): with probability >= 1 - alpha
+    percentiles), seeds along ``axis`` (the calibration passes (M, S, G) with axis 1).
+    Returns (diff, lower, upper), each (G,) (or (M, G)): with probability >= 1 - alpha
     the true difference is >= ``lower`` at every one of the G points (and, separately,
-    <= ``upper`` at every point). Per point a Welch t bound at level alpha / G.
+    <= ``upper`` at every point). Per point a one-sided Welch t bound at level alpha / G:
+    the two-sided 1 - 2 alpha / G interval of scipy's Welch test (``contrast_t``).
     Needs S_a, S_b >= 2.
     """
     a, b = np.asarray(a), np.asarray(b)
-    if a.ndim != 2 or b.ndim != 2 or a.shape[1] != b.shape[1] or min(len(a), len(b)) < 2:
+    if a.ndim != b.ndim or a.ndim < 2 or a.shape[-1] != b.shape[-1] or min(a.shape[axis], b.shape[axis]) < 2:
         raise ValueError(f"curves must be (S, G) with S >= 2 and equal G, got {a.shape} and {b.shape}")
-    means = np.stack([a.mean(axis=0), b.mean(axis=0)])
-    variances = np.stack([a.var(axis=0, ddof=1), b.var(axis=0, ddof=1)])
-    est, se, df = welch_parts(means, variances, np.array([len(a), len(b)]), np.array([1.0, -1.0]))
-    q = sps.t.ppf(1.0 - alpha / a.shape[1], df)  # df = inf: the normal quantile
-    return est, est - q * se, est + q * se
+    t = contrast_t([a, b], [1.0, -1.0], level=1.0 - 2.0 * alpha / a.shape[-1], axis=axis)
+    return t.estimate, t.lo, t.hi
 
 
 def zero_events_bound(n: int, alpha: float = ALPHA) -> float:
@@ -321,21 +375,18 @@ def t_band(curves: np.ndarray, level: float = LEVEL) -> tuple[np.ndarray, np.nda
     """Mean curve and pointwise Student t band over runs for ``curves`` shaped (S, T).
 
     The shading of Fig. 1 and Fig. 2: per column, the mean over the runs (rows, e.g.
-    seeds) and the t interval of that mean (``mean_ci`` per point; a percentile
-    bootstrap over 3 seeds covers only about 75%, ``bench calibrate``; ``scipy.stats.t.interval``). NaN entries are
-    ignored per column; a column with fewer than two values has NaN bounds (no band).
+    seeds) and the t interval of that mean (``t_interval`` per column, NaNs omitted; a
+    percentile bootstrap over 3 seeds covers only about 75%, ``bench calibrate``). A column
+    with fewer than two values has NaN bounds (no band).
     """
     c = np.asarray(curves, dtype=np.float64)
     if c.ndim != 2 or c.shape[0] == 0:
         raise ValueError(f"curves must be (S, T) with S >= 1, got {c.shape}")
-    k = np.sum(np.isfinite(c), axis=0)
-    with warnings.catch_warnings(), np.errstate(invalid="ignore", divide="ignore"):
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns and single values
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns
         mean = np.nanmean(c, axis=0)
-        # nanstd with ddof=1 is NaN below two values, so such columns get no band
-        _, q = sps.t.interval(level, np.maximum(k - 1, 1))
-        half = q * np.nanstd(c, axis=0, ddof=1) / np.sqrt(k)
-    return mean, mean - half, mean + half
+    lo, hi = t_interval(c, level, axis=0, omit_nan=True)
+    return mean, lo, hi
 
 
 # ------------------------------------------------------------------- curves

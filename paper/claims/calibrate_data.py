@@ -24,7 +24,6 @@ Bonferroni level is conservative). Verdict codes: 1 supported, 0 undecided,
 """
 from __future__ import annotations
 
-import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -48,7 +47,7 @@ from paper.claims.verdicts import (
 )
 from paper.claims.verdicts_bounds import NEAR_TOL, trend_weights
 from paper.settings import PAPER_TABLE1
-from reports.stats import ALPHA, curve_shape, quantile_curve, welch_parts, zero_events_bound
+from reports.stats import ALPHA, contrast_t, curve_shape, quantile_curve, simultaneous_band, zero_events_bound
 
 SIMS = 5000  # MC s.e. of a 5% rate: 0.0031; of any rate up to 14%: <= 0.005
 RUN = Path(__file__).resolve().parents[2] / "reproduction" / "paper"
@@ -60,26 +59,10 @@ FAMILY = "above_baselines"  # the family of the run's own methods' claims (paper
 def welch(groups: Sequence[np.ndarray], weights: Sequence[float], null: float = 0.0
           ) -> tuple[np.ndarray, np.ndarray]:
     """(p_greater, p_less), each (M,), of sum_k w_k mean_k vs ``null`` for ``groups`` (M, S_k)
-    (or (M, S_k, G): then (M, G)); ``reports.stats.t_test`` per simulation."""
-    means = [g.mean(axis=1) for g in groups]
-    var = [g.var(axis=1, ddof=1) for g in groups]
-    counts = [g.shape[1] for g in groups]
-    est, se, df = welch_parts(means, var, counts, np.asarray(weights, dtype=np.float64))
-    d = est - null
-    w = [float(x) for x in weights]
-    with np.errstate(divide="ignore", invalid="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # exact (variance-free) draws: decided below
-        if w in ([1.0], [-1.0]):  # scipy's one-sample t test, vectorized over simulations
-            r = sps.ttest_1samp(w[0] * groups[0], null, axis=1)
-            t, df = r.statistic, r.df
-        elif w == [1.0, -1.0]:  # scipy's Welch test
-            r = sps.ttest_ind(groups[0] - null, groups[1], axis=1, equal_var=False)
-            t, df = r.statistic, r.df
-        else:  # a contrast of three or more means: Welch-Satterthwaite (reports.stats.t_test)
-            t = d / se
-        pg, pl = sps.t.sf(t, df), sps.t.cdf(t, df)
-    exact = se == 0.0  # decided exactly, as t_test
-    return np.where(exact, (d <= 0).astype(float), pg), np.where(exact, (d >= 0).astype(float), pl)
+    (or (M, S_k, G): then (M, G)): ``reports.stats.contrast_t`` over the simulations, the
+    test ``reports.stats.t_test`` runs on one."""
+    t = contrast_t(groups, weights, null, axis=1)
+    return t.p_greater, t.p_less
 
 
 def decide(pg: np.ndarray, pl: np.ndarray, contra: float) -> np.ndarray:
@@ -124,10 +107,8 @@ def make_trend(ns: Sequence[int]) -> Callable[[Sequence[np.ndarray], float], np.
 def band_bounds(h: np.ndarray, i: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray]:
     """``reports.stats.simultaneous_band`` per simulation: (lower, upper), each (M, G),
     for per-seed curves ``h`` (M, S_h, G), ``i`` (M, S_i, G)."""
-    est, se, df = welch_parts([h.mean(axis=1), i.mean(axis=1)], [h.var(axis=1, ddof=1), i.var(axis=1, ddof=1)],
-                              [h.shape[1], i.shape[1]], np.array([1.0, -1.0]))
-    q = sps.t.ppf(1.0 - alpha / h.shape[2], df)
-    return est - q * se, est + q * se
+    _, lo, hi = simultaneous_band(h, i, alpha, axis=1)
+    return lo, hi
 
 
 def v_curves(g: Sequence[np.ndarray], contra: float) -> np.ndarray:

@@ -8,9 +8,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import pandas as pd
+from scipy import stats as sps
 
 from paper.claims.claims import Claim
 from paper.claims.verdicts import NOT_ENOUGH, VERDICTS
+from reports.stats import ALPHA
 
 CHECK_COLUMNS = ["claim", "name", "scope", "configuration", "execution", "verdict", "verdict_words", "numbers",
                  "test", "power", "power_note", "estimate", "ci_lo", "ci_hi", "claim_region", "points", "ci_excludes"]
@@ -63,6 +65,29 @@ def _esc(s: object) -> str:
     return str(s).replace("|", "\\|")
 
 
+def over_limit_markdown(cal: pd.DataFrame) -> list[str]:
+    """Lines for each error rate of a store's calibration over the limit (a **NO**): its count
+    out of the simulations and the exact one-sided binomial test of that count against 5%
+    (``scipy.stats.binomtest``), which says whether the excess is Monte-Carlo error or the
+    test's own (docs/decisions/0234). Nothing when every rate is within the limit."""
+    out = []
+    for _, r in cal.iterrows():
+        for ok, rate, what in (("null_ok", "rate", "supported"), ("contra_ok", "contradicted", "contradicted")):
+            if not bool(r[ok]):
+                hits = int(round(float(r[rate]) * int(r["sims"])))
+                p = sps.binomtest(hits, int(r["sims"]), ALPHA, alternative="greater").pvalue
+                out.append(f"- {r['test']}, {r['check']} ({r['truth']}, {r['source']}): *{what}* "
+                           f"{hits} of {r['sims']} ({float(r[rate]):.2%}); exact binomial test against "
+                           f"{ALPHA:.0%}: p = {p:.2g}")
+    if not out:
+        return []
+    return ["", "## Rates over the limit", "",
+            "Each rate marked **NO**, with the exact binomial test of its count against 5% (scipy's "
+            "`binomtest`, one-sided). A p-value far below 0.05 says the excess is the test's own at this "
+            "run's spread, not Monte-Carlo error; the level stays what decision 0230 fixed "
+            "(docs/decisions/0234).", "", *out]
+
+
 def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None, coverage: pd.DataFrame | None = None) -> str:
     """The calibration table: per test, scenario and seed count, the rate of
     ``supported`` with its Monte-Carlo standard error, and the rate of ``contradicted``
@@ -106,10 +131,13 @@ def calibration_markdown(cal: pd.DataFrame, meta: dict | None = None, coverage: 
             cells = [r["test"], r["truth"], r["scenario"], r["seeds"], r["sims"], f"{r['rate']:.3f}",
                      f"{r['mc_se']:.3f}"] + ([f"{r['contradicted']:.3f}"] if contra else []) + [ok]
         lines.append("| " + " | ".join(_esc(x) for x in cells) + " |")
+    if data:
+        lines += over_limit_markdown(cal)
     if coverage is not None and len(coverage):
         lines += ["", "## Coverage of the 95% intervals", "",
                   "Simulated coverage of the true mean by each interval at the seed counts and spreads "
-                  "given (`bench calibrate`); the intervals the reports print must reach 93%.", "",
+                  "given (`bench calibrate`); the intervals the reports print must reach 93%: a headline row "
+                  "whose interval does not prints 'interval not trusted' instead (docs/decisions/0233).", "",
                   "| " + " | ".join(map(str, coverage.columns)) + " |", "|" + "---|" * len(coverage.columns)]
         lines += ["| " + " | ".join(_esc(f"{v:.3f}" if isinstance(v, float) else v) for v in r) + " |"
                   for r in coverage.itertuples(index=False)]

@@ -16,6 +16,7 @@ from reports.stats import (
     CurveShape,
     TTest,
     bootstrap_ci,
+    contrast_t,
     convergence_test,
     curve_shape,
     iqm,
@@ -27,6 +28,7 @@ from reports.stats import (
     smooth,
     smoothing_window,
     t_band,
+    t_interval,
     t_test,
     welch_parts,
     zero_events_bound,
@@ -106,6 +108,45 @@ def test_t_test__no_variance_is_decided_exactly_and_too_few_values_give_nan():
         t_test([[1.0, 2.0]], [1.0, -1.0])
     t = t_test([[0.5, 0.5, 0.5]], [1.0])  # exact and positive, however small
     assert (t.p_greater, t.p_less) == (0.0, 1.0)
+
+
+@pytest.mark.parametrize("weights", [[1.0], [-1.0], [1.0, -1.0], [1.0, -1.0, -1.0, 1.0], [-1.5, 0.5, 1.0]])
+def test_contrast_t__vectorized_is_the_one_test_per_row(weights):
+    """The calibration's vectorized test (one row per simulation) gives each row what
+    ``t_test`` gives it alone, field by field, exact rows included."""
+    rng = np.random.default_rng(3)
+    groups = [rng.normal(size=(40, 3 + k)) * (k + 1) for k in range(len(weights))]
+    for g in groups:
+        g[0] = 1.0  # a variance-free row: decided exactly
+    t = contrast_t(groups, weights, 0.25, axis=1)
+    for m in range(40):
+        one = t_test([g[m] for g in groups], weights, 0.25)
+        got = [float(getattr(t, f)[m]) for f in ("estimate", "se", "df", "lo", "hi", "p_greater", "p_less")]
+        np.testing.assert_allclose(got, list(one.__dict__.values()), rtol=1e-12)
+    t0 = contrast_t(groups, weights, 0.0, axis=1)  # the CI is the contrast's: the null moves only the test
+    np.testing.assert_allclose(t.lo, t0.lo, rtol=1e-12)
+    np.testing.assert_allclose(t.hi, t0.hi, rtol=1e-12)
+
+
+def test_contrast_t__three_or_more_means_take_the_welch_satterthwaite_df():
+    # slope-like contrast (-1, 0, 1), variances 1, 4, 9 at n = 3: c = 1/3, 0, 3
+    g = [np.array([0.0, 1.0, 2.0]), np.array([0.0, 2.0, 4.0]), np.array([3.0, 6.0, 9.0])]
+    t = contrast_t(g, [-1.0, 0.0, 1.0])
+    var = 1 / 3 + 3.0
+    assert float(t.estimate) == pytest.approx(5.0) and float(t.se) == pytest.approx(np.sqrt(var))
+    assert float(t.df) == pytest.approx(var ** 2 / ((1 / 3) ** 2 / 2 + 9.0 / 2))
+    q = sps.t.ppf(0.975, float(t.df))
+    assert (float(t.lo), float(t.hi)) == (pytest.approx(5 - q * np.sqrt(var)), pytest.approx(5 + q * np.sqrt(var)))
+
+
+def test_t_interval__is_scipys_t_interval_along_an_axis_and_omits_nans():
+    x = np.array([[1.0, 2.0, 3.0], [2.0, 2.0, np.nan]])
+    lo, hi = t_interval(x, axis=1)
+    half = t2_ppf(0.975) / np.sqrt(3)
+    np.testing.assert_allclose([lo[0], hi[0]], [2 - half, 2 + half])
+    assert np.isnan(lo[1]) and np.isnan(hi[1])
+    lo, hi = t_interval(x.T, axis=0, omit_nan=True)
+    assert lo[1] == hi[1] == 2.0  # two equal values: no width
 
 
 def test_welch_parts__vectorized_over_columns():

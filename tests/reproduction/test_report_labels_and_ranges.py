@@ -1,6 +1,6 @@
 """Every committed report: its verdict labels match their intervals, no printed interval of a
-rate or count leaves its range, its headline intervals print their simulated coverage, and
-its calibration is its own (docs/decisions/0230-0232)."""
+rate or count leaves its range, its headline intervals print their simulated coverage (at least
+93%, else no interval), and its calibration is its own (docs/decisions/0230-0233)."""
 from __future__ import annotations
 
 import json
@@ -106,6 +106,44 @@ def test_headline_intervals__print_their_simulated_coverage(name: str) -> None:
         assert found, line
         for cov, flag in found:
             assert (float(cov) < 93.0) == bool(flag), line
+
+
+INTERVAL = re.compile(r"\[-?[\d.]+%?, -?[\d.]+%?(; uninformative)?\]")
+TRUSTED = re.compile(r"\] \(coverage (\d+\.\d)%\)")
+UNTRUSTED = re.compile(r"\(interval not trusted: simulated coverage (\d+\.\d)% < 93%\)")
+
+
+def headline_cells(name: str) -> list[str]:
+    """The cells of the leaderboard's headline tables (per configuration and across them)
+    that hold an interval or say why they print none."""
+    text = (ROOT / name / "report" / "leaderboard.md").read_text(encoding="utf-8")
+    text = text.split("Probability of improvement", 1)[0]
+    rows = [line for line in text.splitlines() if line.startswith("| ") and not line.startswith("| N |")
+            and not line.startswith("| execution |")]
+    return [c for line in rows for c in line.split(" | ") if INTERVAL.search(c) or "not trusted" in c]
+
+
+OLD_FLAG = ", below 93%)"  # the label before decision 0233: an interval printed with its low coverage
+PENDING = pytest.mark.xfail(strict=True, reason="its leaderboard still prints intervals under 93% coverage: "
+                            "reports/tables/leaderboard.py is to print 'interval not trusted' (docs/decisions/0233) "
+                            "and the report to be rebuilt")
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=PENDING) if OLD_FLAG in (
+    ROOT / n / "report" / "leaderboard.md").read_text(encoding="utf-8") else n for n in REPORTS])
+def test_headline_intervals__reach_93_percent_coverage_or_are_not_printed(name: str) -> None:
+    """Every headline interval a leaderboard prints has a simulated coverage of at least 93%
+    beside it; a row whose interval would cover less prints no interval, only 'interval not
+    trusted' with its coverage (docs/decisions/0233)."""
+    cells = headline_cells(name)
+    assert cells
+    for cell in cells:
+        if INTERVAL.search(cell):
+            m = TRUSTED.search(cell)
+            assert m and float(m.group(1)) >= 93.0, cell
+        else:
+            m = UNTRUSTED.search(cell)
+            assert m and float(m.group(1)) < 93.0, cell
 
 
 @pytest.mark.parametrize("name", [n for n in REPORTS if (ROOT / n / "report" / "calibration.json").is_file()])

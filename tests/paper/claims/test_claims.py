@@ -10,6 +10,7 @@ from collections.abc import Callable
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats as sps
 
 from algorithms.hierarchical.safety_filter import lemma1_count
 from paper.claims.catalog import all_claims
@@ -438,6 +439,21 @@ def test_calibration_markdown__flags_a_null_rate_above_the_limit():
     md = calibration_markdown(cal, {"sims": 10})
     assert "| t | null | s | 3 | 10 | 0.200 | 0.100 | **NO** |" in md
     assert "| t | effect | e | 3 | 10 | 0.900 | 0.100 |  |" in md
+
+
+def test_calibration_markdown__a_rate_over_the_limit_gets_its_exact_binomial_test():
+    """Each **NO** of a store's calibration is listed with its count and scipy's one-sided
+    binomial test against 5% (docs/decisions/0234); a table within its limits lists none."""
+    row = {"test": "fam", "check": "whole claim", "truth": "null", "source": "resampled", "seeds": "as each",
+           "k": 162, "sims": 5000, "rate": 0.0, "mc_se": 0.0, "null_ok": True, "contradicted": 0.059,
+           "contra_se": 0.0033, "contra_ok": False}
+    md = calibration_markdown(pd.DataFrame([row]), {"sims": 5000})
+    p = sps.binomtest(295, 5000, 0.05, alternative="greater").pvalue
+    assert ("- fam, whole claim (null, resampled): *contradicted* 295 of 5000 (5.90%); exact binomial test "
+            f"against 5%: p = {p:.2g}") in md
+    assert f"{p:.2g}" == "0.0024"
+    md = calibration_markdown(pd.DataFrame([{**row, "contradicted": 0.05, "contra_ok": True}]), {"sims": 5000})
+    assert "## Rates over the limit" not in md
 
 
 def test_smoke_store__every_statistical_claim_lacks_seeds():
