@@ -20,6 +20,7 @@ from reports.stats import bootstrap_ci, iqm, mean_ci, positive_ci, rate_ci
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
                    "payload_scalars_per_step")
+LIFELONG_METRICS = ("throughput",)  # a store with lifelong rows: their score too (docs/decisions/0240)
 IQM_METRICS = ("success_rate", "team_return")
 KEYS = ["method", "n_robots", "loss_p"]
 
@@ -62,18 +63,21 @@ def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
     execution mode of its evaluation rows (modes in report order; "-" when the group has no
     rows). Variants (``reports.data.variants``) are never pooled: each is its own group."""
     cells = cells.assign(variant=cells["cell_id"].map(cell_variants(cells)).fillna(""))
+    lifelong = "throughput" in evals and bool(np.isfinite(evals["throughput"].to_numpy(dtype=np.float64)).any())
+    metrics = SUMMARY_METRICS + (LIFELONG_METRICS if lifelong else ())
     out = []
     for key, group_cells in cells.groupby(KEYS + ["variant"], sort=True):
         method, n, p, variant = key
         group = evals[evals["cell_id"].isin(group_cells["cell_id"])]
         for mode in execution_order(group["execution"]) or ["-"]:
             rows = group[group["execution"] == mode]
-            out.append({**_summary_row(method, int(n), float(p), mode, rows, group_cells), "variant": variant})
+            out.append({**_summary_row(method, int(n), float(p), mode, rows, group_cells, metrics),
+                        "variant": variant})
     return pd.DataFrame(out)
 
 
 def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
-                 group_cells: pd.DataFrame) -> dict[str, object]:
+                 group_cells: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS) -> dict[str, object]:
     """The summary of one configuration in one execution mode."""
     status = group_cells["status"]
     rec: dict[str, object] = {
@@ -85,7 +89,7 @@ def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
         else bool(group_cells["safety_filter"].any()),
     }
     unit = "-"
-    for m in SUMMARY_METRICS:
+    for m in metrics:
         mean, lo, hi, u = metric_estimate(rows, m) if len(rows) else (np.nan,) * 3 + ("-",)
         rec[m], rec[f"{m}_lo"], rec[f"{m}_hi"] = mean, lo, hi
         unit = u if u != "-" else unit
