@@ -39,6 +39,7 @@ from reports.pages.index import Entry, IndexData, index_html, index_markdown
 from reports.sections import ReportContext, registered_sections
 from reports.tables.leaderboard import (
     aggregate_frame,
+    filter_note,
     leaderboard_display,
     leaderboard_frame,
     leaderboard_markdown,
@@ -176,7 +177,7 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
                "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
               (f"{score}: mean over seeds [95% CI over seeds] "
                "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
-               "columns of every method: leaderboard.md.", leaderboard_display(board)),
+               "columns of every method: leaderboard.md." + filter_note(board), leaderboard_display(board)),
               ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
                "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "
                "pointwise). "
@@ -232,8 +233,8 @@ def _summary(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> Entry:
     # Two tables of the same rows: all 14 columns did not fit a 1400 px window.
     tables = (("Summary of every configuration: success and return. " + SUMMARY_CAPTION,
                shown[keys + SUMMARY_HEAD[4:10] + ci_over]),
-              ("Summary of every configuration, continued: collisions, corrections and payload, the same "
-               "rows (mean over seeds [95% CI]; n/a: the method has no safety filter).",
+              ("Summary of every configuration, continued: collisions, corrections, fallbacks and payload, "
+               "the same rows (mean over seeds [95% CI]; n/a: the method has no safety filter).",
                shown[keys + SUMMARY_HEAD[10:]]))
     return Entry("Summary of every configuration (method x N x p x execution mode)",
                  ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"), tables=tables)

@@ -50,7 +50,7 @@ from reports.figures.plotting import (
 )
 from reports.stats import coverage, iqm, positive_ci, rate_ci, uninformative
 from reports.tables.mapf import SCORE, SCORE_NAME, TASKS, has_lifelong, row_tasks, tasks_of, with_score
-from reports.tables.summary import fmt_ci
+from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
@@ -116,6 +116,7 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
                        + ["n_robots", "loss_p", "execution", "method", "label", "seeds",
                           "success", "success_lo", "success_hi", "success_cov"]
                        + (["throughput", "throughput_lo", "throughput_hi", "throughput_cov"] if lifelong else []))
+    out = _with_filter_rates(out, evals)
     if out.empty:
         return out.assign(rank=pd.Series(dtype="int64"))
     out["rank"] = 0
@@ -134,6 +135,26 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
         out = out.assign(_t=out["task"].map(TASKS.index))
     ordered = out.sort_values((["_t"] if lifelong else []) + ["n_robots", "loss_p", "_m", "_l", "method"])
     return ordered.drop(columns=["_m", "_l", *(["_t"] if lifelong else [])]).reset_index(drop=True)
+
+
+FILTER_RATES = ("correction_rate", "fallback_rate")
+
+
+def filter_note(board: pd.DataFrame) -> str:
+    """`` `` + ``FILTER_NOTE`` where a row of ``board`` has a method's filter rates beside its score, else ""."""
+    filtered = set(FILTER_RATES) <= set(board) and board[list(FILTER_RATES)].notna().to_numpy().any()
+    return " " + FILTER_NOTE if filtered else ""
+
+
+def _with_filter_rates(board: pd.DataFrame, evals: pd.DataFrame) -> pd.DataFrame:
+    """``board`` with each row's correction and fallback rate (``safety_frame``'s: means over
+    seeds, NaN for a method that runs no safety filter), shown beside its score (issue 47
+    item 3, docs/decisions/0241). Rows without those columns (hand-made frames) get NaN."""
+    keys = ["method", "n_robots", "loss_p", "execution"]
+    if board.empty or not set(SAFETY) <= set(evals):
+        return board.assign(**{c: np.nan for c in FILTER_RATES})
+    rates = safety_frame(evals)[[*keys, *FILTER_RATES]]
+    return board.merge(rates, on=keys, how="left", validate="many_to_one")
 
 
 def score_matrices(evals: pd.DataFrame, mode: str, metric: str = "success_rate",
@@ -313,13 +334,14 @@ def _score_lines(board: pd.DataFrame, task: str) -> list[str]:
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
                          f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')}"
-                         f"{_coverage_text(r.throughput_cov)} | "
+                         f"{_coverage_text(r.throughput_cov)}{filter_text(r.correction_rate, r.fallback_rate)} | "
                          f"{_ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
         return lines
     lines = ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
     for r in board.itertuples(index=False):
         lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                     f"{_ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
+                     f"{_ci(r.success, r.success_lo, r.success_hi, r.success_cov)}"
+                     f"{filter_text(r.correction_rate, r.fallback_rate)} | {r.rank} |")
     return lines
 
 
@@ -361,14 +383,12 @@ def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFra
         return "\n".join(lines + ["No evaluated cell yet.", ""])
     tasks = _board_tasks(board)
     mixed = len(tasks) > 1
-    if mixed:
-        lines[-2] = MIXED_NOTE
+    lines[-2] = MIXED_NOTE if mixed else LIFELONG_NOTE if tasks == ["lifelong"] else SUCCESS_NOTE
+    if filter_note(board):
+        lines += [FILTER_NOTE, ""]
     for task in tasks:
-        note = LIFELONG_NOTE if task == "lifelong" else SUCCESS_NOTE
         if mixed:
-            lines += [f"## {TASK_HEADING[task]}", "", note, ""]
-        else:
-            lines[-2] = note
+            lines += [f"## {TASK_HEADING[task]}", "", LIFELONG_NOTE if task == "lifelong" else SUCCESS_NOTE, ""]
         lines += _score_lines(_of_task(board, task), task)
     for task in tasks:
         lines += ["", "## Across configurations" + (f": {task} cells" if mixed else ""), ""]
@@ -398,9 +418,11 @@ def leaderboard_display(board: pd.DataFrame) -> pd.DataFrame:
 
     def cell(r: pd.Series) -> str:
         if r.get("task") == "lifelong":  # its score (docs/decisions/0218, 0240)
-            return f"{fmt_ci(r['throughput'], r['throughput_lo'], r['throughput_hi'], 'num')} ({int(r['rank'])})"
+            return (f"{fmt_ci(r['throughput'], r['throughput_lo'], r['throughput_hi'], 'num')} ({int(r['rank'])})"
+                    f"{filter_text(r['correction_rate'], r['fallback_rate'])}")
         lo = "" if not np.isfinite(r["success_lo"]) else f" [{100 * r['success_lo']:.1f}, {100 * r['success_hi']:.1f}]"
-        return f"{100 * r['success']:.1f}%{lo} ({int(r['rank'])})"
+        return (f"{100 * r['success']:.1f}%{lo} ({int(r['rank'])})"
+                f"{filter_text(r['correction_rate'], r['fallback_rate'])}")
 
     mixed = len(_board_tasks(board)) > 1
     keys = ["task", "n_robots", "p", "execution"] if mixed else ["n_robots", "p", "execution"]

@@ -18,7 +18,7 @@ from reports.data.store import execution_order
 from reports.data.variants import cell_variants, variant_suffix
 from reports.figures.plotting import label_order, method_label
 from reports.tables.mapf import TASKS, cell_tasks
-from reports.tables.summary import fmt_ci
+from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
 CAPTION = (
     "Success rate (% of robots at their goal at the end of an evaluation episode): mean over seeds "
@@ -67,11 +67,17 @@ def success_frame(summary: pd.DataFrame, cells: pd.DataFrame, task: str = "one-s
             r = by_mode.get(mode)
             if r is not None and np.isfinite(r[score]):
                 star = "*" if r["ci_over"] == "episodes" else ""
-                rec[mode] = fmt_ci(r[score], r[f"{score}_lo"], r[f"{score}_hi"], kind) + star
+                rec[mode] = fmt_ci(r[score], r[f"{score}_lo"], r[f"{score}_hi"], kind) + star + (
+                    filter_text(r["correction_rate"], r["fallback_rate"]) if _filtered(r) else "")
             else:
                 rec[mode] = "pending" if mode in own.get((n, p, method, variant), []) else ""
         rows.append(rec)
     return pd.DataFrame(rows)  # columns in the records' order: N, p, method, seeds, modes
+
+
+def _filtered(r: pd.Series) -> bool:
+    """Whether a summary row's method ran a safety filter (its rates go beside its score)."""
+    return bool(r.get("safety_filter", False)) and "fallback_rate" in r
 
 
 def success_markdown(summary: pd.DataFrame, cells: pd.DataFrame) -> str:
@@ -87,5 +93,8 @@ def success_markdown(summary: pd.DataFrame, cells: pd.DataFrame) -> str:
         lines += ["| " + " | ".join(str(v) for v in row) + " |" for row in frame.itertuples(index=False)]
         if frame.empty:
             lines.append("\n(no cells in the store)")
-        parts.append("\n".join(lines) + "\n\n" + (LIFELONG_CAPTION if task == "lifelong" else CAPTION) + "\n")
+        caption = LIFELONG_CAPTION if task == "lifelong" else CAPTION
+        if frame.map(lambda v: "(fallback " in str(v)).to_numpy().any():
+            caption += " " + FILTER_NOTE
+        parts.append("\n".join(lines) + "\n\n" + caption + "\n")
     return "\n".join(parts)

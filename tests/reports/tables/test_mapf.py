@@ -90,7 +90,8 @@ def test_old_store__no_mapf_table_and_the_leaderboard_unchanged(one_shot: Path) 
     board = leaderboard_frame(old)
     pd.testing.assert_frame_equal(board, leaderboard_frame(pre.assign(throughput=np.nan)))
     assert list(board.columns) == ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success",
-                                   "success_lo", "success_hi", "success_cov", "rank"]
+                                   "success_lo", "success_hi", "success_cov", "correction_rate", "fallback_rate",
+                                   "rank"]
     md = leaderboard_markdown(board, pd.DataFrame(), pd.DataFrame(), pd.DataFrame(columns=["method"]))
     assert "throughput" not in md and "throughput" not in leaderboard_display(board).to_string()
 

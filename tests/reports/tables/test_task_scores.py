@@ -9,14 +9,7 @@ import pandas as pd
 import pytest
 
 from reports.stats import positive_ci
-from reports.tables.leaderboard import (
-    aggregate_frame,
-    leaderboard_display,
-    leaderboard_frame,
-    leaderboard_markdown,
-    safety_frame,
-    score_figures,
-)
+from reports.tables import leaderboard as lb
 from reports.tables.leaders import leaders_display, leaders_frame, leaders_markdown, per_method_frame
 from reports.tables.mapf import row_tasks, with_score
 from reports.tables.success_table import success_markdown
@@ -62,13 +55,13 @@ def test_rows__a_row_with_a_throughput_is_lifelong_and_scored_by_it() -> None:
 
 
 def test_leaderboard__a_lifelong_cell_ranks_by_throughput_and_each_task_apart() -> None:
-    board = leaderboard_frame(_mixed()).set_index(["task", "n_robots", "method"])
+    board = lb.leaderboard_frame(_mixed()).set_index(["task", "n_robots", "method"])
     assert board.loc[("lifelong", 4, "hi"), "throughput"] == pytest.approx(0.52)
     # by throughput pibt (0.8) > hi (0.52) > lo (0.11); by success lo would lead
     assert [board.loc[("lifelong", 4, m), "rank"] for m in ("pibt", "hi", "lo")] == [1, 2, 3]
     assert board.loc[("one-shot", 4, "shot"), "rank"] == 1  # ranked among one-shot cells only
     assert np.isnan(board.loc[("one-shot", 4, "shot"), "throughput"])
-    shown = leaderboard_display(leaderboard_frame(_mixed()))
+    shown = lb.leaderboard_display(lb.leaderboard_frame(_mixed()))
     assert list(shown.columns[:4]) == ["task", "N", "p", "execution"]  # no row holds both tasks
     assert shown.loc[shown["task"] == "one-shot", "shot"].iloc[0].startswith("92.0% [")
     life = shown[(shown["task"] == "lifelong") & (shown["N"] == 4) & (shown["execution"] == "argmax")].iloc[0]
@@ -77,9 +70,9 @@ def test_leaderboard__a_lifelong_cell_ranks_by_throughput_and_each_task_apart() 
 
 def test_leaderboard_page__names_each_task_s_score_and_never_pools_them() -> None:
     ev = _mixed()
-    board = leaderboard_frame(ev)
-    iqm, poi = aggregate_frame(ev)
-    md = leaderboard_markdown(board, iqm, poi, safety_frame(ev))
+    board = lb.leaderboard_frame(ev)
+    iqm, poi = lb.aggregate_frame(ev)
+    md = lb.leaderboard_markdown(board, iqm, poi, lb.safety_frame(ev))
     assert "## One-shot cells: ranked by success" in md
     assert "## Lifelong cells: ranked by throughput (goals reached per step)" in md
     assert "## Across configurations: lifelong cells" in md and "## Across configurations: one-shot cells" in md
@@ -122,7 +115,7 @@ def test_leaders__a_mixed_run_races_each_task_apart() -> None:
 
 def test_figures__a_lifelong_run_draws_throughput_and_a_mixed_run_each_task() -> None:
     ev = _lifelong()
-    figures = dict(score_figures(leaderboard_frame(ev), ev))
+    figures = dict(lb.score_figures(lb.leaderboard_frame(ev), ev))
     assert list(figures) == ["throughput_vs_n", "throughput_vs_p", "performance_profiles"]
     caption = figures["performance_profiles"].caption
     assert "with throughput above tau" in caption and "success" not in caption
@@ -131,7 +124,7 @@ def test_figures__a_lifelong_run_draws_throughput_and_a_mixed_run_each_task() ->
     x, y = hi.get_xdata(), hi.get_ydata()
     assert x.max() == pytest.approx(0.8)  # tau up to the run's largest throughput (PIBT's)
     assert y[x < 0.5].min() == 1.0 and y[x > 0.54].max() == 0.0  # its throughputs, 0.50-0.54, not its 0 success
-    mixed = dict(score_figures(leaderboard_frame(_mixed()), _mixed()))
+    mixed = dict(lb.score_figures(lb.leaderboard_frame(_mixed()), _mixed()))
     assert list(mixed) == ["success_vs_n", "success_vs_p", "performance_profiles", "throughput_vs_n",
                            "throughput_vs_p", "performance_profiles_lifelong"]
     assert "with success above tau" in mixed["performance_profiles"].caption
