@@ -460,8 +460,6 @@ def success_figure(board: pd.DataFrame, against: str, score: str = "success") ->
                     ax.fill_between(x, g[f"{score}_lo"], g[f"{score}_hi"], color=method_color(m), alpha=0.15, lw=0)
                 if score == "success":
                     ax.set_ylim(-0.02, 1.02)
-                else:
-                    ax.set_ylim(bottom=0.0)
                 ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
                              f"{mode}")
                 ax.set_xticks(sorted(part[against].unique()) if len(part) else [])
@@ -469,6 +467,9 @@ def success_figure(board: pd.DataFrame, against: str, score: str = "success") ->
                     ax.set_xlabel("team size N" if against == "n_robots" else "loss probability p")
                 if j == 0:
                     ax.set_ylabel(name)
+        if score != "success":  # from 0 to every panel's top (shared y: one panel's autoscale would cut the others)
+            top = float(np.nanmax(board[[score, f"{score}_hi"]].to_numpy(dtype=float), initial=0.0))
+            axes[0][0].set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
         handles, labels = ranked_legend(axes.flat)  # every method of any panel once
         fitted_legend(fig, handles, labels, "outside lower center")
     seeds = board.groupby("method")["seeds"].agg(["min", "max"])

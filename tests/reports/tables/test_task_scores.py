@@ -124,6 +124,9 @@ def test_figures__a_lifelong_run_draws_throughput_and_a_mixed_run_each_task() ->
     x, y = hi.get_xdata(), hi.get_ydata()
     assert x.max() == pytest.approx(0.8)  # tau up to the run's largest throughput (PIBT's)
     assert y[x < 0.5].min() == 1.0 and y[x > 0.54].max() == 0.0  # its throughputs, 0.50-0.54, not its 0 success
+    wider = ev.assign(throughput=np.where(ev["n_robots"] == 8, 2 * ev["throughput"], ev["throughput"]))
+    vs_p = dict(lb.score_figures(lb.leaderboard_frame(wider), wider))["throughput_vs_p"].fig
+    assert all(ax.get_ylim()[1] >= 1.6 for ax in vs_p.axes if ax.has_data())  # N = 8's 1.6 is not cut off
     mixed = dict(lb.score_figures(lb.leaderboard_frame(_mixed()), _mixed()))
     assert list(mixed) == ["success_vs_n", "success_vs_p", "performance_profiles", "throughput_vs_n",
                            "throughput_vs_p", "performance_profiles_lifelong"]
