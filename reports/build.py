@@ -39,12 +39,12 @@ from reports.pages.index import Entry, IndexData, index_html, index_markdown
 from reports.sections import ReportContext, registered_sections
 from reports.tables.leaderboard import (
     aggregate_frame,
+    filter_note,
     leaderboard_display,
     leaderboard_frame,
     leaderboard_markdown,
-    profile_figure,
     safety_frame,
-    success_figure,
+    score_figures,
 )
 from reports.tables.leaders import (
     leaders_display,
@@ -54,7 +54,7 @@ from reports.tables.leaders import (
     per_method_frame,
 )
 from reports.tables.mapf import CAPTION as MAPF_CAPTION
-from reports.tables.mapf import mapf_display, mapf_frame, mapf_markdown
+from reports.tables.mapf import mapf_display, mapf_frame, mapf_markdown, tasks_of
 from reports.tables.ordering import ordering_frame, ordering_markdown
 from reports.tables.progress import progress_markdown
 from reports.tables.robustness import (
@@ -149,32 +149,35 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
     leaders = leaders_frame(evals)
     per_method = per_method_frame(evals, leaders)
-    write_text(out / "leaders.md", leaders_markdown(leaders, per_method) + "\n"
+    tasks = tasks_of(evals) or ["one-shot"]  # each raced by its own score (docs/decisions/0240)
+    write_text(out / "leaders.md", leaders_markdown(leaders, per_method, tasks) + "\n"
                + ordering_markdown(ordering_frame(evals)))
     write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]
     captions = []
-    figures = [("success_vs_n", success_figure(board, "n_robots")),
-               ("success_vs_p", success_figure(board, "loss_p")),
-               ("performance_profiles", profile_figure(evals))]
-    lifelong = "throughput" in board  # a lifelong run's score (docs/decisions/0218)
-    if lifelong:
-        figures.insert(0, ("throughput_vs_n", success_figure(board, "n_robots", "throughput")))
+    figures = score_figures(board, evals)  # each task's own score (docs/decisions/0240)
     for stem, built in figures:
         save_figure(built.fig, out / stem, built.caption)
         files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
         captions.append(built.caption)
-    score = ("Throughput (goals reached per step) per configuration and execution mode" if lifelong
-             else "Success rate per configuration and execution mode")
+    scores = {"one-shot": "Success rate", "lifelong": "Throughput (goals reached per step)"}
+    owns = {"one-shot": ("success", "the two rates' logit t intervals"),
+            "lifelong": ("throughput", "the two throughputs' Cox lognormal intervals")}
+    own = owns[tasks[0]] if len(tasks) == 1 else (
+        "score (success of one-shot cells, throughput of lifelong cells, each task apart)",
+        "the two scores' intervals")
+    score = (scores[tasks[0]] if len(tasks) == 1 else
+             "Each task's own score, never one against the other: success rate of one-shot cells, throughput "
+             "(goals reached per step) of lifelong cells,") + " per configuration and execution mode"
     tables = (("Per learned method and mode: how many of the configurations it shares with another "
                "learned method it leads (by a margin whose 95% CI over seeds excludes 0: the square-and-add "
-               "of the two rates' logit t intervals), and its "
-               "success minus the best planner's where one ran (range of the means; at how many the CI "
+               f"of {own[1]}), and its "
+               f"{own[0]} minus the best planner's where one ran (range of the means; at how many the CI "
                "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
               (f"{score}: mean over seeds [95% CI over seeds] "
                "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
-               "columns of every method: leaderboard.md.", leaderboard_display(board)),
+               "columns of every method: leaderboard.md." + filter_note(board), leaderboard_display(board)),
               ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
                "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "
                "pointwise). "
@@ -230,8 +233,8 @@ def _summary(evals: pd.DataFrame, cells: pd.DataFrame, out: Path) -> Entry:
     # Two tables of the same rows: all 14 columns did not fit a 1400 px window.
     tables = (("Summary of every configuration: success and return. " + SUMMARY_CAPTION,
                shown[keys + SUMMARY_HEAD[4:10] + ci_over]),
-              ("Summary of every configuration, continued: collisions, corrections and payload, the same "
-               "rows (mean over seeds [95% CI]; n/a: the method has no safety filter).",
+              ("Summary of every configuration, continued: collisions, corrections, fallbacks and payload, "
+               "the same rows (mean over seeds [95% CI]; n/a: the method has no safety filter).",
                shown[keys + SUMMARY_HEAD[10:]]))
     return Entry("Summary of every configuration (method x N x p x execution mode)",
                  ("summary.md", "summary.csv", "success_by_mode.md", "progress.md"), tables=tables)

@@ -14,6 +14,8 @@ nothing for it: older reports rebuild byte for byte.
 """
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pandas as pd
 
@@ -39,6 +41,53 @@ def has_mapf(evals: pd.DataFrame) -> bool:
     """Whether any eval row holds a finite MAPF metric (a store written since they exist)."""
     cols = [c for c in MAPF_METRICS if c in evals]
     return bool(cols) and bool(np.isfinite(evals[cols].to_numpy(dtype=np.float64)).any())
+
+
+TASKS = ("one-shot", "lifelong")  # report order
+SCORE = {"one-shot": "success_rate", "lifelong": "throughput"}  # each task's score (docs/decisions/0240)
+SCORE_NAME = {"one-shot": "success", "lifelong": "throughput"}
+
+
+def row_tasks(evals: pd.DataFrame) -> pd.Series:
+    """Per eval row, its cell's task: "lifelong" where the row holds a finite throughput (only
+    lifelong episodes have one), else "one-shot" (also every row of a store written before
+    the MAPF columns)."""
+    if "throughput" not in evals:
+        return pd.Series("one-shot", index=evals.index, dtype=object)
+    finite = np.isfinite(evals["throughput"].to_numpy(dtype=np.float64))
+    return pd.Series(np.where(finite, "lifelong", "one-shot"), index=evals.index, dtype=object)
+
+
+def has_lifelong(evals: pd.DataFrame) -> bool:
+    """Whether any eval row is of a lifelong cell: the score frames then carry a ``task`` column."""
+    return bool(len(evals)) and bool(row_tasks(evals).eq("lifelong").any())
+
+
+def tasks_of(evals: pd.DataFrame) -> list[str]:
+    """The tasks of ``evals``' rows in report order (one-shot first)."""
+    present = set(row_tasks(evals))
+    return [t for t in TASKS if t in present]
+
+
+def with_score(evals: pd.DataFrame) -> pd.DataFrame:
+    """``evals`` with ``task`` and ``score``: each row's task and its task's score (success
+    of a one-shot row, throughput of a lifelong row); never one against the other."""
+    tasks = row_tasks(evals)
+    success = evals["success_rate"].to_numpy(dtype=np.float64)
+    score = (np.where(tasks.eq("lifelong"), evals["throughput"].to_numpy(dtype=np.float64), success)
+             if "throughput" in evals else success)
+    return evals.assign(task=tasks, score=score)
+
+
+def cell_tasks(cells: pd.DataFrame) -> pd.Series:
+    """cell_id -> the cell's task, from its stored configuration (a cell stores ``task`` only
+    when it is not the default "one-shot", docs/decisions/0209), so a pending cell has one too."""
+    def task(config_json: object) -> str:
+        config = json.loads(config_json) if isinstance(config_json, str) and config_json else {}
+        return str(config.get("task", "one-shot"))
+    if cells.empty or "config_json" not in cells:
+        return pd.Series("one-shot", index=cells.get("cell_id", pd.Series(dtype=object)), dtype=object)
+    return pd.Series([task(c) for c in cells["config_json"]], index=cells["cell_id"], dtype=object)
 
 
 def is_lifelong(evals: pd.DataFrame) -> bool:

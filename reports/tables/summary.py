@@ -18,8 +18,9 @@ from reports.data.store import execution_order, fmt_pct
 from reports.data.variants import cell_variants, variant_suffix
 from reports.stats import bootstrap_ci, iqm, mean_ci, positive_ci, rate_ci
 
-SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate",
+SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate", "fallback_rate",
                    "payload_scalars_per_step")
+LIFELONG_METRICS = ("throughput",)  # a store with lifelong rows: their score too (docs/decisions/0240)
 IQM_METRICS = ("success_rate", "team_return")
 KEYS = ["method", "n_robots", "loss_p"]
 
@@ -62,18 +63,21 @@ def summary_frame(evals: pd.DataFrame, cells: pd.DataFrame) -> pd.DataFrame:
     execution mode of its evaluation rows (modes in report order; "-" when the group has no
     rows). Variants (``reports.data.variants``) are never pooled: each is its own group."""
     cells = cells.assign(variant=cells["cell_id"].map(cell_variants(cells)).fillna(""))
+    lifelong = "throughput" in evals and bool(np.isfinite(evals["throughput"].to_numpy(dtype=np.float64)).any())
+    metrics = SUMMARY_METRICS + (LIFELONG_METRICS if lifelong else ())
     out = []
     for key, group_cells in cells.groupby(KEYS + ["variant"], sort=True):
         method, n, p, variant = key
         group = evals[evals["cell_id"].isin(group_cells["cell_id"])]
         for mode in execution_order(group["execution"]) or ["-"]:
             rows = group[group["execution"] == mode]
-            out.append({**_summary_row(method, int(n), float(p), mode, rows, group_cells), "variant": variant})
+            out.append({**_summary_row(method, int(n), float(p), mode, rows, group_cells, metrics),
+                        "variant": variant})
     return pd.DataFrame(out)
 
 
 def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
-                 group_cells: pd.DataFrame) -> dict[str, object]:
+                 group_cells: pd.DataFrame, metrics: tuple[str, ...] = SUMMARY_METRICS) -> dict[str, object]:
     """The summary of one configuration in one execution mode."""
     status = group_cells["status"]
     rec: dict[str, object] = {
@@ -85,14 +89,33 @@ def _summary_row(method: str, n: int, p: float, mode: str, rows: pd.DataFrame,
         else bool(group_cells["safety_filter"].any()),
     }
     unit = "-"
-    for m in SUMMARY_METRICS:
-        mean, lo, hi, u = metric_estimate(rows, m) if len(rows) else (np.nan,) * 3 + ("-",)
+    for m in metrics:
+        mean, lo, hi, u = metric_estimate(rows, m) if len(rows) and m in rows else (np.nan,) * 3 + ("-",)
         rec[m], rec[f"{m}_lo"], rec[f"{m}_hi"] = mean, lo, hi
         unit = u if u != "-" else unit
     for m in IQM_METRICS:
         rec[f"{m}_iqm"] = iqm(rows[m].to_numpy()) if len(rows) else np.nan
     rec["ci_over"] = unit
     return rec
+
+
+def filter_text(correction_rate: float, fallback_rate: float) -> str:
+    """What a method that runs a safety filter (the hierarchical method) shows beside each of its
+    scores: `` (fallback 1.9%, corrections 16.6%)``, its fallback rate (group-steps that fell back
+    to joint Wait / group-steps that ran the filter) and correction rate (robot controls the filter
+    changed / active robot-steps), means over seeds; "" for a method without a filter (both NaN)
+    (issue 47 item 3, docs/decisions/0241)."""
+    if not (np.isfinite(correction_rate) or np.isfinite(fallback_rate)):
+        return ""
+    def pct(v: float) -> str:
+        return "—" if not np.isfinite(v) else fmt_pct(v, 1) + "%"
+    return f" (fallback {pct(fallback_rate)}, corrections {pct(correction_rate)})"
+
+
+FILTER_NOTE = ("In parentheses beside each score of a method that runs a safety filter (the hierarchical "
+               "method): its fallback rate (group-steps that fell back to joint Wait / group-steps that ran "
+               "the filter) and correction rate (robot controls the filter changed / active robot-steps), "
+               "means over seeds; methods without a filter have none.")
 
 
 def fmt_ci(v: float, lo: float, hi: float, kind: str) -> str:
@@ -106,7 +129,7 @@ def fmt_ci(v: float, lo: float, hi: float, kind: str) -> str:
 
 
 SUMMARY_HEAD = ["method", "N", "p", "execution", "seeds (done/cells)", "eval episodes", "success rate",
-                "success IQM", "team return", "return IQM", "collision rate", "correction rate",
+                "success IQM", "team return", "return IQM", "collision rate", "correction rate", "fallback rate",
                 "payload (scalars/step)", "CI over"]
 SUMMARY_CAPTION = (
     "Mean over seeds [95% CI]; the CI is a Student t interval over seeds (on the logit scale for "
@@ -137,6 +160,7 @@ def summary_display(frame: pd.DataFrame) -> pd.DataFrame:
             fmt_ci(r["collision_rate"], r["collision_rate_lo"], r["collision_rate_hi"], "pct"),
             fmt_ci(r["correction_rate"], r["correction_rate_lo"], r["correction_rate_hi"], "pct")
             if filt else "n/a",
+            fmt_ci(r["fallback_rate"], r["fallback_rate_lo"], r["fallback_rate_hi"], "pct") if filt else "n/a",
             fmt_ci(r["payload_scalars_per_step"], r["payload_scalars_per_step_lo"],
                  r["payload_scalars_per_step_hi"], "payload"),
             str(r["ci_over"])])

@@ -157,7 +157,7 @@ def test_against__a_configuration_the_reference_lacks_is_refused(runs, tmp_path:
 
 # --- the exact frames the report pages and the README's headline numbers are built from ---
 BOARD_COLUMNS = ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success", "success_lo",
-                 "success_hi", "success_cov", "rank"]
+                 "success_hi", "success_cov", "correction_rate", "fallback_rate", "rank"]
 
 
 def test_leaderboard__columns_order_and_the_logit_t_interval_over_seeds_inside_a_rates_range() -> None:

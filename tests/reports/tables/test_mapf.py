@@ -90,7 +90,8 @@ def test_old_store__no_mapf_table_and_the_leaderboard_unchanged(one_shot: Path) 
     board = leaderboard_frame(old)
     pd.testing.assert_frame_equal(board, leaderboard_frame(pre.assign(throughput=np.nan)))
     assert list(board.columns) == ["n_robots", "loss_p", "execution", "method", "label", "seeds", "success",
-                                   "success_lo", "success_hi", "success_cov", "rank"]
+                                   "success_lo", "success_hi", "success_cov", "correction_rate", "fallback_rate",
+                                   "rank"]
     md = leaderboard_markdown(board, pd.DataFrame(), pd.DataFrame(), pd.DataFrame(columns=["method"]))
     assert "throughput" not in md and "throughput" not in leaderboard_display(board).to_string()
 
@@ -117,6 +118,11 @@ def test_lifelong_aggregates_and_figure__throughput(lifelong: Path, one_shot: Pa
     assert (out / "throughput_vs_n.png").stat().st_size > 0
     assert "![Leaderboard: every method of the run](throughput_vs_n.png)" in (out / "index.md").read_text()
     assert "Throughput (goals/step) against team size N" in (out / "throughput_vs_n.txt").read_text()
+    # every score surface of a lifelong run is throughput's (docs/decisions/0240)
+    assert not (out / "success_vs_n.png").exists() and (out / "throughput_vs_p.png").stat().st_size > 0
+    assert "runs with throughput above tau" in (out / "performance_profiles.txt").read_text()
+    assert "highest mean throughput" in (out / "leaders.md").read_text(encoding="utf-8")
+    assert (out / "success_by_mode.md").read_text(encoding="utf-8").count("Throughput (goals reached per step") == 1
     plain = build_report(one_shot)
     assert not (plain / "throughput_vs_n.png").exists()
     assert "![Leaderboard: every method of the run](success_vs_n.png)" in (plain / "index.md").read_text()

@@ -23,7 +23,10 @@ def _evals() -> tuple[pd.DataFrame, pd.DataFrame]:
             for k, v in enumerate(vals):
                 rows.append({"cell_id": cid, "method": method, "n_robots": 40, "loss_p": 0.2,
                              "execution": mode, "episode": k, "success_rate": v, "team_return": 1.0,
-                             "collision_rate": 0.0, "correction_rate": 0.0,
+                             "collision_rate": 0.0,
+                             "correction_rate": 0.1 if method == "hierarchical" else 0.0,
+                             "fallback_rate": ((0.2 if mode == "argmax" else 0.01) if method == "hierarchical"
+                                               else np.nan),
                              "payload_scalars_per_step": 0.0, "safety_filter": method == "hierarchical"})
     cells = pd.DataFrame({
         "cell_id": ["h0", "h1", "i0", "p0", "d0", "d1", "h2"],
@@ -48,13 +51,16 @@ def test_success_table__one_row_per_configuration_and_method_with_the_summary_nu
     hier = t.iloc[0]
     # seed means 0.3 and 0.5: mean 0.4; the t interval on the logit scale (a plain one, 0.4 +- 12.706 * 0.1,
     # would leave [0, 1])
-    assert hier["argmax"] == "40.0% [0.3%, 99.3%]"
+    # the hierarchical method runs a safety filter: its fallback and correction rates beside its success
+    # (issue 47 item 3); the other methods have none
+    assert hier["argmax"] == "40.0% [0.3%, 99.3%] (fallback 20.0%, corrections 10.0%)"
+    assert hier["sample"].endswith("] (fallback 1.0%, corrections 10.0%)")
     assert hier["seeds"] == "2/2"
     row = summary[(summary["method"] == "hierarchical") & (summary["execution"] == "sample")].iloc[0]
     assert np.isclose(row["success_rate"], 0.85)
     assert hier["sample"].startswith("85.0% [")
     ic3 = t.iloc[2]
-    assert ic3["argmax"].startswith("60.0% [") and ic3["argmax"].endswith("*")  # one seed: bootstrap
+    assert ic3["argmax"].startswith("60.0% [") and ic3["argmax"].endswith("*")  # one seed: bootstrap; no filter
     assert ic3["planner"] == ""
     pibt = t.iloc[3]
     assert pibt["planner"].startswith("100.0%") and pibt["argmax"] == ""
@@ -65,6 +71,7 @@ def test_success_table__one_row_per_configuration_and_method_with_the_summary_nu
 
 def test_success_table__markdown_is_the_table_and_its_caption() -> None:
     from reports.tables.success_table import CAPTION
+    from reports.tables.summary import FILTER_NOTE
 
     evals, cells = _evals()
     md = success_markdown(summary_frame(evals, cells), cells)
@@ -72,7 +79,9 @@ def test_success_table__markdown_is_the_table_and_its_caption() -> None:
     assert lines[0] == "| N | p | method | seeds | argmax | sample | planner |"
     assert lines[1] == "|---|---|---|---|---|---|---|"
     assert lines[7] == "| 60 | 0.2 | Decentralized | 0/1 | pending | pending |  |"
-    assert md.endswith("|\n\n" + CAPTION + "\n")
+    assert md.endswith("|\n\n" + CAPTION + " " + FILTER_NOTE + "\n")
+    no_filter = evals[evals["method"] != "hierarchical"]  # no filtered method: no note
+    assert success_markdown(summary_frame(no_filter, cells), cells).endswith(CAPTION + "\n")
 
 
 def test_success_table__an_empty_store_gives_the_header_and_says_so() -> None:
