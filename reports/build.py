@@ -149,14 +149,14 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
     write_text(out / "safety_all_methods.csv", safety.to_csv(index=False))
     leaders = leaders_frame(evals)
     per_method = per_method_frame(evals, leaders)
-    tasks = tasks_of(evals) or ["one-shot"]  # each raced by its own score (docs/decisions/0240)
+    tasks = tasks_of(evals) or ["one-shot"]  # each raced by its own score (docs/decisions/0235)
     write_text(out / "leaders.md", leaders_markdown(leaders, per_method, tasks) + "\n"
                + ordering_markdown(ordering_frame(evals)))
     write_text(out / "leaders.csv", leaders.to_csv(index=False))
     files = ["leaderboard.md", "leaderboard.csv", "leaderboard_aggregate.csv", "leaderboard_improvement.csv",
              "safety_all_methods.csv", "leaders.md", "leaders.csv"]
     captions = []
-    figures = score_figures(board, evals)  # each task's own score (docs/decisions/0240)
+    figures = score_figures(board, evals)  # each task's own score (docs/decisions/0235)
     for stem, built in figures:
         save_figure(built.fig, out / stem, built.caption)
         files += [f"{stem}.png", f"{stem}.pdf", f"{stem}.txt"]
@@ -176,7 +176,9 @@ def _leaderboard(evals: pd.DataFrame, out: Path) -> Entry:
                f"{own[0]} minus the best planner's where one ran (range of the means; at how many the CI "
                "lies below / above 0). Details: leaders.md.", per_method_display(per_method)),
               (f"{score}: mean over seeds [95% CI over seeds] "
-               "(rank among the methods). Aggregates, pairwise probability of improvement and the safety "
+               "(rank among the methods); [interval not trusted] where the interval's simulated coverage is "
+               "under 93% (seeds collapsed; docs/decisions/0233). Aggregates, pairwise probability of "
+               "improvement and the safety "
                "columns of every method: leaderboard.md." + filter_note(board), leaderboard_display(board)),
               ("Who leads where: per configuration and learned mode, the leading learned method > or ≈ "
                "the runner-up (the margin's 95% CI over seeds, square-and-add, excludes 0, or not; "

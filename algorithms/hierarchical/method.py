@@ -152,7 +152,7 @@ class HierarchicalMethod(Method):
 
     @classmethod
     def stackable(cls, params: Mapping[str, Any]) -> bool:
-        # Per-group and shared parameters alike (``stack_view``; docs/decisions/0202, 0247).
+        # Per-group and shared parameters alike (``stack_view``; docs/decisions/0202, 0237).
         return True
 
     @classmethod

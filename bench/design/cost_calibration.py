@@ -9,7 +9,7 @@ seconds such a cell took. A cell trained in a seed stack (``bench run --stack-se
 took its share of the stack's time; its training rate is scaled back to one seed by the
 stack's gain (``costs.stack_gain``), so that estimates apply the gain once. The stacks are
 the ones the manifest's run records list (``stacks``, written since ``--stack-seeds auto``,
-docs/decisions/0247), else the ones ``bench run --stack-seeds K`` forms over the run's cells.
+docs/decisions/0237), else the ones ``bench run --stack-seeds K`` forms over the run's cells.
 ``observed_rates`` takes the median per (method, N), over the cells the run trained itself
 where it has any (cells copied in from another run may have run stacked or not);
 ``bench grids --rates-from RUN`` estimates with them, and the built-in rates of ``costs``
@@ -83,9 +83,9 @@ def costs_of(cells: pd.DataFrame, train: pd.DataFrame, stack_seeds: int = 1,
                                        "train_rate", "eval_rate", "stack", "trained_here"])
 
 
-def stacked_before_0247(cell: Cell) -> bool:
+def stacked_before_0237(cell: Cell) -> bool:
     """What ``bench run --stack-seeds K`` stacked before its runs recorded their stacks
-    (docs/decisions/0247): the hierarchical method with per-group parameters only."""
+    (docs/decisions/0237): the hierarchical method with per-group parameters only."""
     return cell.method == "hierarchical" and not cell.method_params().model_dump().get("share_params", False)
 
 
@@ -94,10 +94,10 @@ def run_stacks(cells: pd.DataFrame, every: list[Cell], stack_seeds: int,
     """cell id -> the size of the seed stack ``bench run --stack-seeds stack_seeds`` trained it
     in, formed over the run's cells (``every``: their parsed configs) but the ``copied`` ones,
     which another run trained and are left out, with the rule of the runs that did not record
-    their stacks (``stacked_before_0247``)."""
+    their stacks (``stacked_before_0237``)."""
     own = [i for i, cid in enumerate(cells["cell_id"]) if not copied or cid not in copied]
     return dict(zip(cells["cell_id"].iloc[own], costs.stack_sizes([every[i] for i in own], stack_seeds,
-                                                                  stackable=stacked_before_0247), strict=True))
+                                                                  stackable=stacked_before_0237), strict=True))
 
 
 def estimate_vs_realized(cells: pd.DataFrame, stack_seeds: int = 1, rates: Rates | None = None,

@@ -127,7 +127,7 @@ def cell_seconds(cell: Cell, rates: Rates | None = None, stacked: int = 1) -> fl
             + ev / rate(cell.method, "eval", cell.n_robots, rates))
 
 
-# `bench run --stack-seeds auto` (its default; docs/decisions/0247): the stack size it uses
+# `bench run --stack-seeds auto` (its default; docs/decisions/0237): the stack size it uses
 # where stacking pays, the size whose gain is measured (STACK_GAIN_3).
 AUTO = "auto"
 AUTO_STACK = 3

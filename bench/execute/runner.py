@@ -92,7 +92,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     choice, recorded in the manifest's run record (absent: cpu), never in a cell.
 
     ``stack_seeds`` (``bench run --stack-seeds``): train up to K cells that differ only in their
-    seed in one worker (seed_stack), or ``"auto"`` (the command's default, docs/decisions/0247):
+    seed in one worker (seed_stack), or ``"auto"`` (the command's default, docs/decisions/0237):
     the ``workers`` cells with the longest estimated training and evaluation left run first,
     each alone, and the others of stackable methods in stacks of up to 3 when there are more
     of them than workers (``costs.auto_stacking``). The numbers are the same either way; the

@@ -48,14 +48,13 @@ from reports.figures.plotting import (
     placeholder,
     ranked_legend,
 )
-from reports.stats import coverage, iqm, positive_ci, rate_ci, uninformative
+from reports.stats import coverage, iqm, positive_ci, rate_ci, trusted, uninformative, untrusted_text
 from reports.tables.mapf import SCORE, SCORE_NAME, TASKS, has_lifelong, row_tasks, tasks_of, with_score
 from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
 LEVEL = 0.95
 N_BOOT = 2000
 COVERAGE_SIMS = 2000  # simulations behind each printed coverage (MC s.e. <= 0.006 near 93%)
-COVERAGE_TARGET = 0.93  # a printed coverage below it says so (collapsed seeds: no 3-seed interval reaches it)
 PLANNER = "planner"
 SAFETY = ("collision_rate", "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step")
 
@@ -89,7 +88,7 @@ def leaderboard_frame(evals: pd.DataFrame) -> pd.DataFrame:
     (a planner's ``planner`` mode ranks with every learned mode). A run with lifelong cells
     (``reports.tables.mapf.row_tasks``) gets a ``task`` column and throughput, its mean and
     95% CI over seeds; a lifelong cell ranks by throughput among the lifelong cells of its
-    configuration, a one-shot cell by success among the one-shot ones (docs/decisions/0240)."""
+    configuration, a one-shot cell by success among the one-shot ones (docs/decisions/0235)."""
     lifelong = has_lifelong(evals)
     rows = []
     for task in tasks_of(evals):
@@ -149,7 +148,7 @@ def filter_note(board: pd.DataFrame) -> str:
 def _with_filter_rates(board: pd.DataFrame, evals: pd.DataFrame) -> pd.DataFrame:
     """``board`` with each row's correction and fallback rate (``safety_frame``'s: means over
     seeds, NaN for a method that runs no safety filter), shown beside its score (issue 47
-    item 3, docs/decisions/0241). Rows without those columns (hand-made frames) get NaN."""
+    item 3, docs/decisions/0236). Rows without those columns (hand-made frames) get NaN."""
     keys = ["method", "n_robots", "loss_p", "execution"]
     if board.empty or not set(SAFETY) <= set(evals):
         return board.assign(**{c: np.nan for c in FILTER_RATES})
@@ -227,7 +226,7 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
     the configurations every method covers; see the module docstring. The score is each
     task's own (``reports.tables.mapf.SCORE``): success of one-shot cells, throughput of
     lifelong cells, each task aggregated apart; a run with lifelong cells gets a ``task``
-    column (docs/decisions/0221, 0240)."""
+    column (docs/decisions/0221, 0235)."""
     iqm_rows, poi_rows = [], []
     lifelong = has_lifelong(evals)
     tag = (lambda t: {"task": t}) if lifelong else (lambda t: {})
@@ -275,37 +274,43 @@ def safety_frame(evals: pd.DataFrame) -> pd.DataFrame:
 SUCCESS_NOTE = ("Success rate (robots at their goal per episode): the mean over seeds of per-seed means, "
                 "[95% CI over seeds: a Student t interval on the logit scale, inside 0-100% by construction; "
                 "'uninformative' where it spans more than 80 points], (its coverage of the true mean simulated "
-                "at the row's own mean, spread and seeds, Beta-distributed; below 93% where seeds collapse: "
-                "with one seed near 0 and the others high, three seeds often all land on one side, and no "
-                "interval over three values then covers); rank 1 = highest mean among the methods at that "
+                "at the row's own mean, spread and seeds, Beta-distributed); where that coverage is under 93% "
+                "(seeds collapsed: with one seed near 0 and the others high, three seeds often all land on "
+                "one side, and no interval over three values then covers) the row prints its mean and "
+                "'interval not trusted' with the coverage, no interval (docs/decisions/0233); "
+                "rank 1 = highest mean among the methods at that "
                 "configuration and mode (a planner's one mode ranks with every learned mode).")
 LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one, so success (robots at their "
                  "goal at the end) says little; throughput (goals reached per step) is the score. Both: the mean "
                  "over seeds of per-seed means, [95% CI over seeds, inside the range by construction: a "
                  "Student t interval on the logit scale (success), Cox's lognormal interval (throughput)] "
-                 "(simulated coverage); "
+                 "(simulated coverage; under 93%: no interval, 'interval not trusted'); "
                  "rank 1 = highest mean throughput "
                  "among the methods at that configuration and mode (a planner's one mode ranks with every "
                  "learned mode).")
 MIXED_NOTE = ("This run holds one-shot and lifelong cells. Each task is ranked by its own score, in its own "
               "tables: one-shot cells by success, lifelong cells by throughput (goals reached per step); no "
-              "rank, aggregate or comparison puts a throughput beside a success (docs/decisions/0240).")
+              "rank, aggregate or comparison puts a throughput beside a success (docs/decisions/0235).")
+UNTRUSTED_SHORT = "[interval not trusted]"  # the index's short form of ``untrusted_text`` (leaderboard.md has the coverage)
 TASK_HEADING = {"one-shot": "One-shot cells: ranked by success",
                 "lifelong": "Lifelong cells: ranked by throughput (goals reached per step)"}
-
-
-def _below(cov: float) -> bool:
-    """Whether a coverage, as printed (one decimal of a percent), is under ``COVERAGE_TARGET``."""
-    return float(f"{100 * cov:.1f}") < 100 * COVERAGE_TARGET
 
 
 def _pct(v: float) -> str:
     return "—" if not np.isfinite(v) else f"{100 * v:.1f}%"
 
 
-def _coverage_text(cov: float) -> str:
-    return "" if not np.isfinite(cov) else f" (coverage {cov:.1%}" + (
-        f", below {COVERAGE_TARGET:.0%})" if _below(cov) else ")")
+def _interval(point: str, interval: str, cov: float) -> str:
+    """A headline interval with its simulated coverage, or, where that coverage is under 93%,
+    the point and no interval (docs/decisions/0233)."""
+    if not trusted(cov):
+        return f"{point} ({untrusted_text(cov)})"
+    return interval + ("" if not np.isfinite(cov) else f" (coverage {cov:.1%})")
+
+
+def _num_ci(v: float, lo: float, hi: float, cov: float) -> str:
+    """A throughput with its interval and coverage, as the leaderboard prints it."""
+    return _interval(fmt_ci(v, np.nan, np.nan, "num"), fmt_ci(v, lo, hi, "num"), cov)
 
 
 def _ci(v: float, lo: float, hi: float, cov: float = np.nan) -> str:
@@ -313,7 +318,7 @@ def _ci(v: float, lo: float, hi: float, cov: float = np.nan) -> str:
     if not np.isfinite(lo):
         return _pct(v)
     vague = "; uninformative" if uninformative(lo, hi) else ""
-    return _pct(v) + f" [{_pct(lo)}, {_pct(hi)}{vague}]" + _coverage_text(cov)
+    return _interval(_pct(v), _pct(v) + f" [{_pct(lo)}, {_pct(hi)}{vague}]", cov)
 
 
 def _of_task(frame: pd.DataFrame, task: str) -> pd.DataFrame:
@@ -333,8 +338,8 @@ def _score_lines(board: pd.DataFrame, task: str) -> list[str]:
                  "|---|---|---|---|---|---|---|---|"]
         for r in board.itertuples(index=False):
             lines.append(f"| {r.n_robots} | {fmt_p(r.loss_p)} | {r.execution} | {r.label} | {r.seeds} | "
-                         f"{fmt_ci(r.throughput, r.throughput_lo, r.throughput_hi, 'num')}"
-                         f"{_coverage_text(r.throughput_cov)}{filter_text(r.correction_rate, r.fallback_rate)} | "
+                         f"{_num_ci(r.throughput, r.throughput_lo, r.throughput_hi, r.throughput_cov)}"
+                         f"{filter_text(r.correction_rate, r.fallback_rate)} | "
                          f"{_ci(r.success, r.success_lo, r.success_hi, r.success_cov)} | {r.rank} |")
         return lines
     lines = ["| N | p | execution | method | seeds | success [95% CI] | rank |", "|---|---|---|---|---|---|---|"]
@@ -362,7 +367,7 @@ def _aggregate_lines(iqm: pd.DataFrame, poi: pd.DataFrame, task: str) -> list[st
               "|---|---|---|---|---|---|"]
     for r in iqm.itertuples(index=False):
         point = f"{r.iqm:.3g}" if task == "lifelong" else _pct(r.iqm)
-        interval_txt = (fmt_ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, "num") + _coverage_text(r.iqm_cov)
+        interval_txt = (_num_ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, r.iqm_cov)
                         if task == "lifelong" else _ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, r.iqm_cov))
         lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {point} | {interval_txt} |")
     lines += ["", f"Probability of improvement P(X > Y) in {score} (rliable: Mann-Whitney over seeds, averaged "
@@ -377,7 +382,7 @@ def _aggregate_lines(iqm: pd.DataFrame, poi: pd.DataFrame, task: str) -> list[st
 
 def leaderboard_markdown(board: pd.DataFrame, iqm: pd.DataFrame, poi: pd.DataFrame, safety: pd.DataFrame) -> str:
     """The leaderboard page: per configuration, aggregates, pairwise improvement, safety; each
-    task ranked and aggregated by its own score, apart (docs/decisions/0240)."""
+    task ranked and aggregated by its own score, apart (docs/decisions/0235)."""
     lines = ["# Leaderboard: every method of the run", "", SUCCESS_NOTE, ""]
     if board.empty:
         return "\n".join(lines + ["No evaluated cell yet.", ""])
@@ -417,10 +422,14 @@ def leaderboard_display(board: pd.DataFrame) -> pd.DataFrame:
         return pd.DataFrame()
 
     def cell(r: pd.Series) -> str:
-        if r.get("task") == "lifelong":  # its score (docs/decisions/0218, 0240)
-            return (f"{fmt_ci(r['throughput'], r['throughput_lo'], r['throughput_hi'], 'num')} ({int(r['rank'])})"
-                    f"{filter_text(r['correction_rate'], r['fallback_rate'])}")
-        lo = "" if not np.isfinite(r["success_lo"]) else f" [{100 * r['success_lo']:.1f}, {100 * r['success_hi']:.1f}]"
+        if r.get("task") == "lifelong":  # its score (docs/decisions/0218, 0235)
+            shown = (fmt_ci(r["throughput"], r["throughput_lo"], r["throughput_hi"], "num")
+                     if trusted(r["throughput_cov"]) else f"{fmt_ci(r['throughput'], np.nan, np.nan, 'num')} "
+                     f"{UNTRUSTED_SHORT}")
+            return f"{shown} ({int(r['rank'])}){filter_text(r['correction_rate'], r['fallback_rate'])}"
+        lo = ("" if not np.isfinite(r["success_lo"]) else
+              f" [{100 * r['success_lo']:.1f}, {100 * r['success_hi']:.1f}]" if trusted(r["success_cov"])
+              else f" {UNTRUSTED_SHORT}")  # docs/decisions/0233
         return (f"{100 * r['success']:.1f}%{lo} ({int(r['rank'])})"
                 f"{filter_text(r['correction_rate'], r['fallback_rate'])}")
 
@@ -530,7 +539,7 @@ FIGURE_STEMS = {"one-shot": ("success_vs_n", "success_vs_p", "performance_profil
 def score_figures(board: pd.DataFrame, evals: pd.DataFrame) -> list[tuple[str, Built]]:
     """The leaderboard's figures, (file stem, figure): per task of the run, its score against N
     and against p and its performance profiles, one-shot first; a lifelong run draws
-    throughput, never success (docs/decisions/0240). In a run of both tasks the lifelong
+    throughput, never success (docs/decisions/0235). In a run of both tasks the lifelong
     profiles are ``performance_profiles_lifelong``."""
     tasks = _board_tasks(board) if len(board) else ["one-shot"]
     out = []

@@ -45,7 +45,7 @@ SCORED = {"leader_success", "runner_up_success", "planner_success"}  # "_score" 
 def columns(lifelong: bool) -> list[str]:
     """leaders.csv's columns: ``COLUMNS``, or with a ``task`` column and each score named
     ``_score`` (success of a one-shot row, throughput of a lifelong one) in a run with
-    lifelong cells (docs/decisions/0240)."""
+    lifelong cells (docs/decisions/0235)."""
     if not lifelong:
         return COLUMNS
     return ["task", *[c.replace("_success", "_score") if c in SCORED else c for c in COLUMNS]]

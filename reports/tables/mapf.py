@@ -44,7 +44,7 @@ def has_mapf(evals: pd.DataFrame) -> bool:
 
 
 TASKS = ("one-shot", "lifelong")  # report order
-SCORE = {"one-shot": "success_rate", "lifelong": "throughput"}  # each task's score (docs/decisions/0240)
+SCORE = {"one-shot": "success_rate", "lifelong": "throughput"}  # each task's score (docs/decisions/0235)
 SCORE_NAME = {"one-shot": "success", "lifelong": "throughput"}
 
 

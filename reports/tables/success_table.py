@@ -42,7 +42,7 @@ def success_frame(summary: pd.DataFrame, cells: pd.DataFrame, task: str = "one-s
     cells.parquet); a configuration's own modes read "pending" until it has evaluation rows,
     the modes it does not have stay empty. Only the configurations of cells of ``task``
     (``reports.tables.mapf.cell_tasks``): a one-shot cell shows its success, a lifelong cell
-    its throughput (docs/decisions/0240)."""
+    its throughput (docs/decisions/0235)."""
     if summary.empty:
         return pd.DataFrame(columns=["N", "p", "method", "seeds"])
     variants = cells["cell_id"].map(cell_variants(cells)).fillna("")  # labelled among all cells, as the summary

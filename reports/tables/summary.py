@@ -20,7 +20,7 @@ from reports.stats import bootstrap_ci, iqm, mean_ci, positive_ci, rate_ci
 
 SUMMARY_METRICS = ("success_rate", "team_return", "collision_rate", "correction_rate", "fallback_rate",
                    "payload_scalars_per_step")
-LIFELONG_METRICS = ("throughput",)  # a store with lifelong rows: their score too (docs/decisions/0240)
+LIFELONG_METRICS = ("throughput",)  # a store with lifelong rows: their score too (docs/decisions/0235)
 IQM_METRICS = ("success_rate", "team_return")
 KEYS = ["method", "n_robots", "loss_p"]
 
@@ -104,7 +104,7 @@ def filter_text(correction_rate: float, fallback_rate: float) -> str:
     scores: `` (fallback 1.9%, corrections 16.6%)``, its fallback rate (group-steps that fell back
     to joint Wait / group-steps that ran the filter) and correction rate (robot controls the filter
     changed / active robot-steps), means over seeds; "" for a method without a filter (both NaN)
-    (issue 47 item 3, docs/decisions/0241)."""
+    (issue 47 item 3, docs/decisions/0236)."""
     if not (np.isfinite(correction_rate) or np.isfinite(fallback_rate)):
         return ""
     def pct(v: float) -> str:

@@ -357,7 +357,7 @@ def test_estimate_vs_realized__given_rates_unstacked_by_default_and_no_ratio_for
 
 
 def test_run_stacks__runs_that_recorded_no_stacks_stacked_per_group_hierarchical_cells_only() -> None:
-    """A run made before decision 0247 with --stack-seeds 3 stacked the per-group hierarchical
+    """A run made before decision 0237 with --stack-seeds 3 stacked the per-group hierarchical
     method only: its decentralized and shared-parameter cells are read as trained alone,
     although both stack today."""
     from bench.design import cost_calibration

@@ -1,5 +1,5 @@
 """Fallback and correction rates beside every score of a method that runs a safety filter (the
-hierarchical method; issue 47 item 3, docs/decisions/0241): in the leaderboard (its page and the
+hierarchical method; issue 47 item 3, docs/decisions/0236): in the leaderboard (its page and the
 index's table), the success table and the summary; a method without a filter shows none."""
 from __future__ import annotations
 

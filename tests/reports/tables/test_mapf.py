@@ -118,7 +118,7 @@ def test_lifelong_aggregates_and_figure__throughput(lifelong: Path, one_shot: Pa
     assert (out / "throughput_vs_n.png").stat().st_size > 0
     assert "![Leaderboard: every method of the run](throughput_vs_n.png)" in (out / "index.md").read_text()
     assert "Throughput (goals/step) against team size N" in (out / "throughput_vs_n.txt").read_text()
-    # every score surface of a lifelong run is throughput's (docs/decisions/0240)
+    # every score surface of a lifelong run is throughput's (docs/decisions/0235)
     assert not (out / "success_vs_n.png").exists() and (out / "throughput_vs_p.png").stat().st_size > 0
     assert "runs with throughput above tau" in (out / "performance_profiles.txt").read_text()
     assert "highest mean throughput" in (out / "leaders.md").read_text(encoding="utf-8")

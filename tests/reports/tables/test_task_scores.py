@@ -1,4 +1,4 @@
-"""Each task scored by its own score in every ranking of the report (docs/decisions/0240): a
+"""Each task scored by its own score in every ranking of the report (docs/decisions/0235): a
 lifelong cell by its throughput (goals reached per step), a one-shot cell by its success, and
 never one against the other. The scores are built so that ranking a lifelong cell by success
 (or pooling the two tasks) gives another answer than the right one."""
