@@ -165,12 +165,15 @@ def test_decentralized_mappo_keeps_the_rollout_log_probs() -> None:
     assert torch.allclose(got, want, atol=1e-5)
 
 
-@pytest.mark.parametrize(("method", "module"), [("decentralized", "algorithms.decentralized"),
-                                                ("ic3net", "algorithms.ic3net_mappo")])
-def test_kept_rollout_log_probs_equal_the_recomputed_ones(method: str, module: str,
+@pytest.mark.parametrize(("method", "module", "rel"), [("decentralized", "algorithms.decentralized", 0.0),
+                                                       ("ic3net", "algorithms.ic3net_mappo", 1e-5)])
+def test_kept_rollout_log_probs_equal_the_recomputed_ones(method: str, module: str, rel: float,
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    """The update with the rollout's kept log-probabilities trains bit for bit as the one
-    that recomputes them (a kept log-prob missing a term, e.g. IC3Net's gate, moves the ratio)."""
+    """The update with the rollout's kept log-probabilities trains as the one that recomputes
+    them: bit for bit for the decentralized baseline; for IC3Net up to float rounding, since its
+    update replays the LSTM over whole chunks while the rollout stepped it, and which kernels
+    those shapes get depends on the CPU (equal on an AMD EPYC host, 7e-7 relative on an Intel
+    Xeon). A kept log-prob missing a term (e.g. IC3Net's gate) moves the ratio far more."""
     import importlib
     from dataclasses import replace
 
@@ -184,4 +187,5 @@ def test_kept_rollout_log_probs_equal_the_recomputed_ones(method: str, module: s
     kept = losses()
     monkeypatch.setattr(importlib.import_module(module), "PPOBatch",
                         lambda *a, **k: replace(PPOBatch(*a, **k), old_log_probs=None))
-    assert kept == losses()
+    recomputed = losses()
+    assert kept == recomputed if rel == 0.0 else kept == pytest.approx(recomputed, rel=rel)
