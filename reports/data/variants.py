@@ -6,8 +6,9 @@ or a user's grid file beside the paper grid. Their rows are not seeds of one
 configuration, and the seed is the statistical unit of every interval and test. So:
 
 * ``cell_variants`` labels each cell by the settings in which it differs from the other
-  cells of its (method, N, p) group: the keys whose values vary within the group (the
-  resolved hyperparameters of ``params_json`` and the cell's configuration, seed
+  cells of its (method, N, p, task) group (a lifelong cell is not a variant of a one-shot
+  one: each is its task's default and is reported in its task's section): the keys whose
+  values vary within the group (the resolved hyperparameters of ``params_json`` and the cell's configuration, seed
   excluded), written ``key=value`` where the cell's value is not the method's default (a
   key that is not a hyperparameter, such as ``episodes``, is always written). A group
   whose cells agree on everything has one variant, labelled ``""``, whatever its settings.
@@ -25,7 +26,7 @@ import pandas as pd
 from algorithms.registry import find_method
 from bench.design.cells import LATER_FIELDS
 
-GROUP = ("method", "n_robots", "loss_p")
+GROUP = ("method", "n_robots", "loss_p", "task")  # a one-shot and a lifelong cell are never variants of one another
 NOT_A_VARIANT = frozenset({"seed", "method", "n_robots", "loss_p", "params"})  # group keys, the seed, raw overrides
 
 
@@ -55,12 +56,24 @@ def _unset(key: str, settings: dict[str, str]) -> bool:
     return key in LATER_FIELDS and key not in settings
 
 
+def cell_tasks(cells: pd.DataFrame) -> pd.Series:
+    """cell_id -> the cell's task, from its stored configuration (a cell stores ``task`` only
+    when it is not the default "one-shot", docs/decisions/0209), so a pending cell has one too."""
+    def task(config_json: object) -> str:
+        config = json.loads(config_json) if isinstance(config_json, str) and config_json else {}
+        return str(config.get("task", "one-shot"))
+    if cells.empty or "config_json" not in cells:
+        return pd.Series("one-shot", index=cells.get("cell_id", pd.Series(dtype=object)), dtype=object)
+    return pd.Series([task(c) for c in cells["config_json"]], index=cells["cell_id"], dtype=object)
+
+
 def cell_variants(cells: pd.DataFrame) -> pd.Series:
     """cell_id -> variant label ("" for a group's default variant; see the module doc)."""
     labels: dict[str, str] = {}
     if cells.empty:
         return pd.Series(labels, dtype=object)
-    for (method, _, _), group in cells.groupby(list(GROUP), sort=False):
+    cells = cells.assign(task=cells["cell_id"].map(cell_tasks(cells)).to_numpy())
+    for (method, _, _, _), group in cells.groupby(list(GROUP), sort=False):
         defaults = _defaults(str(method))  # a hyperparameter a cell does not store is at its default
         settings = {row.cell_id: {**defaults, **_settings(row)} for row in group.itertuples()}
         keys = sorted(set().union(*settings.values()))

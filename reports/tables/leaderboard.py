@@ -33,7 +33,6 @@ from itertools import permutations
 import numpy as np
 import pandas as pd
 from rliable import metrics as rly_metrics
-from scipy import stats as sps
 
 from reports.data.store import execution_order, fmt_p
 from reports.figures.plotting import (
@@ -48,12 +47,12 @@ from reports.figures.plotting import (
     placeholder,
     ranked_legend,
 )
+from reports.improvement import poi_coverage, poi_statistic, stratified_band, stratified_ci
 from reports.stats import coverage, iqm, positive_ci, rate_ci, trusted, uninformative, untrusted_text
 from reports.tables.mapf import SCORE, SCORE_NAME, TASKS, has_lifelong, row_tasks, tasks_of, with_score
 from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
 LEVEL = 0.95
-N_BOOT = 2000
 COVERAGE_SIMS = 2000  # simulations behind each printed coverage (MC s.e. <= 0.006 near 93%)
 PLANNER = "planner"
 SAFETY = ("collision_rate", "correction_rate", "fallback_rate", "mean_candidates", "payload_scalars_per_step")
@@ -181,43 +180,12 @@ def score_matrices(evals: pd.DataFrame, mode: str, metric: str = "success_rate",
     return mats, cfgs, used
 
 
-def _stratified_band(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """95% percentile CI of ``statistic(*samples, axis=-1)`` with each sample (a
-    configuration's seeds) resampled on its own: the stratified bootstrap
-    (``scipy.stats.bootstrap``, vectorized: every sample arrives shaped (..., n)). A
-    statistic of k values returns them first, shaped (k, ...): then (k,) bounds. NaN
-    where a configuration has fewer than 2 seeds."""
-    if any(len(s) < 2 for s in samples):
-        return np.array(np.nan), np.array(np.nan)
-    res = sps.bootstrap(samples, statistic, n_resamples=N_BOOT, confidence_level=LEVEL, method="percentile",
-                        vectorized=True, random_state=np.random.default_rng(seed))
-    return np.asarray(res.confidence_interval.low), np.asarray(res.confidence_interval.high)
-
-
-def _stratified_ci(samples: list[np.ndarray], statistic, seed: int = 0) -> tuple[float, float]:
-    """``_stratified_band`` of a statistic of one value."""
-    lo, hi = _stratified_band(samples, statistic, seed)
-    return float(lo), float(hi)
-
-
 def _profile(taus: np.ndarray):
     """rliable's score distribution at each of ``taus``: the fraction of the matrix's scores
     (every seed of every configuration) above tau, batched; returned shaped (len(taus), ...)."""
     def stat(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
         flat = np.concatenate([np.moveaxis(c, axis, -1) for c in cols], axis=-1)
         return np.moveaxis((flat[..., None, :] > taus[:, None]).mean(axis=-1), -1, 0)
-    return stat
-
-
-def _poi(k: int):
-    """rliable's ``probability_of_improvement`` of X's first ``k`` columns over Y's ``k``,
-    batched: per configuration P(X > Y) + P(X = Y) / 2 over all seed pairs, averaged."""
-    def stat(*cols: np.ndarray, axis: int = -1) -> np.ndarray:
-        per = []
-        for x, y in zip(cols[:k], cols[k:], strict=True):
-            x, y = np.moveaxis(x, axis, -1)[..., :, None], np.moveaxis(y, axis, -1)[..., None, :]
-            per.append(((x > y) + 0.5 * (x == y)).mean(axis=(-2, -1)))
-        return np.mean(per, axis=0)
     return stat
 
 
@@ -245,15 +213,19 @@ def aggregate_frame(evals: pd.DataFrame) -> tuple[pd.DataFrame, pd.DataFrame]:
                                  "iqm": float(rly_metrics.aggregate_iqm(mat)),
                                  "seed_iqm": mean, "iqm_lo": lo, "iqm_hi": hi,
                                  "iqm_cov": coverage(kind, mean, sd, len(per_seed), COVERAGE_SIMS, LEVEL)})
+            covered: dict[frozenset[str], float] = {}  # Y over X covers as X over Y (the interval mirrors)
             for x, y in permutations(mats, 2):
                 a, b = mats[x], mats[y]
                 k = a.shape[1]
                 cols = [a[:, j] for j in range(k)] + [b[:, j] for j in range(k)]
-                lo, hi = _stratified_ci(cols, _poi(k))
+                lo, hi = stratified_ci(cols, poi_statistic(k))
+                pair = frozenset((x, y))
+                if pair not in covered:
+                    covered[pair] = poi_coverage(a, b, "positive" if metric == "throughput" else "rate")
                 poi_rows.append({**tag(task), "execution": mode, "method": x, "over": y, "label": method_label(x),
                                  "over_label": method_label(y), "configurations": k,
                                  "poi": float(rly_metrics.probability_of_improvement(a, b)),
-                                 "poi_lo": lo, "poi_hi": hi})
+                                 "poi_lo": lo, "poi_hi": hi, "poi_cov": covered[pair]})
     return pd.DataFrame(iqm_rows), pd.DataFrame(poi_rows)
 
 
@@ -291,7 +263,14 @@ LIFELONG_NOTE = ("A lifelong run: robots get a new goal whenever they reach one,
 MIXED_NOTE = ("This run holds one-shot and lifelong cells. Each task is ranked by its own score, in its own "
               "tables: one-shot cells by success, lifelong cells by throughput (goals reached per step); no "
               "rank, aggregate or comparison puts a throughput beside a success (docs/decisions/0235).")
-UNTRUSTED_SHORT = "[interval not trusted]"  # the index's short form of ``untrusted_text`` (leaderboard.md has the coverage)
+POI_COVERAGE_NOTE = ("Beside each interval, its simulated coverage: the same bootstrap on data sets drawn per "
+                     "configuration from a Beta (success) or lognormal (throughput) at each method's own mean and "
+                     "s.d. over seeds, a point mass where every seed agreed; under 93% the interval is not printed "
+                     "(docs/decisions/0233, 0239). \"Coverage not simulated\": the models order every "
+                     "configuration with certainty but the seeds do not (ties at exactly 0% or 100%, which a Beta "
+                     "never draws), so no simulation speaks for that interval.")
+# the index's short form of ``untrusted_text`` (leaderboard.md has the coverage)
+UNTRUSTED_SHORT = "[interval not trusted]"
 TASK_HEADING = {"one-shot": "One-shot cells: ranked by success",
                 "lifelong": "Lifelong cells: ranked by throughput (goals reached per step)"}
 
@@ -371,12 +350,15 @@ def _aggregate_lines(iqm: pd.DataFrame, poi: pd.DataFrame, task: str) -> list[st
                         if task == "lifelong" else _ci(r.seed_iqm, r.iqm_lo, r.iqm_hi, r.iqm_cov))
         lines.append(f"| {r.execution} | {r.label} | {r.configurations} | {r.seeds} | {point} | {interval_txt} |")
     lines += ["", f"Probability of improvement P(X > Y) in {score} (rliable: Mann-Whitney over seeds, averaged "
-              "over configurations) [95% stratified bootstrap CI]; 50% = no difference." if task == "lifelong" else
+              f"over configurations) [95% stratified bootstrap CI]; 50% = no difference. {POI_COVERAGE_NOTE}"
+              if task == "lifelong" else
               "Probability of improvement P(X > Y) (rliable: Mann-Whitney over seeds, averaged over "
-              "configurations) [95% stratified bootstrap CI]; 50% = no difference.", "",
+              f"configurations) [95% stratified bootstrap CI]; 50% = no difference. {POI_COVERAGE_NOTE}", "",
               "| execution | X | Y | P(X > Y) [95% CI] |", "|---|---|---|---|"]
     for r in poi.itertuples(index=False):
-        lines.append(f"| {r.execution} | {r.label} | {r.over_label} | {_ci(r.poi, r.poi_lo, r.poi_hi)} |")
+        unsimulated = " (coverage not simulated)" if np.isfinite(r.poi_lo) and not np.isfinite(r.poi_cov) else ""
+        lines.append(f"| {r.execution} | {r.label} | {r.over_label} | {_ci(r.poi, r.poi_lo, r.poi_hi, r.poi_cov)}"
+                     f"{unsimulated} |")
     return lines
 
 
@@ -513,7 +495,7 @@ def profile_figure(evals: pd.DataFrame, task: str = "one-shot") -> Built:
         for m, mat in mats.items():
             cols = [mat[:, j] for j in range(mat.shape[1])]
             ax.plot(taus, profile(*cols), color=method_color(m), ls=method_style(m), label=method_label(m))
-            lo, hi = _stratified_band(cols, profile)
+            lo, hi = stratified_band(cols, profile)
             if lo.ndim:  # no band with a single seed
                 ax.fill_between(taus, lo, hi, color=method_color(m), alpha=0.15, lw=0)
         ax.set_xlabel(r"success rate $\tau$" if task == "one-shot" else r"throughput $\tau$ (goals/step)")

@@ -14,8 +14,6 @@ nothing for it: older reports rebuild byte for byte.
 """
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pandas as pd
 
@@ -77,17 +75,6 @@ def with_score(evals: pd.DataFrame) -> pd.DataFrame:
     score = (np.where(tasks.eq("lifelong"), evals["throughput"].to_numpy(dtype=np.float64), success)
              if "throughput" in evals else success)
     return evals.assign(task=tasks, score=score)
-
-
-def cell_tasks(cells: pd.DataFrame) -> pd.Series:
-    """cell_id -> the cell's task, from its stored configuration (a cell stores ``task`` only
-    when it is not the default "one-shot", docs/decisions/0209), so a pending cell has one too."""
-    def task(config_json: object) -> str:
-        config = json.loads(config_json) if isinstance(config_json, str) and config_json else {}
-        return str(config.get("task", "one-shot"))
-    if cells.empty or "config_json" not in cells:
-        return pd.Series("one-shot", index=cells.get("cell_id", pd.Series(dtype=object)), dtype=object)
-    return pd.Series([task(c) for c in cells["config_json"]], index=cells["cell_id"], dtype=object)
 
 
 def is_lifelong(evals: pd.DataFrame) -> bool:

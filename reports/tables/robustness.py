@@ -5,13 +5,17 @@ return fell, per learned method, variant and team size; and every seed's outcome
 at every p of the run:
 
 * **collapsed**: seeds whose success rate (mean over evaluation episodes, in the first
-  execution mode of the run's order: argmax when it ran) is below ``COLLAPSE`` (10%);
+  execution mode of the run's order: argmax when it ran) is below ``COLLAPSE`` (10%); a
+  lifelong cell's success is near 0 by construction, so a lifelong seed counts as collapsed
+  where its throughput is below ``COLLAPSE`` of the best mean throughput over seeds of any
+  method (planners included, any mode) at its configuration (N, p) (docs/decisions/0238);
 * **falling**: seeds whose team return fell during training, i.e. the mean of the last
   window of the curve is below the mean of the first (``reports.stats.curve_shape``: the
   first and last 20% of the episodes); seeds too short for two windows are not counted.
 
 ``seeds_frame``: one row per (method, variant, N, p, execution mode) with each seed's
-success rate, their mean, standard deviation and minimum, and the same two counts, so a
+success rate (throughput, goals per step, for a lifelong cell: a ``task`` column then
+says which), their mean, standard deviation and minimum, and the same two counts, so a
 reader sees whether a mean is a typical seed or a mixture of learned and collapsed ones.
 
 Variants (``reports.data.variants``: the ablation's arms, or ``protocol = "mappo"`` cells
@@ -27,11 +31,15 @@ from reports.data.store import execution_order, fmt_p
 from reports.data.variants import variant_suffix
 from reports.figures.plotting import label_order, method_label
 from reports.stats import curve_shape
+from reports.tables.mapf import with_score
 
 __all__ = ["COLLAPSE", "ROBUSTNESS_CAPTION", "SEEDS_CAPTION", "robustness_display", "robustness_frame",
            "robustness_markdown", "seeds_frame", "seeds_markdown"]
 
 COLLAPSE = 0.10  # a seed below this success rate counts as collapsed
+LIFELONG_COLLAPSE = (f"A lifelong seed (success near 0 by construction) counts as collapsed where its throughput "
+                     f"is below {COLLAPSE:.0%} of the best mean throughput of any method (planners included) at "
+                     "its configuration (docs/decisions/0238).")
 ROBUSTNESS_CAPTION = (f"Robustness of training per learned method (and variant) and team size N (over its seeds "
                       f"at every p): collapsed = seeds whose success rate, in the first execution mode, is below "
                       f"{COLLAPSE:.0%}; falling = seeds whose team return over the last 20% of training "
@@ -40,6 +48,8 @@ SEEDS_CAPTION = ("Every seed of every learned configuration: success rate per se
                  "episodes, in seed order), their mean, standard deviation over seeds (percentage points) and "
                  f"minimum; collapsed = seeds below {COLLAPSE:.0%}; falling = seeds whose team return over the "
                  "last 20% of training episodes is below that over the first 20%.")
+SEEDS_LIFELONG = ("Lifelong rows (task lifelong) show throughput (goals reached per step) per seed, its mean, SD "
+                  "and minimum in goals per step, where one-shot rows show success. " + LIFELONG_COLLAPSE)
 COLUMNS = ["method", "label", "n_robots", "seeds", "collapsed", "collapsed_share", "curves", "falling",
            "falling_share"]
 SEED_COLUMNS = ["method", "label", "n_robots", "loss_p", "execution", "seeds", "success_by_seed", "mean", "sd_pp",
@@ -70,6 +80,22 @@ def _ordered(frame: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
     return frame.assign(_o=order).sort_values(["_o", "label", *keys], kind="stable").drop(columns="_o")
 
 
+def _cell_scores(evals: pd.DataFrame) -> pd.DataFrame:
+    """Per (cell_id, execution): the cell's task, its score (mean over episodes of success, or
+    of throughput for a lifelong cell) and the collapse floor of that score: ``COLLAPSE``, or for
+    a lifelong cell ``COLLAPSE`` times the best mean throughput over seeds of any method and mode
+    at its (N, p) (docs/decisions/0238)."""
+    scored = with_score(evals)
+    per = scored.groupby(["cell_id", "execution"]).agg(task=("task", "first"), score=("score", "mean"),
+                                                       n_robots=("n_robots", "first"), loss_p=("loss_p", "first"))
+    life = scored[scored["task"] == "lifelong"]
+    best = (life.groupby(["method", "n_robots", "loss_p", "execution"])["score"].mean()
+            .groupby(["n_robots", "loss_p"]).max())
+    floor = [COLLAPSE * float(best[(n, p)]) if t == "lifelong" else COLLAPSE
+             for t, n, p in zip(per["task"], per["n_robots"], per["loss_p"], strict=True)]
+    return per.assign(floor=floor)
+
+
 def robustness_frame(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Series | None = None) -> pd.DataFrame:
     """One row per learned method, variant and N: seeds, collapsed seeds, seeds with a
     curve, falling ones. ``variants``: cell_id -> variant label (``cell_variants``)."""
@@ -77,49 +103,57 @@ def robustness_frame(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Seri
         return pd.DataFrame(columns=COLUMNS)
     learned = set(map(str, train["method"]))
     mode = next(iter(execution_order(evals["execution"])), None) if len(evals) else None
-    ev = evals[evals["method"].isin(learned) & (evals["execution"] == mode)] if mode is not None else evals.iloc[0:0]
-    success = ev.groupby("cell_id")["success_rate"].mean()
+    scores = _cell_scores(evals[evals["execution"] == mode] if mode is not None else evals.iloc[0:0])
+    scores = scores.reset_index(level="execution", drop=True)
+    learned_ids = set(map(str, evals.loc[evals["method"].isin(learned), "cell_id"]))
+    scores = scores[scores.index.isin(learned_ids)]
     falling = _falling(train)
     cells = _labels(train[["method", "n_robots", "cell_id"]].drop_duplicates(), variants)
+    cells["task"] = cells["cell_id"].astype(str).map(scores["task"]).fillna("one-shot")  # tasks never pooled
     rows = []
-    for (method, label, n), g in cells.groupby(["method", "label", "n_robots"], sort=True):
-        ids = list(map(str, g["cell_id"]))
-        rates = [float(success[c]) for c in ids if c in success.index]
-        falls = [falling[c] for c in ids if c in falling]
-        collapsed = sum(r < COLLAPSE for r in rates)
-        rows.append({"method": str(method), "label": str(label), "n_robots": int(n),
-                     "seeds": len(rates), "collapsed": collapsed,
-                     "collapsed_share": collapsed / len(rates) if rates else float("nan"),
+    for (task, method, label, n), g in cells.groupby(["task", "method", "label", "n_robots"], sort=True):
+        ids = [c for c in map(str, g["cell_id"]) if c in scores.index]
+        falls = [falling[c] for c in map(str, g["cell_id"]) if c in falling]
+        collapsed = int(sum(scores.at[c, "score"] < scores.at[c, "floor"] for c in ids))
+        rows.append({"task": task, "method": str(method), "label": str(label), "n_robots": int(n),
+                     "seeds": len(ids), "collapsed": collapsed,
+                     "collapsed_share": collapsed / len(ids) if ids else float("nan"),
                      "curves": len(falls), "falling": int(sum(falls)),
                      "falling_share": sum(falls) / len(falls) if falls else float("nan")})
-    return _ordered(pd.DataFrame(rows, columns=COLUMNS), ["n_robots"])
+    frame = _ordered(pd.DataFrame(rows, columns=["task", *COLUMNS]), ["task", "n_robots"])
+    return frame if (frame["task"] == "lifelong").any() else frame.drop(columns="task")
 
 
 def seeds_frame(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Series | None = None) -> pd.DataFrame:
     """One row per learned method, variant, N, p and execution mode: each seed's success
-    rate (seed order) and their summary (module doc)."""
+    rate, or throughput for a lifelong cell (seed order), and their summary (module doc); a
+    run with lifelong cells gets a ``task`` column."""
     if train.empty or evals.empty:
         return pd.DataFrame(columns=SEED_COLUMNS)
     learned = set(map(str, train["method"]))
+    per_cell = _cell_scores(evals)
     ev = evals[evals["method"].isin(learned)]
-    per_cell = ev.groupby(["cell_id", "execution"])["success_rate"].mean()
     falling = _falling(train)
     cells = _labels(ev[["method", "n_robots", "loss_p", "seed", "cell_id"]].drop_duplicates("cell_id"), variants)
     rows = []
     for (method, label, n, p), g in cells.groupby(["method", "label", "n_robots", "loss_p"], sort=True):
         g = g.sort_values("seed")
         falls = [falling[c] for c in map(str, g["cell_id"]) if c in falling]
-        modes = set(per_cell[per_cell.index.get_level_values("cell_id").isin(g["cell_id"])].index
-                    .get_level_values("execution"))
-        for mode in execution_order(modes):
-            rates = np.array([per_cell[(c, mode)] for c in g["cell_id"] if (c, mode) in per_cell.index])
-            rows.append({"method": str(method), "label": str(label), "n_robots": int(n), "loss_p": float(p),
-                         "execution": mode, "seeds": len(rates),
-                         "success_by_seed": ", ".join(f"{r:.1%}" for r in rates),
-                         "mean": float(rates.mean()), "sd_pp": float(100 * rates.std(ddof=1)) if len(rates) > 1
-                         else float("nan"), "min": float(rates.min()), "collapsed": int((rates < COLLAPSE).sum()),
-                         "curves": len(falls), "falling": int(sum(falls))})
-    return _ordered(pd.DataFrame(rows, columns=SEED_COLUMNS), ["n_robots", "loss_p"])
+        mine = per_cell[per_cell.index.get_level_values("cell_id").isin(g["cell_id"])]
+        for task in [t for t in ("one-shot", "lifelong") if t in set(mine["task"])]:
+            of_task = mine[mine["task"] == task]
+            for mode in execution_order(set(of_task.index.get_level_values("execution"))):
+                picked = [(c, mode) for c in g["cell_id"] if (c, mode) in of_task.index]
+                rates, floors = of_task.loc[picked, "score"].to_numpy(), of_task.loc[picked, "floor"].to_numpy()
+                shown = (", ".join(f"{r:.1%}" for r in rates) if task == "one-shot"
+                         else ", ".join(f"{r:.3g}" for r in rates))
+                rows.append({"task": task, "method": str(method), "label": str(label), "n_robots": int(n),
+                             "loss_p": float(p), "execution": mode, "seeds": len(rates), "success_by_seed": shown,
+                             "mean": float(rates.mean()), "sd_pp": float(100 * rates.std(ddof=1)) if len(rates) > 1
+                             else float("nan"), "min": float(rates.min()), "collapsed": int((rates < floors).sum()),
+                             "curves": len(falls), "falling": int(sum(falls))})
+    frame = _ordered(pd.DataFrame(rows, columns=["task", *SEED_COLUMNS]), ["n_robots", "loss_p"])
+    return frame if (frame["task"] == "lifelong").any() else frame.drop(columns="task")
 
 
 def _share(k: int, n: int) -> str:
@@ -128,7 +162,8 @@ def _share(k: int, n: int) -> str:
 
 def robustness_display(frame: pd.DataFrame) -> pd.DataFrame:
     """The table as the index shows it: method, N, collapsed k/n (share), falling k/n (share)."""
-    return pd.DataFrame({"method": frame["label"], "N": frame["n_robots"].astype(str),
+    return pd.DataFrame({"method": frame["label"], **({"task": frame["task"]} if "task" in frame else {}),
+                         "N": frame["n_robots"].astype(str),
                          "collapsed seeds": [_share(r.collapsed, r.seeds) for r in frame.itertuples()],
                          "falling returns": [_share(r.falling, r.curves) for r in frame.itertuples()]})
 
@@ -140,23 +175,34 @@ def _table(shown: pd.DataFrame) -> list[str]:
 
 def robustness_markdown(frame: pd.DataFrame) -> str:
     """``robustness.md``: the caption and the table."""
-    lines = ["# Robustness of training", "", ROBUSTNESS_CAPTION, ""]
+    lines = ["# Robustness of training", "", ROBUSTNESS_CAPTION + (" " + LIFELONG_COLLAPSE if "task" in frame else ""),
+             ""]
     if frame.empty:
         return "\n".join(lines + ["The run has no training rows (no learned method, or none done)."]) + "\n"
     return "\n".join(lines + _table(robustness_display(frame))) + "\n"
 
 
 def seeds_markdown(frame: pd.DataFrame) -> str:
-    """``seeds.md``: the caption and one row per configuration and mode."""
-    lines = ["# Every seed", "", SEEDS_CAPTION, ""]
+    """``seeds.md``: the caption and one row per configuration and mode; a lifelong row shows
+    throughput (goals per step, its SD in goals per step) where a one-shot row shows success."""
+    lifelong = "task" in frame and bool((frame["task"] == "lifelong").any())
+    lines = ["# Every seed", "", SEEDS_CAPTION + (" " + SEEDS_LIFELONG if lifelong else ""), ""]
     if frame.empty:
         return "\n".join(lines + ["The run has no evaluated learned cell."]) + "\n"
+    life = frame["task"].eq("lifelong").to_numpy() if lifelong else np.zeros(len(frame), dtype=bool)
+    def value(v: float, rate: bool) -> str:
+        return f"{v:.1%}" if rate else f"{v:.3g}"
     shown = pd.DataFrame({
         "method": frame["label"], "N": frame["n_robots"].astype(str), "p": frame["loss_p"].map(fmt_p),
-        "mode": frame["execution"], "success per seed": frame["success_by_seed"],
-        "mean": frame["mean"].map(lambda v: f"{v:.1%}"),
-        "SD (pp)": frame["sd_pp"].map(lambda v: "—" if v != v else f"{v:.1f}"),
-        "min": frame["min"].map(lambda v: f"{v:.1%}"),
+        "mode": frame["execution"],
+        **({"task": frame["task"]} if lifelong else {}),
+        ("success (throughput) per seed" if lifelong else "success per seed"): frame["success_by_seed"],
+        "mean": [value(v, not x) for v, x in zip(frame["mean"], life, strict=True)],
+        "SD (pp)": [("—" if v != v else f"{v:.1f}" if not x else f"{v / 100:.3g}")
+                    for v, x in zip(frame["sd_pp"], life, strict=True)],
+        "min": [value(v, not x) for v, x in zip(frame["min"], life, strict=True)],
         "collapsed": [f"{r.collapsed}/{r.seeds}" for r in frame.itertuples()],
         "falling": [f"{r.falling}/{r.curves}" if r.curves else "—" for r in frame.itertuples()]})
+    if lifelong:
+        shown = shown.rename(columns={"SD (pp)": "SD (pp; goals/step)"})
     return "\n".join(lines + _table(shown)) + "\n"

@@ -15,9 +15,9 @@ import numpy as np
 import pandas as pd
 
 from reports.data.store import execution_order
-from reports.data.variants import cell_variants, variant_suffix
+from reports.data.variants import cell_tasks, cell_variants, variant_suffix
 from reports.figures.plotting import label_order, method_label
-from reports.tables.mapf import TASKS, cell_tasks
+from reports.tables.mapf import TASKS
 from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
 CAPTION = (
@@ -41,7 +41,7 @@ def success_frame(summary: pd.DataFrame, cells: pd.DataFrame, task: str = "one-s
     (done/cells), then one column per execution mode of the run's cells (``executions`` of
     cells.parquet); a configuration's own modes read "pending" until it has evaluation rows,
     the modes it does not have stay empty. Only the configurations of cells of ``task``
-    (``reports.tables.mapf.cell_tasks``): a one-shot cell shows its success, a lifelong cell
+    (``reports.data.variants.cell_tasks``): a one-shot cell shows its success, a lifelong cell
     its throughput (docs/decisions/0235)."""
     if summary.empty:
         return pd.DataFrame(columns=["N", "p", "method", "seeds"])

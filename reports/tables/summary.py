@@ -107,8 +107,8 @@ def filter_text(correction_rate: float, fallback_rate: float) -> str:
     (issue 47 item 3, docs/decisions/0236)."""
     if not (np.isfinite(correction_rate) or np.isfinite(fallback_rate)):
         return ""
-    def pct(v: float) -> str:
-        return "—" if not np.isfinite(v) else fmt_pct(v, 1) + "%"
+    def pct(v: float) -> str:  # one decimal like the rest of the page; "<0.1%" where that would read 0.0%
+        return "—" if not np.isfinite(v) else "<0.1%" if 0 < v < 0.0005 else f"{100 * v:.1f}%"
     return f" (fallback {pct(fallback_rate)}, corrections {pct(correction_rate)})"
 
 

@@ -133,3 +133,12 @@ def test_build_report__the_variant_has_its_own_summary_row_and_the_index_says_so
     assert "| 40 | 0.2 | Hierarchical (ours) [messages=oracle] | 3/3 | 0.0% [0.0%, 0.0%] (fallback " in table
     assert "[messages=oracle]" not in (plain / "success_by_mode.md").read_text()
     assert "3 cells are variants of their configuration" in (mixed / "index.md").read_text()
+
+
+def test_cell_variants__a_lifelong_cell_is_its_task_s_default_not_a_variant_of_the_one_shot_cell() -> None:
+    cells = _cells([("s0", "pibt", 40, {}, {}), ("s1", "pibt", 40, {}, {}),  # one-shot (the default task)
+                    ("l0", "pibt", 40, {}, {"task": "lifelong"}), ("l1", "pibt", 40, {}, {"task": "lifelong"}),
+                    ("d0", "pibt", 40, {}, {"task": "lifelong", "delay": 2})])
+    v = cell_variants(cells)
+    assert v.to_dict() == {"s0": "", "s1": "", "l0": "", "l1": "", "d0": "delay=2"}  # not "task=lifelong"
+    assert sorted(default_rows(cells, v)["cell_id"]) == ["l0", "l1", "s0", "s1"]  # both tasks reach the leaderboard

@@ -69,3 +69,9 @@ def test_summary__a_fallback_rate_column_beside_the_correction_rate() -> None:
     shown = summary_display(summary_frame(ev, cells)).set_index("method")
     assert shown.loc["hierarchical", "fallback rate"].startswith("30.0% [")
     assert shown.loc["decentralized", "fallback rate"] == "n/a"
+
+
+def test_filter_text__one_decimal_and_a_floor_for_tiny_rates() -> None:
+    assert filter_text(0.000425, 0.000425) == " (fallback <0.1%, corrections <0.1%)"  # was "0.0425%"
+    assert filter_text(0.0, 0.0006) == " (fallback 0.1%, corrections 0.0%)"
+    assert filter_text(0.1234, 0.98765) == " (fallback 98.8%, corrections 12.3%)"

@@ -21,12 +21,12 @@ from bench.design.grids import Grid
 from envs.errors import BenchError
 from reports.data.against import merge_against
 from reports.data.store import load_store
+from reports.improvement import poi_statistic as _poi
+from reports.improvement import stratified_band as _stratified_band
+from reports.improvement import stratified_ci as _stratified_ci
 from reports.stats import iqm, rate_ci
 from reports.tables.leaderboard import (
-    _poi,
     _profile,
-    _stratified_band,
-    _stratified_ci,
     aggregate_frame,
     leaderboard_frame,
     safety_frame,
@@ -217,7 +217,7 @@ def test_aggregates__iqm_and_improvement_per_mode_over_shared_configurations_wit
     assert list(iqm.columns) == ["execution", "method", "label", "configurations", "seeds", "iqm", "seed_iqm",
                                  "iqm_lo", "iqm_hi", "iqm_cov"]
     assert list(poi.columns) == ["execution", "method", "over", "label", "over_label", "configurations", "poi",
-                                 "poi_lo", "poi_hi"]
+                                 "poi_lo", "poi_hi", "poi_cov"]
     # the paper's method first, then the baselines in their legend order; argmax before sample
     assert list(zip(iqm["execution"], iqm["method"], strict=True)) == [
         (e, m) for e in ("argmax", "sample") for m in ("hierarchical", "decentralized", "ic3net")]

@@ -146,3 +146,43 @@ def test_success_table__a_lifelong_cell_shows_its_throughput_in_a_table_of_its_o
     hi = next(line for line in lifelong.splitlines() if "| hi |" in line)
     assert "0.52 [" in hi and "%" not in hi  # its throughput, not its 0.0% success
     assert "Throughput (goals reached per step" in lifelong
+
+
+def test_ordering__each_task_signs_on_its_own_score_and_configurations_never_pool() -> None:
+    from reports.tables.ordering import ordering_frame, ordering_markdown
+    rows = []
+    for n in range(2, 9):  # 7 configurations, lifelong and one-shot at each: 7 of 7 decides at 0.0125
+        rows += _rows("hi", n, "argmax", HI) + _rows("lo", n, "argmax", LO)  # lifelong: hi above on throughput
+        rows += [{**r, "cell_id": "s" + r["cell_id"], "throughput": np.nan, "success_rate": v}  # one-shot: lo above
+                 for m, v in (("hi", 0.2), ("lo", 0.6)) for r in _rows(m, n, "argmax", SHOT)]
+    frame = ordering_frame(pd.DataFrame(rows)).set_index("task")
+    assert frame.loc["lifelong", ["method", "over", "above", "below", "configurations", "verdict"]].tolist() == \
+        ["hi", "lo", 7, 0, 7, "above"]
+    assert frame.loc["one-shot", ["method", "over", "above", "below", "configurations", "verdict"]].tolist() == \
+        ["lo", "hi", 7, 0, 7, "above"]
+    md = ordering_markdown(frame.reset_index())
+    assert "| lifelong (throughput) | argmax | hi | lo | 7 / 0 (0) of 7 |" in md
+    assert "| one-shot (success) | argmax | lo | hi | 7 / 0 (0) of 7 |" in md
+
+
+def test_robustness__a_lifelong_seed_collapses_on_throughput_and_seeds_md_shows_its_throughput() -> None:
+    from reports.tables.robustness import robustness_frame, robustness_markdown, seeds_frame, seeds_markdown
+    # succeeds half the time; one seed below 10% of PIBT's 0.8 (0.08), one just above it (but below 0.1)
+    weak = ((0.5, 0.05), (0.5, 0.09), (0.5, 0.3))
+    ev = pd.concat([_lifelong(), pd.DataFrame(_rows("weak", 4, "argmax", weak) + _rows("weak", 8, "argmax", weak))],
+                   ignore_index=True)
+    learned = ev[ev["method"] != "pibt"].drop_duplicates("cell_id")
+    train = pd.DataFrame([{"cell_id": c, "method": m, "n_robots": n, "episode": e, "team_return": float(e)}
+                          for c, m, n in zip(learned["cell_id"], learned["method"], learned["n_robots"], strict=True)
+                          for e in range(60)])
+    frame = robustness_frame(train, ev).set_index(["method", "n_robots"])
+    # by success (< 10%) "hi" would be 3/3 collapsed and "weak" 0/3: by throughput it is the other way
+    assert frame.loc[("hi", 4), "collapsed"] == 0 and frame.loc[("weak", 4), "collapsed"] == 1
+    assert set(frame["task"]) == {"lifelong"}
+    assert "10% of the best mean throughput" in robustness_markdown(frame.reset_index())
+    seeds = seeds_frame(train, ev)
+    row = seeds[(seeds["method"] == "weak") & (seeds["n_robots"] == 4)].iloc[0]
+    assert (row["task"], row["success_by_seed"], row["collapsed"]) == ("lifelong", "0.05, 0.09, 0.3", 1)
+    assert row["mean"] == pytest.approx(0.44 / 3)
+    md = seeds_markdown(seeds)
+    assert "| Weak | 4 | 0.2 | argmax | lifelong | 0.05, 0.09, 0.3 | 0.147 |" in md.replace("weak", "Weak")
