@@ -14,6 +14,7 @@ it in ``make lint``):
     pages                         index.md / index.html
     tables | writers              tables; the atomic file writers
     figures                       learning curves, the shared look
+    improvement                   probability of improvement: its intervals and their coverage
     data | stats                  a run's store as frames; statistics
 
 May import: envs, algorithms, bench.

@@ -19,7 +19,7 @@ SCANNED = ("bench", "reports", "studies", "envs", "algorithms/common", "algorith
 ALLOWED = {
     "bench/design/grids.py": "the smoke grid names the built-ins CI runs (configuration data)",
     "bench/design/costs.py": "cost rates measured per method (data)",
-    "bench/design/cost_calibration.py": "which method an old run stacked before run records listed their stacks (history, decision 0237)",
+    "bench/design/cost_calibration.py": "the method old runs stacked, before run records listed stacks (0237)",
     "bench/cli.py": "`bench perf --suite` names of benchmarks of the built-ins' own kernels",
     "bench/perf/methods.py": "benchmarks of the built-in methods' kernels",
     "bench/perf/baselines.py": "benchmarks of the built-in baselines' kernels",
