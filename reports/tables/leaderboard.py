@@ -48,7 +48,7 @@ from reports.figures.plotting import (
     ranked_legend,
 )
 from reports.improvement import poi_coverage, poi_statistic, stratified_band, stratified_ci
-from reports.stats import coverage, iqm, positive_ci, rate_ci, trusted, uninformative, untrusted_text
+from reports.stats import COVERAGE_TARGET, coverage, iqm, positive_ci, rate_ci, trusted, uninformative, untrusted_text
 from reports.tables.mapf import SCORE, SCORE_NAME, TASKS, has_lifelong, row_tasks, tasks_of, with_score
 from reports.tables.summary import FILTER_NOTE, filter_text, fmt_ci
 
@@ -448,7 +448,11 @@ def success_figure(board: pd.DataFrame, against: str, score: str = "success") ->
                     x = g[against].to_numpy(dtype=float)
                     ax.plot(x, g[score], marker="o", ls=method_style(m), color=method_color(m),
                             label=method_label(m), ms=2.5)
-                    ax.fill_between(x, g[f"{score}_lo"], g[f"{score}_hi"], color=method_color(m), alpha=0.15, lw=0)
+                    shown = g[f"{score}_cov"].map(trusted).to_numpy(dtype=bool)  # decision 0233: no band there
+                    ax.plot(x[~shown], g[score].to_numpy(dtype=float)[~shown], ls="none", marker="o", ms=4.5,
+                            mfc="white", mec=method_color(m), mew=0.8)
+                    ax.fill_between(x, g[f"{score}_lo"].where(shown), g[f"{score}_hi"].where(shown),
+                                    color=method_color(m), alpha=0.15, lw=0)
                 if score == "success":
                     ax.set_ylim(-0.02, 1.02)
                 ax.set_title(f"{'p' if other == 'loss_p' else 'N'} = {fmt_p(val) if other == 'loss_p' else int(val)}, "
@@ -469,7 +473,9 @@ def success_figure(board: pd.DataFrame, against: str, score: str = "success") ->
     kind = "t on the logit scale" if score == "success" else "Cox's lognormal interval"
     caption = (f"{name.capitalize()} against {'team size N' if against == 'n_robots' else 'loss probability p'} "
                f"for every method of the run, mean over seeds with a 95% CI over seeds ({kind}) "
-               f"(seeds per point: {seed_text}); one row per execution mode, planners in every row.")
+               f"(seeds per point: {seed_text}); no band and a hollow marker where the interval's simulated "
+               f"coverage is under {COVERAGE_TARGET:.0%} (interval not trusted); one row per execution mode, "
+               f"planners in every row.")
     return Built(fig, [], caption)
 
 

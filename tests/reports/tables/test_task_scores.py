@@ -186,3 +186,21 @@ def test_robustness__a_lifelong_seed_collapses_on_throughput_and_seeds_md_shows_
     assert row["mean"] == pytest.approx(0.44 / 3)
     md = seeds_markdown(seeds)
     assert "| Weak | 4 | 0.2 | argmax | lifelong | 0.05, 0.09, 0.3 | 0.147 |" in md.replace("weak", "Weak")
+
+
+def test_success_figure__no_band_where_the_interval_is_not_trusted_and_a_hollow_marker_instead() -> None:
+    """Decision 0233 in the figures: a collapsed configuration (one seed at 0, two high: coverage
+    under 93%) is drawn as a hollow point with no band; a steady one keeps its band."""
+    ev = pd.concat([pd.DataFrame(_rows("m", 4, "argmax", ((0.80, np.nan), (0.82, np.nan), (0.84, np.nan)))),
+                    pd.DataFrame(_rows("m", 8, "argmax", ((0.0, np.nan), (0.95, np.nan), (0.97, np.nan))))],
+                   ignore_index=True)
+    board = lb.leaderboard_frame(ev)
+    assert [lb.trusted(c) for c in board.sort_values("n_robots")["success_cov"]] == [True, False]
+    built = dict(lb.score_figures(board, ev))["success_vs_n"]
+    ax = built.fig.axes[0]
+    (band,) = ax.collections
+    xs = {round(float(x), 6) for path in band.get_paths() for x in path.vertices[:, 0]}
+    assert 4.0 in xs and 8.0 not in xs  # the band stops at the last trusted point
+    hollow = [line for line in ax.lines if line.get_linestyle() == "None" and len(line.get_xdata())]
+    assert [list(line.get_xdata()) for line in hollow] == [[8.0]] and hollow[0].get_markerfacecolor() == "white"
+    assert "no band and a hollow marker" in built.caption
