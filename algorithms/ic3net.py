@@ -302,8 +302,9 @@ class IC3NetMethod(Method):
         if len(outs) == 1:
             logits, gate_logits, values, h, c = outs[0]
             return logits, gate_logits, values, (h, c)
-        cat = [torch.cat(x) if x[0] is not None else None for x in zip(*outs, strict=True)]
-        return cat[0], cat[1], cat[2], (cat[3], cat[4])
+        logits, gate_logits, h, c = (torch.cat([o[k] for o in outs]) for k in (0, 1, 3, 4))
+        values = None if outs[0][2] is None else torch.cat([o[2] for o in outs])
+        return logits, gate_logits, values, (h, c)
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
