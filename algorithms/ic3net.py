@@ -290,21 +290,22 @@ class IC3NetMethod(Method):
         """The policy's rollout step (``IC3NetPolicy.forward``), with the per-robot values in
         return units (``value_norm``); a stack view's from each seed's policy on its own
         episodes and rows of ``hc`` (B N rows per seed, episode-major)."""
-        seeds = self._seeds if self._seeds is not None else [(self.policy, 0, obs.shape[0])]
+        if self._seeds is None:
+            logits, gate_logits, values, hc = self.policy(obs, mask, links, alive, hc)
+            if values is not None and self.params.value_norm:
+                values = self.policy.value_norm.denormalize(values)
+            return logits, gate_logits, values, hc
         n = obs.shape[1]
-        outs = []
-        for policy, lo, hi in seeds:
+        outs: list[tuple[torch.Tensor, ...]] = []
+        vals: list[torch.Tensor] = []
+        for policy, lo, hi in self._seeds:
             logits, gate_logits, values, (h, c) = policy(
                 obs[lo:hi], mask[lo:hi], links[lo:hi], alive[lo:hi], (hc[0][lo * n:hi * n], hc[1][lo * n:hi * n]))
-            if values is not None and self.params.value_norm:
-                values = policy.value_norm.denormalize(values)
-            outs.append((logits, gate_logits, values, h, c))
-        if len(outs) == 1:
-            logits, gate_logits, values, h, c = outs[0]
-            return logits, gate_logits, values, (h, c)
-        logits, gate_logits, h, c = (torch.cat([o[k] for o in outs]) for k in (0, 1, 3, 4))
-        values = None if outs[0][2] is None else torch.cat([o[2] for o in outs])
-        return logits, gate_logits, values, (h, c)
+            outs.append((logits, gate_logits, h, c))
+            if values is not None:
+                vals.append(policy.value_norm.denormalize(values) if self.params.value_norm else values)
+        logits, gate_logits, h, c = (torch.cat(parts) for parts in zip(*outs, strict=True))
+        return logits, gate_logits, torch.cat(vals) if vals else None, (h, c)
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
