@@ -54,6 +54,7 @@ sender and receiver both have their gate open and are alive (transmitted, lost o
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -76,6 +77,7 @@ from algorithms.common.robot_obs import (
     own_history_into,
     robots_on_target_index,
 )
+from algorithms.common.seed_stack import new_view
 from algorithms.common.trainer import (
     CentralCritic,
     CriticStep,
@@ -251,7 +253,59 @@ class IC3NetMethod(Method):
             self.critic = RobotCritic(p.critic_hidden) if self.mappo else CentralCritic(p.critic_hidden)
         self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
                            if self.critic is not None else None)
+        self._seeds: list[tuple[IC3NetPolicy, int, int]] | None = None  # a stack view's seeds
         self.place_modules()
+
+    # ------------------------------------------------------------ seed stacking
+    STACK_AXIS = 0  # the episodes' axis of its logits (B, N, K)
+
+    @classmethod
+    def stackable(cls, params: Mapping[str, Any]) -> bool:
+        return True
+
+    @classmethod
+    def stack_view(cls, methods: Sequence[Method]) -> IC3NetMethod:
+        """The rollout of S seeds of one configuration as one batch (seed_stack): the
+        environment, observations, channel and links run on all S B episodes at once, and
+        each seed's policy (encoder, communication, LSTM cell, heads, value normalizer) runs
+        its own B episodes with its own rows of the LSTM state (the shapes of its own run)."""
+        view: IC3NetMethod = new_view(cls, methods)
+        return view
+
+    def load_stack(self, methods: Sequence[Method]) -> None:
+        b = self.params.batch_episodes
+        self._seeds = [(m.policy, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]  # stack_view's
+
+    def stack_state(self, state: IC3NetState, lo: int, hi: int) -> IC3NetState:
+        """A stacked rollout's state for episodes lo..hi (its buffer already split): the
+        LSTM states kept at chunk starts (mappo) of those episodes' robots only."""
+        n = state.collided.shape[1]
+        state.chunk_hc = [(h[lo * n:hi * n], c[lo * n:hi * n]) for h, c in state.chunk_hc]
+        return state
+
+    def rollout_policy(
+        self, obs: torch.Tensor, mask: torch.Tensor, links: torch.Tensor, alive: torch.Tensor,
+        hc: tuple[torch.Tensor, torch.Tensor],
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None, tuple[torch.Tensor, torch.Tensor]]:
+        """The policy's rollout step (``IC3NetPolicy.forward``), with the per-robot values in
+        return units (``value_norm``); a stack view's from each seed's policy on its own
+        episodes and rows of ``hc`` (B N rows per seed, episode-major)."""
+        if self._seeds is None:
+            logits, gate_logits, values, hc = self.policy(obs, mask, links, alive, hc)
+            if values is not None and self.params.value_norm:
+                values = self.policy.value_norm.denormalize(values)
+            return logits, gate_logits, values, hc
+        n = obs.shape[1]
+        outs: list[tuple[torch.Tensor, ...]] = []
+        vals: list[torch.Tensor] = []
+        for policy, lo, hi in self._seeds:
+            logits, gate_logits, values, (h, c) = policy(
+                obs[lo:hi], mask[lo:hi], links[lo:hi], alive[lo:hi], (hc[0][lo * n:hi * n], hc[1][lo * n:hi * n]))
+            outs.append((logits, gate_logits, h, c))
+            if values is not None:
+                vals.append(policy.value_norm.denormalize(values) if self.params.value_norm else values)
+        logits, gate_logits, h, c = (torch.cat(parts) for parts in zip(*outs, strict=True))
+        return logits, gate_logits, torch.cat(vals) if vals else None, (h, c)
 
     def modules(self) -> dict[str, nn.Module | torch.optim.Optimizer]:
         mods: dict[str, nn.Module | torch.optim.Optimizer] = {"policy": self.policy, "optimizer": self.optimizer}
@@ -322,7 +376,7 @@ class IC3NetMethod(Method):
             state.chunk_hc.append(state.hc)  # the mappo update replays chunks from here
         with torch.inference_mode():  # rollouts never backpropagate (the update replays)
             dev = self.device
-            logits, gate_logits, values, state.hc = self.policy(
+            logits, gate_logits, values, state.hc = self.rollout_policy(
                 torch.from_numpy(obs).to(dev), torch.from_numpy(mask).to(dev),
                 torch.from_numpy(links.astype(np.float32)).to(dev), torch.from_numpy(alive_n).to(dev), state.hc)
             actions = choice(logits).numpy()
@@ -337,10 +391,9 @@ class IC3NetMethod(Method):
             baseline = {}
             if self.central:
                 store_critic_inputs(buf, core, self.env.horizon)
-            else:  # the reference's V^i, in return units
-                with torch.inference_mode():
-                    baseline = {"values": (self.policy.value_norm.denormalize(values)
-                                           if p.value_norm else values).cpu().numpy()}
+            else:  # the reference's V^i, in return units (rollout_policy)
+                assert values is not None
+                baseline = {"values": values.cpu().numpy()}
             buf.add(alive=alive_n, actions=actions, gates=gates, active=alive & state.running[:, None],
                     **baseline)
         return Decision(actions=actions, payload=payload, robot_links=links)

@@ -88,7 +88,7 @@ def run(
              "(a default changed); their old files move to RUN/superseded/. Without it such a run is refused."),
     stack_seeds: str = typer.Option("auto", "--stack-seeds", metavar="auto|K",
         help="Train up to K cells that differ only in their seed in one worker, their rollouts as one batch (the "
-             "hierarchical and decentralized methods; the same numbers as one by one; the hierarchical method "
+             "learned methods; the same numbers as one by one; the hierarchical method "
              "about 1.1-1.5x less CPU per cell). auto (default): the W longest cells (W = workers) run first, each "
              "alone (the critical path), and the other hierarchical cells in stacks of 3 when there are more of "
              "them than workers; 1: no stacking. A resumed run may stack differently."),

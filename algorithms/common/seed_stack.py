@@ -14,11 +14,12 @@ rows s B..(s+1) B), and leaves each method exactly where its own ``train_iterati
   generator's state stays what it would be);
 * forwards: ``Method.stack_view`` stacks the seeds' weights so that one batched matmul
   computes each seed's slice with the shapes of its own run (the hierarchical method,
-  group_layers), or runs each seed's own network on its slice (the decentralized baseline,
-  whose rollout shares the environment, observations and channel but not its one matmul
-  chain);
+  group_layers), or runs each seed's own network on its slice (the decentralized baseline
+  and IC3Net, whose rollouts share the environment, observations and channel but not their
+  networks; IC3Net's LSTM state of each seed is its own rows);
 * updates: each method updates from its own slice of the rollout buffer (contiguous copies,
-  its own step count), with its own optimizer.
+  its own step count) and of whatever else the view's ``stack_state`` splits, with its own
+  optimizer.
 
 So a stacked cell gives the same numbers, bit for bit, as the same cell trained alone
 (tests/algorithms/hierarchical/test_seed_stack.py), whichever cells it is stacked with.
@@ -156,6 +157,8 @@ def train_stacked(methods: Sequence[Any], view: Any | None = None) -> list[list[
         t1 = time.perf_counter()
         own = copy.copy(state)
         own.buffer = split_buffer(state.buffer, lo, hi)
+        if hasattr(view, "stack_state"):  # more of the state per episode (IC3Net's kept LSTM states)
+            own = view.stack_state(own, lo, hi)
         losses = m.update(own)
         out.append(m.finish_iteration(rows[lo:hi], losses, shared + time.perf_counter() - t1))
     return out

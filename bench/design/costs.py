@@ -76,12 +76,15 @@ RATES_RUN: str = _BUILTIN["run"]  # the run they were observed on
 MEASURED = True
 LABEL = "measured" if MEASURED else "estimate"
 
-# Seed stacking (`bench run --stack-seeds`, hierarchical only): per-cell training speed-up
-# of 3 seeds in one worker over one, MEASURED with `bench perf --suite train`
+# Seed stacking (`bench run --stack-seeds`): per-cell training speed-up of 3 seeds in one
+# worker over one, MEASURED for the hierarchical method with `bench perf --suite train`
 # (8 episodes x 200 steps per update, MovingAI map, CPU time, medians of 3 rounds):
-# 1.47x at N = 40, 1.22x at N = 100. Other stack sizes follow the model the measurement
-# fits: a share x of a cell's training is the rollout's fixed per-step cost, which S seeds
-# share, so gain(S) = 1 / (1 - x (1 - 1/S)) and x = 1.5 (1 - 1/gain(3)).
+# 1.47x at N = 40, 1.22x at N = 100. The decentralized baseline and IC3Net stack too, bit
+# for bit, but gained nothing measurable (2026-12-07: 1.08x / 0.97x and 1.04x / 0.94x at
+# N = 40 / 100; docs/findings), so they have no entry (gain 1) and `auto` leaves them alone.
+# Other stack sizes follow the model the measurement fits: a share x of a cell's training
+# is the rollout's fixed per-step cost, which S seeds share, so gain(S) = 1 / (1 - x (1 - 1/S))
+# and x = 1.5 (1 - 1/gain(3)).
 STACK_GAIN_3: dict[str, dict[int, float]] = {"hierarchical": {40: 1.47, 100: 1.22}}
 
 

@@ -117,7 +117,7 @@ def run_train_suite(iterations: int = 2, horizon: int = 200, batch_episodes: int
                     sizes: tuple[int, ...] = TRAIN_SIZES, methods: tuple[str, ...] = LEARNED,
                     layout: str | None = None, stack: int = 3, flops: bool = True) -> pd.DataFrame:
     """Training env-steps/s per cell of every learned method at N = 40 and 100 (MovingAI map),
-    and of ``stack`` seeds trained seed-stacked for the methods that stack (hierarchical);
+    and of ``stack`` seeds trained seed-stacked for the methods that stack (every learned one);
     with ``flops``, each unstacked row's matmul FLOP/s and its fraction of this core's
     peaks (bench/perf/flops.py)."""
     where = layout or str(REAL_MAP)

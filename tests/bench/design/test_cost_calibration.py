@@ -57,12 +57,12 @@ def test_stack_gain__is_the_measured_three_seed_gain_and_the_fixed_cost_model_el
     x = 1.5 * (1 - 1 / 1.47)  # share of a cell's training that S seeds share: cost x/S + (1 - x)
     assert costs.stack_gain("hierarchical", 40, 2) == pytest.approx(1 / (x / 2 + 1 - x))
     assert 1.0 < costs.stack_gain("hierarchical", 40, 2) < 1.47 < costs.stack_gain("hierarchical", 40, 5)
-    assert costs.stack_gain("ic3net", 40, 3) == 1.0  # does not stack
+    assert costs.stack_gain("ic3net", 40, 3) == 1.0  # stacks, but no measured gain
 
 
 def test_stack_sizes__configurations_of_stackable_methods_in_stacks_of_up_to_k() -> None:
     cells = get_grid("paper").cells
-    hier = [i for i, c in enumerate(cells) if c.method in ("hierarchical", "decentralized")]
+    hier = [i for i, c in enumerate(cells) if c.method in ("hierarchical", "decentralized", "ic3net")]
     assert costs.stack_sizes(cells, 1) == [1] * len(cells)
     three = costs.stack_sizes(cells, 3)
     assert [three[i] for i in hier] == [3] * len(hier)
@@ -96,7 +96,8 @@ def test_auto_stacking__the_longest_cells_alone_first_and_stacks_only_where_they
 def test_stack_sizes__auto_keeps_the_grids_longest_cells_alone() -> None:
     """On the paper grid with 2 workers: the two longest cells (hierarchical, N = 100) alone,
     every other hierarchical cell stacked, the same stacks as --stack-seeds 3 elsewhere; the
-    decentralized cells, which stack but with no measured gain (``STACK_GAIN_3``), alone; with
+    decentralized and IC3Net cells, which stack but with no measured gain (``STACK_GAIN_3``),
+    alone; with
     more workers than hierarchical cells nothing stacks."""
     cells = get_grid("paper").cells
     sizes, three = costs.stack_sizes(cells, costs.AUTO, 2), costs.stack_sizes(cells, 3)
@@ -108,7 +109,7 @@ def test_stack_sizes__auto_keeps_the_grids_longest_cells_alone() -> None:
     assert all(sizes[i] == 1 + (len(mates) > 1) for i in mates)  # what is left of their stack
     others = [i for i in range(len(cells)) if i not in longest and i not in mates]
     assert [sizes[i] for i in others] == [three[i] if cells[i].method == "hierarchical" else 1 for i in others]
-    assert any(three[i] == 3 for i in others if cells[i].method == "decentralized")
+    assert all(any(three[i] == 3 for i in others if cells[i].method == m) for m in ("decentralized", "ic3net"))
     assert costs.stack_sizes(cells, costs.AUTO, 100) == [1] * len(cells)
     assert costs.grid_cell_hours(cells, stack_seeds=costs.AUTO, workers=2) < costs.grid_cell_hours(cells)
 
@@ -358,17 +359,18 @@ def test_estimate_vs_realized__given_rates_unstacked_by_default_and_no_ratio_for
 
 def test_run_stacks__runs_that_recorded_no_stacks_stacked_per_group_hierarchical_cells_only() -> None:
     """A run made before decision 0237 with --stack-seeds 3 stacked the per-group hierarchical
-    method only: its decentralized and shared-parameter cells are read as trained alone,
-    although both stack today."""
+    method only: its decentralized, IC3Net and shared-parameter cells are read as trained
+    alone, although all three stack today."""
     from bench.design import cost_calibration
     from bench.design.cells import Cell
 
     grid = get_grid("paper").cells
     h = _hierarchical_seeds(grid)
-    d = [c for c in grid if c.method == "decentralized" and c.n_robots == 40 and c.loss_p == 0.2][:3]
+    d, ic3 = ([c for c in grid if c.method == name and c.n_robots == 40 and c.loss_p == 0.2][:3]
+              for name in ("decentralized", "ic3net"))
     shared = [Cell.make(**{**json.loads(c.canonical_json()), "params": {"share_params": True}}) for c in h]
-    every = [*h, *d, *shared]
+    every = [*h, *d, *ic3, *shared]
     assert all(c.stackable() for c in every)
     cells = pd.DataFrame([dict(cell_id=c.cell_id, config_json=c.canonical_json()) for c in every])
     stacks = cost_calibration.run_stacks(cells, every, 3)
-    assert [stacks[c.cell_id] for c in every] == [3] * 3 + [1] * 6
+    assert [stacks[c.cell_id] for c in every] == [3] * 3 + [1] * 9

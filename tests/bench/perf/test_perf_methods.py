@@ -40,7 +40,7 @@ def test_run_train_suite__one_row_per_method_and_size_and_the_stacked_rows() -> 
     df = run_train_suite(iterations=1, horizon=6, batch_episodes=1, sizes=(4, 6), layout="tiny")
     assert sorted(zip(df["method"], df["n_robots"], df["stacked_seeds"], strict=True)) == sorted(
         [(m, n, 1) for m in ("hierarchical", "decentralized", "ic3net") for n in (4, 6)]
-        + [(m, n, 3) for m in ("hierarchical", "decentralized") for n in (4, 6)])
+        + [(m, n, 3) for m in ("hierarchical", "decentralized", "ic3net") for n in (4, 6)])
     assert (df["suite"] == "train").all() and (df["env_steps_per_s"] > 0).all()
     stacked = df[df["stacked_seeds"] == 3]
     assert (stacked["episode_steps"] == 3 * 6).all()  # three seeds x one episode x horizon 6
