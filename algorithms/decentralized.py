@@ -26,7 +26,6 @@ received from all other robots over lossy all-to-all links, without the group hi
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -59,7 +58,7 @@ from algorithms.common.robot_obs import (
     own_history_into,
     robots_on_target_index,
 )
-from algorithms.common.seed_stack import new_view
+from algorithms.common.seed_stack import OwnNetworksStack
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -185,7 +184,7 @@ class DecentralizedState:
     collided: np.ndarray  # (B, N) robots stopped by a conflict at the previous step
 
 
-class DecentralizedMethod(Method):
+class DecentralizedMethod(OwnNetworksStack, Method):
     name = "decentralized"
     display_name = "Decentralized"
     color = "#de8f05"
@@ -209,28 +208,13 @@ class DecentralizedMethod(Method):
         self.actor_opt = torch.optim.Adam(self.actor.parameters(), lr=p.ppo_lr if self.mappo else p.lr)
         self.critic_opt = torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
         self.filter = SafetyFilter(self.layout, p.search_radius, p.c_max) if p.safety_filter else None
-        self._seeds: list[tuple[DecentralizedActor, int, int]] | None = None  # a stack view's seeds
         self.place_modules()
 
     # ------------------------------------------------------------ seed stacking
-    STACK_AXIS = 0  # the episodes' axis of its logits (B, N, K)
-
-    @classmethod
-    def stackable(cls, params: Mapping[str, Any]) -> bool:
-        return True
-
-    @classmethod
-    def stack_view(cls, methods: Sequence[Method]) -> DecentralizedMethod:
-        """The rollout of S seeds of one configuration as one batch (seed_stack): the
-        environment, observations, channel and filter run on all S B episodes at once, and
-        each seed's actor computes the logits of its own B episodes (the shapes of its own
-        run; its activations go to its rows of the buffer)."""
-        view: DecentralizedMethod = new_view(cls, methods)
-        return view
-
-    def load_stack(self, methods: Sequence[Method]) -> None:
-        b = self.params.batch_episodes
-        self._seeds = [(m.actor, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]  # stack_view's
+    # A stack view (OwnNetworksStack) runs the environment, observations, channel and filter
+    # on all S B episodes at once, and each seed's actor computes the logits of its own B
+    # episodes (the shapes of its own run; its activations go to its rows of the buffer).
+    STACK_NET = "actor"
 
     def rollout_logits(self, obs: torch.Tensor, mask: torch.Tensor,
                        hidden: tuple[torch.Tensor, torch.Tensor] | None) -> torch.Tensor:

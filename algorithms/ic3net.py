@@ -54,7 +54,6 @@ sender and receiver both have their gate open and are alive (transmitted, lost o
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -77,7 +76,7 @@ from algorithms.common.robot_obs import (
     own_history_into,
     robots_on_target_index,
 )
-from algorithms.common.seed_stack import new_view
+from algorithms.common.seed_stack import OwnNetworksStack
 from algorithms.common.trainer import (
     CentralCritic,
     CriticStep,
@@ -222,7 +221,7 @@ class IC3NetState:
     chunk_hc: list[tuple[torch.Tensor, torch.Tensor]] = field(default_factory=list)  # mappo: hc at chunk starts
 
 
-class IC3NetMethod(Method):
+class IC3NetMethod(OwnNetworksStack, Method):
     name = "ic3net"
     display_name = "IC3Net"
     color = "#029e73"
@@ -253,28 +252,13 @@ class IC3NetMethod(Method):
             self.critic = RobotCritic(p.critic_hidden) if self.mappo else CentralCritic(p.critic_hidden)
         self.critic_opt = (torch.optim.Adam(self.critic.parameters(), lr=p.critic_lr)
                            if self.critic is not None else None)
-        self._seeds: list[tuple[IC3NetPolicy, int, int]] | None = None  # a stack view's seeds
         self.place_modules()
 
     # ------------------------------------------------------------ seed stacking
-    STACK_AXIS = 0  # the episodes' axis of its logits (B, N, K)
-
-    @classmethod
-    def stackable(cls, params: Mapping[str, Any]) -> bool:
-        return True
-
-    @classmethod
-    def stack_view(cls, methods: Sequence[Method]) -> IC3NetMethod:
-        """The rollout of S seeds of one configuration as one batch (seed_stack): the
-        environment, observations, channel and links run on all S B episodes at once, and
-        each seed's policy (encoder, communication, LSTM cell, heads, value normalizer) runs
-        its own B episodes with its own rows of the LSTM state (the shapes of its own run)."""
-        view: IC3NetMethod = new_view(cls, methods)
-        return view
-
-    def load_stack(self, methods: Sequence[Method]) -> None:
-        b = self.params.batch_episodes
-        self._seeds = [(m.policy, k * b, (k + 1) * b) for k, m in enumerate(methods)]  # type: ignore[attr-defined]  # stack_view's
+    # A stack view (OwnNetworksStack) runs the environment, observations, channel and links
+    # on all S B episodes at once, and each seed's policy (encoder, communication, LSTM cell,
+    # heads, value normalizer) its own B episodes with its own rows of the LSTM state.
+    STACK_NET = "policy"
 
     def stack_state(self, state: IC3NetState, lo: int, hi: int) -> IC3NetState:
         """A stacked rollout's state for episodes lo..hi (its buffer already split): the

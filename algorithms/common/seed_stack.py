@@ -97,6 +97,31 @@ def new_view(cls: Any, methods: Sequence[Any]) -> Any:
     return view
 
 
+class OwnNetworksStack:
+    """Seed stacking of a method whose stacked rollout shares the environment, observations
+    and channel while each seed's own network (the attribute ``STACK_NET``) computes its own
+    B episodes, with the shapes of its own run (the decentralized baseline, IC3Net): a mixin
+    listed before ``Method``. ``load_stack`` keeps (network, first, end episode) per seed in
+    ``_seeds``, which the method's rollout forward reads; None outside a stack view."""
+
+    STACK_AXIS = 0  # the episodes' axis of the logits (B, N, K)
+    STACK_NET = ""  # the attribute holding a seed's network
+    _seeds: list[tuple[Any, int, int]] | None = None
+
+    @classmethod
+    def stackable(cls, params: Any) -> bool:
+        return True
+
+    @classmethod
+    def stack_view(cls, methods: Sequence[Any]) -> Any:
+        """The rollout of S seeds of one configuration as one batch (``train_stacked``)."""
+        return new_view(cls, methods)
+
+    def load_stack(self, methods: Sequence[Any]) -> None:
+        b = methods[0].params.batch_episodes
+        self._seeds = [(getattr(m, self.STACK_NET), k * b, (k + 1) * b) for k, m in enumerate(methods)]
+
+
 @dataclass(frozen=True)
 class StackedChoice:
     """Training samples (T = 1) of a stacked rollout: logits (X, S B, ..., K) (``axis`` 1, the

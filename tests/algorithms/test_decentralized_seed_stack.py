@@ -4,6 +4,8 @@ rollouts in one batch give, bit for bit, what each seed gives trained alone: tra
 parameters, optimizer states and generator states."""
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import pytest
 
 from algorithms.common.seed_stack import train_stacked
@@ -40,15 +42,22 @@ def test_stacked_training__seeds_at_different_progress_and_an_early_end() -> Non
     episode runs to the horizon: seed 0 draws no more actions and updates from its own 62
     steps, then trains on identically."""
     env = _env(layout="tiny", n_robots=1, horizon=80, loss_p=0.2)
-    alone = _methods(env, [0, 2], batch_episodes=1)
+    rows_alone = assert_ahead_and_early_end_is_alone(lambda: _methods(env, [0, 2], batch_episodes=1))
+    assert [rows[0]["steps"] for rows in rows_alone] == [62, 80]  # the early end happens
+
+
+def assert_ahead_and_early_end_is_alone(make: Callable[[], list]) -> list[list[dict]]:
+    """The two methods ``make()`` builds, the second one update ahead, trained 2 updates alone
+    and (built again) stacked: each bit for bit. Returns the rows alone."""
+    alone = make()
     alone[1].train_iteration()
     rows_alone = [[r for _ in range(2) for r in m.train_iteration()] for m in alone]
-    assert [rows[0]["steps"] for rows in rows_alone] == [62, 80]  # the early end happens
-    stacked = _methods(env, [0, 2], batch_episodes=1)
+    stacked = make()
     stacked[1].train_iteration()
     rows_stacked = [a + b for a, b in zip(train_stacked(stacked), train_stacked(stacked), strict=True)]
     for m_a, r_a, m_s, r_s in zip(alone, rows_alone, stacked, rows_stacked, strict=True):
         _same(_fingerprint(m_a, r_a), _fingerprint(m_s, r_s))
+    return rows_alone
 
 
 def test_stack_view__refuses_methods_that_differ_in_more_than_the_seed() -> None:
