@@ -12,6 +12,7 @@ from typing import Any
 
 import pytest
 import torch
+from torch.overrides import TorchFunctionMode
 from torch.utils._python_dispatch import TorchDispatchMode
 
 from algorithms.common.precision import BF16, FP32, precision_of
@@ -51,6 +52,22 @@ class MatmulDtypes(TorchDispatchMode):
         for t in out if isinstance(out, tuple | list) else (out,):
             if isinstance(t, torch.Tensor):
                 self.outputs.add(t.dtype)
+        return out
+
+
+class Bf16OutsideAutocast(TorchFunctionMode):
+    """Records the torch functions that returned a bf16 tensor outside an autocast region
+    (forward only: backward runs below this mode): the losses' arithmetic, if anything."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.stray: set[str] = set()
+
+    def __torch_function__(self, func: Any, types: Any, args: Any = (), kwargs: Any = None) -> Any:
+        out = func(*args, **(kwargs or {}))
+        if (isinstance(out, torch.Tensor) and out.dtype == torch.bfloat16
+                and not torch.is_autocast_enabled("cpu")):
+            self.stray.add(getattr(func, "__name__", str(func)))
         return out
 
 
@@ -113,9 +130,10 @@ def test_bf16__the_update_multiplies_in_bf16_and_keeps_parameters_and_losses_fp3
     ref = _build(method, params)
     m = _build(method, {**params, "precision": "bf16"})
     assert all(precision_of(mod) == BF16 for mod in m.modules().values())
-    with MatmulDtypes() as seen:
+    with MatmulDtypes() as seen, Bf16OutsideAutocast() as outside:
         rows = _train(m)
     assert torch.bfloat16 in seen.matmuls  # autocast ran products in bf16
+    assert not outside.stray, f"bf16 tensors outside autocast (the losses must be float32): {outside.stray}"
     want = _train(ref)
     # Parameters, optimizer states and buffers keep the fp32 run's dtypes (autocast semantics).
     assert [t.dtype for t in _tensors(_state(m))] == [t.dtype for t in _tensors(_state(ref))]
@@ -213,3 +231,30 @@ def test_reports__a_bf16_cell_is_a_variant_of_its_method() -> None:
     labels = cell_variants(pd.DataFrame(rows)).tolist()
     assert labels == ["", "", "precision=bf16"]
 
+
+
+def test_ppo_actor_update__a_bf16_policy_s_log_probs_come_back_float32() -> None:
+    """A policy whose log-probabilities autocast leaves in bf16 (a plain linear head, as a
+    plugin may have; the built-ins' action paths add float32 terms): the surrogate, its
+    normalization and the entropy bonus are still float32 (ppo.py casts them back)."""
+    from algorithms.common.ppo import PPOBatch, ppo_actor_update
+    from algorithms.common.precision import tag
+
+    torch.manual_seed(0)
+    policy = torch.nn.Linear(4, 5)
+    opt = torch.optim.Adam(policy.parameters(), lr=1e-3)
+    tag([policy, opt], "bf16")
+    x, actions = torch.randn(64, 4), torch.randint(0, 5, (64,))
+
+    def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        logp_all = torch.log_softmax(policy(x[ix]), dim=-1)
+        logp = logp_all.gather(-1, actions[ix, None])
+        return logp, -(logp_all.exp() * logp_all).sum(-1, keepdim=True), torch.ones_like(logp)
+
+    with MatmulDtypes() as seen, Bf16OutsideAutocast() as outside:
+        out = ppo_actor_update(PPOBatch(64, log_probs, torch.randn(64, 1)), opt, 2, 2, 0.2, 0.01, 10.0,
+                               torch.Generator().manual_seed(1))
+    assert torch.bfloat16 in seen.matmuls and not outside.stray
+    assert all(p.dtype == torch.float32 and p.grad is not None and p.grad.dtype == torch.float32
+               for p in policy.parameters())
+    assert all(v == v for v in out.values())  # finite, no NaN
