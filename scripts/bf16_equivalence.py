@@ -195,7 +195,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise BenchError(f"--set {item!r}: give KEY=VALUE with KEY one of {', '.join(PROBE)}")
             probe[key] = type(PROBE[key])(value)
         if args.seeds < 2 or args.seeds > len(SEEDS):
-            raise BenchError(f"--seeds {args.seeds}: give 2 to {len(SEEDS)} (decision 0240's seeds {SEEDS[0]}-{SEEDS[-1]})")
+            raise BenchError(f"--seeds {args.seeds}: give 2 to {len(SEEDS)} "
+                             f"(decision 0240's seeds {SEEDS[0]}-{SEEDS[-1]})")
         if args.checkpoint_every < 1:
             raise BenchError(f"--checkpoint-every {args.checkpoint_every}: give at least 1")
         if args.out is None and not args.dry_run:
@@ -235,10 +236,11 @@ def main(argv: list[str] | None = None) -> int:
     found = [json.loads(p.read_text()) for p in sorted((out / "cells").glob("*.json"))]
     rows = pd.DataFrame([r for r in found if r["cell_id"] in ids])
     rows.to_csv(out / "rows.csv", index=False)
+    per_method = verdict(rows, methods, seeds)
     result = {"check": "decision 0240" if is_check else "test configuration", "margin": DELTA, "alpha": ALPHA,
-              "methods": verdict(rows, methods, seeds)}
+              "methods": per_method}
     (out / "verdict.json").write_text(json.dumps(result, indent=2, sort_keys=True) + "\n")
-    print_verdict(result["methods"])
+    print_verdict(per_method)
     return 0
 
 

@@ -18,8 +18,8 @@ _spec = importlib.util.spec_from_file_location("bf16_equivalence", ROOT / "scrip
 eq = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(eq)
 
-TINY = ["--power-sims", "20", "--methods", "decentralized", "--seeds", "2", "--set", "n_robots=4", "layout=tiny", "episodes=4",
-        "horizon=10", "eval_episodes=4", "groups=2"]
+TINY = ["--power-sims", "20", "--methods", "decentralized", "--seeds", "2", "--set", "n_robots=4", "layout=tiny",
+        "episodes=4", "horizon=10", "eval_episodes=4", "groups=2"]
 
 
 def test_the_constants_are_decision_0240s() -> None:
