@@ -30,6 +30,7 @@ def test_the_constants_are_decision_0240s() -> None:
     assert eq.PROTOCOL == "paper" and eq.METHODS == ("hierarchical", "decentralized", "ic3net")
 
 
+@pytest.mark.slow  # builds every named grid (a minute on a loaded box)
 def test_the_check_s_seeds_are_no_published_cell_s() -> None:
     published: set[int] = set()
     for name in grid_builders():
@@ -69,6 +70,7 @@ def test_verdict__a_missing_cell_makes_the_check_incomplete() -> None:
     assert not part["complete"] and part["decision"] == "incomplete" and part["pairs"] == 1
 
 
+@pytest.mark.slow  # trains 4 tiny cells end to end
 def test_script__trains_both_arms_writes_rows_and_verdict_and_resumes(tmp_path: Path, capsys) -> None:
     out = tmp_path / "eq"
     assert eq.main([*TINY, "--out", str(out)]) == 0
