@@ -62,6 +62,7 @@ from algorithms.common.execution import (
     sample_categorical,
 )
 from algorithms.common.observer import Observer, Snapshot, step_record
+from algorithms.common.precision import FP32, Precision, tag
 from algorithms.presets import Preset
 from envs.config import EnvConfig, format_validation_error
 from envs.core import StepResult
@@ -110,7 +111,8 @@ class LearnedParams(MethodParams):
     docs/decisions/0126). Method-specific fields stay in each method's subclass."""
 
     added_later: ClassVar[tuple[str, ...]] = (
-        "protocol", "ppo_epochs", "ppo_minibatches", "ppo_clip", "ppo_lr", "gamma", "gae_lambda", "credit")
+        "protocol", "ppo_epochs", "ppo_minibatches", "ppo_clip", "ppo_lr", "gamma", "gae_lambda", "credit",
+        "precision")
 
     hidden: int = Field(64, ge=4, description="hidden width of the method's policy networks")
     critic_hidden: int = Field(64, ge=4, description="width of the centralized critic V_omega")
@@ -131,6 +133,12 @@ class LearnedParams(MethodParams):
     gae_lambda: float = Field(0.95, ge=0, le=1, description="mappo: GAE lambda")
     credit: Literal["robot", "team"] = Field(
         "robot", description="mappo: each robot's advantage from its own reward terms, or the team's")
+    # The compute precision of the updates' network forward passes (algorithms/common/precision.py,
+    # decision 0241); bf16 changes the numbers and stays out of published runs until its
+    # equivalence check passes (decision 0240).
+    precision: Precision = Field(
+        FP32, description="fp32, or bf16: the updates' network forward passes under torch.autocast (bfloat16); "
+                          "not in published runs until its equivalence check passes (docs/decisions/0240)")
 
 
 def shared_learned_params() -> dict[str, tuple[Any, str]]:
@@ -388,7 +396,10 @@ class Method(ABC):
     def place_modules(self) -> None:
         """Move the networks of ``modules()`` to ``self.device`` (a learned method calls it
         at the end of ``__init__``; nothing moves on the cpu). Optimizers made before keep
-        their parameters: ``Module.to`` moves them in place."""
+        their parameters: ``Module.to`` moves them in place. The networks and optimizers
+        are tagged with the ``precision`` parameter, which the update code reads
+        (algorithms/common/precision.py; fp32 tags nothing)."""
+        tag(self.modules().values(), getattr(self.params, "precision", FP32))
         if self.device.type == CPU:
             return
         import torch

@@ -21,7 +21,7 @@ on the same rollouts with (docs/decisions/0201):
 
 A method (a plugin too, docs/training-protocols.md) supplies only what is its own: which
 rows it learns from and how to compute their log-probabilities (``PPOBatch``).
-May import: envs, algorithms.common (trainer, value_norm, diagnostics, device).
+May import: envs, algorithms.common (trainer, value_norm, diagnostics, device, precision).
 """
 from __future__ import annotations
 
@@ -35,6 +35,7 @@ from torch import nn
 
 from algorithms.common.device import module_device
 from algorithms.common.diagnostics import value_diagnostics
+from algorithms.common.precision import autocast, to_fp32
 from algorithms.common.trainer import CRITIC_FEATURES, RolloutBuffer, clip_and_step
 from algorithms.common.value_norm import ValueNorm
 
@@ -124,9 +125,14 @@ def fit_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, states: to
     turns them into the targets (T, B, N), which update the ValueNorm statistics before the
     first step. The minibatches are (t, b) steps shuffled by ``gen`` (``None`` with one
     minibatch: the whole batch, in order). Returns the values, the targets, and the last
-    loss and gradient norm."""
+    loss and gradient norm. The critic's forward passes run under the critic's precision
+    (precision.py), their outputs float32 before the ValueNorm and the loss."""
+    def forward(s: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
+        with autocast(critic):
+            return to_fp32(critic(s, t))
+
     with torch.no_grad():
-        values = critic.value_norm.denormalize(critic(states, t_frac))
+        values = critic.value_norm.denormalize(forward(states, t_frac))
     targets = targets_of(values)
     mask = running.to(torch.float32)[..., None].expand_as(targets)
     critic.value_norm.update(targets, mask)
@@ -139,7 +145,7 @@ def fit_critic(critic: RobotCritic, optimizer: torch.optim.Optimizer, states: to
         order = torch.arange(rows) if gen is None else torch.randperm(rows, generator=gen)
         for ix in order.chunk(max(1, minibatches)):
             m = flat_mask[ix]
-            pred = critic(flat_states[ix], flat_t[ix])
+            pred = forward(flat_states[ix], flat_t[ix])
             loss = (((pred - flat_targets[ix]) ** 2) * m).sum() / m.sum().clamp_min(1.0)
             optimizer.zero_grad()
             loss.backward()
@@ -200,7 +206,13 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
     ``minibatches`` Adam steps; A normalized per minibatch over the counted ratios of each
     level (``PPOBatch.levels``). Returns the mean actor loss, per level the mean entropy and
     the approximate KL (mean of (rho - 1) - log rho over the last epoch), the clip fraction
-    and the last gradient norm."""
+    and the last gradient norm. ``batch.log_probs`` runs under the precision of
+    ``optimizer`` (its policy's; precision.py), its outputs float32 before the loss."""
+    def log_probs(ix: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        with autocast(optimizer):
+            logp, ent, w = batch.log_probs(ix)
+        return to_fp32(logp), to_fp32(ent), to_fp32(w)
+
     cols = batch.advantages.shape[1]
     levels = torch.zeros(cols, dtype=torch.long) if batch.levels is None else batch.levels
     dev = batch.advantages.device
@@ -208,7 +220,7 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
     old = batch.old_log_probs
     if old is None:
         with torch.no_grad():  # the rollout policy (parameters unchanged since the rollout)
-            old = torch.cat([batch.log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
+            old = torch.cat([log_probs(ix)[0] for ix in torch.arange(batch.rows).split(16384)])
     loss_sum, steps, grad_norm = 0.0, 0, float("nan")
     ent_sum = torch.zeros(len(batch.level_names), device=dev)
     ent_steps = torch.zeros(len(batch.level_names), device=dev)
@@ -217,7 +229,7 @@ def ppo_actor_update(batch: PPOBatch, optimizer: torch.optim.Optimizer, epochs: 
     for epoch in range(epochs):
         perm = torch.randperm(batch.rows, generator=gen)
         for ix in perm.chunk(max(1, minibatches)):
-            logp, ent, w = batch.log_probs(ix)
+            logp, ent, w = log_probs(ix)
             adv = _normalized(batch.advantages[ix], w, onehot)
             n = w.sum().clamp_min(1.0)
             log_ratio = logp - old[ix]

@@ -26,6 +26,7 @@ from torch import nn
 
 from algorithms.common.device import module_device
 from algorithms.common.diagnostics import value_diagnostics
+from algorithms.common.precision import autocast, to_fp32
 from envs.core import WarehouseCore
 
 CRITIC_FEATURES = 6
@@ -216,9 +217,11 @@ def critic_step(
     (eq:advantage; detached, so the actor loss never trains the critic), and
     L_V = sum (V - G)^2 / n over running steps (eq:losses) is minimized by one clipped
     optimizer step (Algorithm 2: "Update centralized critic V_omega"). Every learned
-    method's critic is stepped here.
+    method's critic is stepped here. With ``precision = "bf16"`` the forward pass runs under
+    autocast and the values come back as float32 before the loss (precision.py).
     """
-    values = critic(states, t_frac)  # (T, B)
+    with autocast(critic):
+        values = to_fp32(critic(states, t_frac))  # (T, B)
     adv, g, mask, n = team_advantage(values, rewards, running, normalize)
     loss = critic_loss(values, g, mask, n)
     optimizer.zero_grad()

@@ -28,6 +28,7 @@ import torch
 from algorithms.common.device import module_device
 from algorithms.common.diagnostics import KLProbe, probe_rows, wait_share
 from algorithms.common.ppo import RobotCritic
+from algorithms.common.precision import autocast, to_fp32
 from algorithms.common.trainer import (
     CentralCritic,
     RolloutBuffer,
@@ -105,8 +106,10 @@ def policy_update(learner: Learner, buf: RolloutBuffer) -> dict[str, float]:
         r_t, r_b = tt[s : s + rows], bb[s : s + rows]
         ctl = d["controlled"][r_t, r_b]
         ref = torch.from_numpy(np.ascontiguousarray(d["ref"][r_t, r_b].T)).to(dev)  # (Z, M)
-        _, ref_logp, logp = policy_forward(learner.reference, learner.local, learner.gs, d["own"][r_t, r_b],
-                                           d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
+        with autocast(learner.opt_policy):  # precision.py: the policies' forward, float32 losses
+            _, ref_logp, logp = policy_forward(learner.reference, learner.local, learner.gs, d["own"][r_t, r_b],
+                                               d["nbr"][r_t, r_b], ctl, d["action_mask"][r_t, r_b], ref)
+        ref_logp, logp = to_fp32(ref_logp), to_fp32(logp)
         mask = group_major(learner.gs, ctl, fill=False, device=dev)  # (Z, M, n)
         active = mask.any(-1)  # groups with a robot to steer
         decided = active & torch.from_numpy(np.ascontiguousarray(d["ref_new"][r_t, r_b].T)).to(dev)  # mu drew r
