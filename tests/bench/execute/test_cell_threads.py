@@ -68,7 +68,11 @@ def test_the_cells_thread_count_reaches_torch_in_the_worker(toy: str, monkeypatc
 
 
 class _Refused(Exception):
-    """Stands in for the Ray executor: records how the runner asked for its workers."""
+    """Stands in for the Ray executor: its argument is how the runner asked for its workers."""
+
+
+def _refuse(worker_cls: type, capacity: int, ctx: object, **options: object) -> None:
+    raise _Refused({"capacity": capacity, **options})
 
 
 def test_run_grid_asks_ray_for_k_cpus_per_worker_and_records_k(toy: str, tmp_path: Path,
@@ -78,18 +82,12 @@ def test_run_grid_asks_ray_for_k_cpus_per_worker_and_records_k(toy: str, tmp_pat
     from bench.execute.ray_cluster import RayContext
     from tests.bench.conftest import write_grid_file
 
-    asked: dict = {}
-
-    def executor(worker_cls, capacity, ctx, **kw):  # noqa: ANN001, ANN202 - RayExecutor's signature
-        asked.update(kw, capacity=capacity)
-        raise _Refused
-
     monkeypatch.setattr(runner, "connect", lambda *a, **k: RayContext(False, "none", 4))
-    monkeypatch.setattr(runner, "RayExecutor", executor)
+    monkeypatch.setattr(runner, "RayExecutor", _refuse)
     grid = load_grid_file(write_grid_file(tmp_path / "g.toml", toy_spec(), {"seed": [0, 1]}))
-    with pytest.raises(_Refused):
+    with pytest.raises(_Refused) as asked:
         runner.run_grid(grid, tmp_path / "run", cell_threads=2)
-    assert asked == {"capacity": 2, "worker_args": ("cpu", 2), "num_cpus": 2}  # 4 CPUs: 2 workers of 2
+    assert asked.value.args[0] == {"capacity": 2, "worker_args": ("cpu", 2), "num_cpus": 2}  # 4 CPUs: 2 x 2
     assert RunStore(tmp_path / "run").read_manifest()["runs"][-1]["cell_threads"] == 2
     with pytest.raises(BenchError, match="more threads than the 4 CPUs"):
         runner.run_grid(grid, tmp_path / "five", cell_threads=5)
