@@ -381,12 +381,10 @@ class _Run:
         import ray
 
         st.attempts += 1
-        threads = self.cell_threads
         if st.state_ref is None and st.has_checkpoint:
             ckpt = self.store.read_checkpoint(st.cell_id, st.cell.method)
             st.state_ref = ray.put(ckpt["state"]) if ckpt is not None else None
-            threads = int(ckpt.get("cell_threads", 1)) if ckpt is not None else threads  # the count it started with
-        st.spec.setdefault("threads", threads)
+        st.spec.setdefault("threads", self.cell_threads)  # a resumed cell's: its checkpoint's (plan.py)
         st.versions_json = self.versions
         if st.trained:
             self._begin_eval(st)
