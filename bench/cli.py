@@ -112,6 +112,11 @@ def run(
         help="Torch device of the learned methods' networks, optimizers and update tensors: cpu (default) or cuda, "
              "cuda:N (the environment, observations and safety filter stay on the host; numbers differ from the "
              "cpu's in float rounding). Not part of a cell: recorded in the manifest (docs/guide/speed.md)."),
+    cell_threads: str = typer.Option("1", "--cell-threads", metavar="K",
+        help="Torch threads per cell (default 1), each worker taking K CPUs: for an idle machine with more cores than "
+             "cells. More than 1 changes the numbers in float rounding (deterministic for a given K, not those of "
+             "1 thread), forms no seed stacks, and is recorded in each cell's checkpoint and eval file; a resumed "
+             "cell keeps the count it started with (docs/guide/speed.md)."),
 ) -> None:
     """Run (or resume) a grid: rerunning the same command skips finished cells and resumes
     interrupted ones from their last checkpoint. Ctrl-C or SIGTERM keeps every checkpoint."""
@@ -119,6 +124,7 @@ def run(
     from bench.tracking import parse_log
 
     device = check_device(device)  # a bad or absent device: one line, before any grid is built
+    threads = _cell_threads(cell_threads)
 
     log_names = parse_log(log)
     from bench.design.overrides import apply_overrides, parse_overrides
@@ -167,7 +173,8 @@ def run(
             summary = run_grid(g, out_dir, address=address, workers=workers, fresh=fresh,
                                checkpoint_every=checkpoint_every, progress=make_progress(verbose),
                                command=sys.argv, rerun_changed=rerun_changed, stack_seeds=stacking,
-                               repair=repair, observer=observer, overrides=overrides, device=device)
+                               repair=repair, observer=observer, overrides=overrides, device=device,
+                               cell_threads=threads)
     except KeyboardInterrupt:
         if sigterm_received():
             raise typer.Exit(143) from None
@@ -193,6 +200,16 @@ def _stack_seeds(text: str) -> int | str:
 
     try:
         return parse_stack_seeds(text)
+    except ValueError as exc:
+        raise BenchError(str(exc)) from None
+
+
+def _cell_threads(text: str) -> int:
+    """``--cell-threads``: a count; a bad value is one BenchError line."""
+    from bench.execute.torch_setup import parse_cell_threads
+
+    try:
+        return parse_cell_threads(text)
     except ValueError as exc:
         raise BenchError(str(exc)) from None
 

@@ -17,7 +17,8 @@ stay:
     .venv/bin/python scripts/train_hashes.py --compare /tmp/before.json # on the new code
 
 ``--compare`` exits 1 and names the configurations and fingerprints that changed. One
-torch thread; about 15 s.
+torch thread (``--threads K``: K intra-op threads, as ``bench run --cell-threads K``, to check
+which configurations stay bit for bit with a second core); about 15 s.
 """
 from __future__ import annotations
 
@@ -93,8 +94,11 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", type=Path, help="write the fingerprints here (JSON)")
     ap.add_argument("--compare", type=Path, help="fingerprints from another checkout (JSON) to compare with")
+    ap.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1, the bench's)")
     args = ap.parse_args()
-    torch.set_num_threads(1)
+    if args.threads < 1:
+        ap.error(f"--threads {args.threads}: must be at least 1")
+    torch.set_num_threads(args.threads)
     got = {}
     for method, params, layout, n, on_goal in CASES:
         key = f"{method} {json.dumps(params, sort_keys=True)} {layout} N={n}"

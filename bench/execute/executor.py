@@ -221,7 +221,9 @@ class InProcessExecutor:
 
 # Worker actors outlive an executor only in a Ray session it did not start (tests,
 # notebooks): the next one of the same worker class reuses them instead of paying process
-# start-up and imports again. Keyed by (session, worker class).
+# start-up and imports again. Keyed by (session, worker class and options). Actors of more
+# than one CPU each (``num_cpus``) are not kept past an executor with other options: they
+# would hold the CPUs its actors wait for.
 _IDLE: dict[tuple[str, str], list[Any]] = {}
 
 
@@ -240,24 +242,28 @@ def _kill(actors: list[Any]) -> None:
 
 
 class RayExecutor:
-    """``capacity`` Ray actors of ``worker_cls`` (1 CPU each) on the cluster of ``ctx``
-    (bench/execute/ray_cluster.py ``connect``; the caller shuts it down)."""
+    """``capacity`` Ray actors of ``worker_cls`` (``num_cpus`` CPUs each, default 1) on the cluster
+    of ``ctx`` (bench/execute/ray_cluster.py ``connect``; the caller shuts it down)."""
 
     def __init__(self, worker_cls: type, capacity: int, ctx: Any = None, *,
-                 max_restarts: int = MAX_RESTARTS, worker_args: tuple[Any, ...] = (), num_gpus: float = 0) -> None:
+                 max_restarts: int = MAX_RESTARTS, worker_args: tuple[Any, ...] = (), num_gpus: float = 0,
+                 num_cpus: int = 1) -> None:
         import ray
 
         self.ray, self.ctx = ray, ctx
         self.capacity = max(1, int(capacity))
         # num_gpus > 0 (a share of an accelerator per worker): Ray hides the GPUs from actors that ask for none
-        self.remote: Any = ray.remote(num_cpus=1, num_gpus=num_gpus, max_restarts=max_restarts,
+        self.remote: Any = ray.remote(num_cpus=num_cpus, num_gpus=num_gpus, max_restarts=max_restarts,
                                       max_task_retries=0)(worker_cls)
         self.worker_args = worker_args
         self.pool_key = (_session(), f"{worker_cls.__module__}.{worker_cls.__qualname__}/{max_restarts}"
-                         + (f"/{worker_args!r}/{num_gpus}" if worker_args or num_gpus else ""))
+                         + (f"/{worker_args!r}/{num_gpus}" if worker_args or num_gpus else "")
+                         + (f"/cpus={num_cpus}" if num_cpus != 1 else ""))
         idle = _IDLE.pop(self.pool_key, [])
         for key in [k for k in _IDLE if k[0] != self.pool_key[0]]:  # gone with their session
             del _IDLE[key]
+        for key in [k for k in _IDLE if "/cpus=" in k[1] or "/cpus=" in self.pool_key[1]]:
+            _kill(_IDLE.pop(key))  # idle actors of several CPUs, or new ones: free the CPUs for the new actors
         handles = idle[: self.capacity] + [self.remote.remote(*worker_args)
                                            for _ in range(self.capacity - len(idle[: self.capacity]))]
         _kill(idle[self.capacity:])

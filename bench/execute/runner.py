@@ -1,7 +1,7 @@
 """Runs a grid on Ray and records it in the store (SPEC 4 "Execution on Ray", "Store").
 
 The driver owns every file and nothing else; workers (bench/execute/worker.py, one Ray actor per
-core, one torch thread each) only compute. The loop:
+core, one torch thread each; ``cell_threads`` K: one actor per K cores, K threads) only compute. The loop:
 
 1. plan (bench/execute/plan.py): read and validate the store, decide where each cell resumes;
    connect to Ray; only then write (discard stale train parts, manifest, cells.parquet);
@@ -84,12 +84,20 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
              on_event: EventHook | None = None, command: list[str] | None = None,
              rerun_changed: bool = False, stack_seeds: StackSeeds = 1, repair: bool = False,
              observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
-             device: str = "cpu") -> RunSummary:
+             device: str = "cpu", cell_threads: int = 1) -> RunSummary:
     """Run (or resume) every cell of ``grid`` into the store at ``out``; see the module docstring.
 
     ``device`` (``bench run --device``): the torch device of the learned methods' networks in
     every worker, each worker asking Ray for an equal share of one accelerator; an execution
     choice, recorded in the manifest's run record (absent: cpu), never in a cell.
+
+    ``cell_threads`` (``bench run --cell-threads``, docs/decisions/0245): the torch threads each
+    cell started in this run trains and evaluates with, each worker asking Ray for as many
+    CPUs. More than one changes a cell's numbers (deterministically, for that count), so a
+    cell keeps the count it started with (its checkpoint's, absent: 1) whatever a resumed run
+    asks, its count is recorded in its checkpoint and eval file (``cell_threads``, absent: 1)
+    and the run record, and no seed stacks are formed (``stack_seeds`` auto runs the longest
+    cells first, unstacked; a count above 1 is refused).
 
     ``stack_seeds`` (``bench run --stack-seeds``): train up to K cells that differ only in their
     seed in one worker (seed_stack), or ``"auto"`` (the command's default, docs/decisions/0237):
@@ -107,6 +115,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     or when a file of the grid's cells is damaged or misplaced (bench/store/integrity.py) and not
     ``repair``; with ``repair`` such files move to superseded/ and their cells are recomputed.
     """
+    check_threads_and_stacking(cell_threads, stack_seeds)
     store = RunStore(out)
     store.check_writable(repair and not fresh)
     if fresh:
@@ -132,6 +141,9 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
         else:
             ctx = connect(address, workers)
         try:
+            if cell_threads > ctx.cpus and not all(st.phase == "done" for st in states):
+                raise BenchError(f"--cell-threads {cell_threads}: more threads than the {ctx.cpus} CPUs of the "
+                                 "Ray cluster (each worker asks Ray for one CPU per thread)")
             with sigterm_as_interrupt():
                 if lock is None:  # a new run directory: create and lock it now that all checks passed
                     try:
@@ -143,7 +155,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
                     lock = store.lock()
                 run = _Run(grid, store, states, others, ctx, workers, fresh, max(1, checkpoint_every),
                            progress or NullProgress(), on_event, command or sys.argv, stack_seeds,
-                           observer, overrides, device)
+                           observer, overrides, device, cell_threads)
                 summary = run.execute()
                 summary.repaired = repaired
                 return summary
@@ -152,6 +164,14 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     finally:
         if lock is not None:
             os.close(lock)
+
+
+def check_threads_and_stacking(cell_threads: int, stack_seeds: StackSeeds) -> None:
+    """BenchError when cells on more than one thread are asked to train seed-stacked: a stack's
+    numbers equal its cells' alone only on one thread (docs/decisions/0245)."""
+    if cell_threads > 1 and stack_seeds != AUTO and int(stack_seeds) > 1:
+        raise BenchError(f"--stack-seeds {stack_seeds} with --cell-threads {cell_threads}: seed stacks train on "
+                         "one thread only; give --stack-seeds 1 or auto (which then forms no stacks)")
 
 
 def check_integrity(store: RunStore, grid: Grid, repair: bool) -> list[Damage]:
@@ -188,13 +208,15 @@ class _Run:
                  ctx: RayContext, workers: int | None, fresh: bool, k: int, progress: Progress,
                  on_event: EventHook | None, command: list[str], stack_seeds: StackSeeds = 1,
                  observer: RunObserver | None = None, overrides: dict[str, Any] | None = None,
-                 device: str = "cpu") -> None:
+                 device: str = "cpu", cell_threads: int = 1) -> None:
         self.grid, self.store, self.states, self.others = grid, store, states, others
         self.device = device  # the networks' (bench run --device)
+        self.cell_threads = cell_threads  # of the cells started here (bench run --cell-threads)
         self.overrides = overrides if overrides and any(overrides.values()) else None
         self.ctx, self.fresh, self.k, self.progress = ctx, fresh, k, progress
         self.on_event, self.command, self.observer = on_event, command, observer
-        self.n_workers = max(1, min(workers or ctx.cpus, ctx.cpus))
+        slots = max(1, ctx.cpus // cell_threads)  # one worker per cell_threads CPUs
+        self.n_workers = max(1, min(workers or slots, slots))
         self.stack_arg = stack_seeds  # as given (a count, or "auto")
         # cells differing only in their seed trained together, up to stack_seeds; cell id ->
         # rank of the cells that run first, each alone (auto: the critical path)
@@ -215,6 +237,8 @@ class _Run:
         todo = [s for s in self.states if s.phase == "pending" and not s.trained]
         solo, k = auto_stacking([s.weight * (1.0 - s.progress()) for s in todo],
                                 [stack_pays(s.cell) for s in todo], self.n_workers)
+        if self.cell_threads > 1:  # the longest first still; no stacks (check_threads_and_stacking)
+            k = 1
         return k, {todo[i].cell_id: rank for rank, i in enumerate(solo)}
 
     def _prepare_store(self) -> None:
@@ -241,6 +265,8 @@ class _Run:
             self.run_record["stack_seeds"] = self.stack_arg
         if self.device != "cpu":  # bench run --device (absent: the cpu)
             self.run_record["device"] = self.device
+        if self.cell_threads != 1:  # bench run --cell-threads (absent: 1)
+            self.run_record["cell_threads"] = self.cell_threads
         if self.overrides is not None:  # bench run --set/--axis (absent: none)
             manifest["overrides"] = self.run_record["overrides"] = self.overrides
         runs = list(manifest.get("runs", []))[-49:] + [self.run_record]
@@ -278,9 +304,7 @@ class _Run:
         self._prepare_store()
         ex: RayExecutor | None = None
         if not all(s.finished for s in self.states):
-            ex = (RayExecutor(CellWorker, self.n_workers, self.ctx) if self.device == "cpu" else
-                  RayExecutor(CellWorker, self.n_workers, self.ctx, worker_args=(self.device,),
-                              num_gpus=1 / self.n_workers if self.device.startswith("cuda") else 0))
+            ex = RayExecutor(CellWorker, self.n_workers, self.ctx, **self._worker_options())
         self._emit("start", None)
         for st in self.states:  # said at once: an interrupted run never reaches the summary
             if st.rerun:
@@ -307,6 +331,16 @@ class _Run:
         return RunSummary(self.store.root, len(self.states), sum(s.phase == "done" for s in self.states),
                           len(failed), time.monotonic() - self.t0, failed,
                           {s.cell_id: s.rerun for s in self.states if s.rerun})
+
+    def _worker_options(self) -> dict[str, Any]:
+        """RayExecutor options beyond the defaults (the cpu, one thread): none for a default run."""
+        options: dict[str, Any] = {}
+        if self.device != "cpu":
+            options.update(worker_args=(self.device,),
+                           num_gpus=1 / self.n_workers if self.device.startswith("cuda") else 0)
+        if self.cell_threads > 1:
+            options.update(worker_args=(self.device, self.cell_threads), num_cpus=self.cell_threads)
+        return options
 
     def _dispatch(self, ex: RayExecutor) -> bool:
         """Submit an evaluation chunk, else the next cell to train (False: nothing to do)."""
@@ -350,6 +384,7 @@ class _Run:
         if st.state_ref is None and st.has_checkpoint:
             ckpt = self.store.read_checkpoint(st.cell_id, st.cell.method)
             st.state_ref = ray.put(ckpt["state"]) if ckpt is not None else None
+        st.spec.setdefault("threads", self.cell_threads)  # a resumed cell's: its checkpoint's (plan.py)
         st.versions_json = self.versions
         if st.trained:
             self._begin_eval(st)
@@ -427,7 +462,7 @@ class _Run:
             "cell": st.cell.canonical_json(), "method": st.cell.method, "iterations": st.iterations,
             "episodes_done": st.episodes_done, "finished": bool(result["finished"]),
             "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
-            "state": result["state"],
+            "state": result["state"], **_threads_record(st),
         })
         st.has_checkpoint = True
         st.state_ref = ray.put(result["state"])
@@ -448,7 +483,7 @@ class _Run:
         all_rows = [r for u in units for r in st.eval_rows[u] if int(r["episode"]) < st.cell.eval_episodes]
         self.store.write_eval(st.cell_id, all_rows, {
             "wall_s": st.wall_s, "peak_mem_mb": st.peak_mem_mb, "attempts": st.attempts,
-            "train_episodes_done": st.episodes_done,
+            "train_episodes_done": st.episodes_done, **_threads_record(st),
         })
         st.phase, st.state_ref = "done", None
         self._write_cells()
@@ -507,8 +542,16 @@ def event_message(kind: str, st: CellState, last_error: str = "") -> str:
 
 
 def _stack_key(spec: dict[str, Any]) -> str:
-    """Cells with equal keys differ only in their seed (and cell id)."""
-    return json.dumps({k: spec[k] for k in ("method_path", "env", "params")}, sort_keys=True, default=str)
+    """Cells with equal keys differ only in their seed (and cell id) and train on as many threads."""
+    return json.dumps({k: spec.get(k, 1) for k in ("method_path", "env", "params", "threads")}, sort_keys=True,
+                      default=str)
+
+
+def _threads_record(st: CellState) -> dict[str, int]:
+    """``cell_threads`` of a cell's checkpoint and eval file: absent for one thread (the default,
+    the files as before)."""
+    threads = int(st.spec.get("threads", 1))
+    return {"cell_threads": threads} if threads != 1 else {}
 
 
 def _stackable(spec: dict[str, Any]) -> bool:

@@ -13,7 +13,9 @@ the driver) and returns ``Method.evaluate(chunk, seed, execution)`` rows: one ch
 one execution mode (the driver fans out every mode x chunk).
 
 The class is plain Python (unit-testable without Ray); the runner wraps it with
-``ray.remote``. One torch thread per worker.
+``ray.remote``. One torch thread per worker, or the cell's own count (``spec["threads"]``,
+``bench run --cell-threads K``), set before each unit: every unit of a cell, training and
+evaluation, runs at the thread count the cell trained with.
 """
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ from typing import Any
 from algorithms.base import Method
 from algorithms.common.device import CPU
 from algorithms.registry import method_class
-from bench.execute.torch_setup import prepare_torch
+from bench.execute.torch_setup import passive_wait, prepare_torch, set_threads
 from envs.config import EnvConfig
 from envs.errors import BenchError
 
@@ -60,12 +62,17 @@ def peak_rss_mb() -> float:
     return rss / (1024.0 * 1024.0) if sys.platform == "darwin" else rss / 1024.0
 
 
+def cell_threads(spec: Mapping[str, Any]) -> int:
+    """The torch threads a cell runs at (``bench run --cell-threads``; absent: one)."""
+    return int(spec.get("threads", 1))
+
+
 def build_method(spec: Mapping[str, Any], device: str = CPU) -> Method:
     """A fresh method for a cell spec (see ``runner.cell_spec``), weights from its seed, its
     networks on ``device`` (an execution choice: the cell does not name it). BenchError for a
     method whose ``__init__`` takes no device, asked for another than the cpu."""
     cls = method_class(str(spec["method_path"]))
-    prepare_torch()  # before the method exists: one torch thread, no dynamo import
+    prepare_torch(cell_threads(spec))  # before the method exists: the cell's threads, no dynamo import
     if device == CPU:
         return cls(EnvConfig(**spec["env"]), dict(spec["params"]), seed=int(spec["seed"]))
     if "device" not in inspect.signature(cls.__init__).parameters:
@@ -94,8 +101,10 @@ class CellWorker:
     """Computes chunks of cells; holds the methods of the cells it trains (one, or one
     seed stack) and one evaluation method."""
 
-    def __init__(self, device: str = CPU) -> None:  # torch is set up when the first method is built
+    def __init__(self, device: str = CPU, threads: int = 1) -> None:  # torch: set up by the first method built
         self.device = device  # the networks' (bench run --device); cpu: the default
+        if threads > 1:  # bench run --cell-threads K: set before torch loads in this process
+            passive_wait()
         self._train: dict[str, Method] | None = None  # cell id -> method held between chunks
         self._eval: tuple[str, Method, dict[str, Any]] | None = None
 
@@ -122,6 +131,7 @@ class CellWorker:
         cached = self._train or {}
         methods = [self._training_method(spec, box, it, cached)
                    for spec, box, it in zip(specs, state_boxes, iterations, strict=True)]
+        set_threads(cell_threads(specs[0]))  # a stack: cells of one run and count (the runner's)
         self._train = None
         rows: dict[int, list[dict[str, Any]]] = {id(m): [] for m in methods}
         wall = dict.fromkeys(rows, 0.0)
@@ -192,6 +202,7 @@ class CellWorker:
             method = build_method(spec, self.device)
             self._eval = (cell_id, method, copy.deepcopy(method.state_dict()))
         _, method, initial = self._eval
+        set_threads(cell_threads(spec))
         # Every chunk starts from the same state (RNG streams included), so the rows do not
         # depend on which chunks this worker ran before; no state: the untrained initialization.
         method.load_state_dict(state if state is not None else initial)
