@@ -236,7 +236,7 @@ def _resume_state(store: RunStore, st: CellState) -> None:
         st.wall_s = float(ckpt.get("wall_s", 0.0))
         st.peak_mem_mb = float(ckpt.get("peak_mem_mb", float("nan")))
         st.attempts = max(st.attempts, int(ckpt.get("attempts", 0)))
-        st.spec["threads"] = int(ckpt.get("cell_threads", 1))  # a cell keeps its count (docs/decisions/0245)
+        st.spec["threads"] = int(ckpt.get("cell_threads", 1))  # a cell keeps its count (docs/decisions/0242)
 
 
 def versions() -> dict[str, str]:

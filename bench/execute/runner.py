@@ -91,7 +91,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
     every worker, each worker asking Ray for an equal share of one accelerator; an execution
     choice, recorded in the manifest's run record (absent: cpu), never in a cell.
 
-    ``cell_threads`` (``bench run --cell-threads``, docs/decisions/0245): the torch threads each
+    ``cell_threads`` (``bench run --cell-threads``, docs/decisions/0242): the torch threads each
     cell started in this run trains and evaluates with, each worker asking Ray for as many
     CPUs. More than one changes a cell's numbers (deterministically, for that count), so a
     cell keeps the count it started with (its checkpoint's, absent: 1) whatever a resumed run
@@ -168,7 +168,7 @@ def run_grid(grid: Grid, out: str | Path, *, address: str | None = None, workers
 
 def check_threads_and_stacking(cell_threads: int, stack_seeds: StackSeeds) -> None:
     """BenchError when cells on more than one thread are asked to train seed-stacked: a stack's
-    numbers equal its cells' alone only on one thread (docs/decisions/0245)."""
+    numbers equal its cells' alone only on one thread (docs/decisions/0242)."""
     if cell_threads > 1 and stack_seeds != AUTO and int(stack_seeds) > 1:
         raise BenchError(f"--stack-seeds {stack_seeds} with --cell-threads {cell_threads}: seed stacks train on "
                          "one thread only; give --stack-seeds 1 or auto (which then forms no stacks)")

@@ -7,7 +7,7 @@ then and not before (a command that stops at a one-line error never loads it).
   one thread), or the cell's own count (``bench run --cell-threads K``, ``set_threads``): a
   second thread splits the weight-gradient products and the large reductions, so the numbers
   are a deterministic function of the inputs and the thread count but not those of one thread
-  (docs/decisions/0245). A process that will run more than one thread sleeps at OpenMP
+  (docs/decisions/0242). A process that will run more than one thread sleeps at OpenMP
   barriers instead of spinning (``OMP_WAIT_POLICY=PASSIVE``, set before torch loads): a
   spinning thread on a busy core slowed a 2-thread training 14x here.
 * Creating an optimizer does not import ``torch._dynamo`` (2-3 s): torch wraps
@@ -42,7 +42,7 @@ def parse_cell_threads(text: str | int) -> int:
         k = 0
     if not 1 <= k <= MAX_CELL_THREADS:
         raise ValueError(f"--cell-threads {text!r}: give a count of torch threads per cell from 1 to "
-                         f"{MAX_CELL_THREADS} (no auto: the count changes a cell's numbers, docs/decisions/0245)")
+                         f"{MAX_CELL_THREADS} (no auto: the count changes a cell's numbers, docs/decisions/0242)")
     return k
 
 

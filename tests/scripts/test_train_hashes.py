@@ -49,7 +49,7 @@ print(json.dumps(out))
 
 @pytest.mark.slow  # a fresh process training 3 times: about 10 s alone, minutes on a loaded 2-core box
 def test_fingerprints__two_threads_repeat_exactly_but_are_not_one_threads() -> None:
-    """What docs/decisions/0245 rests on: on two torch threads (bench run --cell-threads 2) a
+    """What docs/decisions/0242 rests on: on two torch threads (bench run --cell-threads 2) a
     training is a deterministic function of its inputs and the count (the same bits twice), and
     not bit for bit one thread's (its weight gradients are summed in another order), which is
     why a cell records its count. A fresh process whose OpenMP threads sleep when idle, as a

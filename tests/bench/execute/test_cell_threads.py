@@ -1,7 +1,7 @@
 """``bench run --cell-threads K``: a bad count is one line and exit status 2 before anything
 runs; the count reaches torch in the worker for training and evaluation; each worker asks Ray
 for K CPUs; the run record, checkpoint and eval file of every cell started with K > 1 say K,
-and a resumed cell keeps the count it started with (docs/decisions/0245)."""
+and a resumed cell keeps the count it started with (docs/decisions/0242)."""
 from __future__ import annotations
 
 from pathlib import Path
