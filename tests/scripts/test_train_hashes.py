@@ -15,7 +15,16 @@ _spec.loader.exec_module(hashes)
 CASE = ("decentralized", {}, "tiny", 6, "stay")
 
 
-def test_fingerprints__repeat_exactly_and_move_with_a_tiny_change_of_the_weights(monkeypatch) -> None:
+@pytest.fixture
+def one_thread():
+    """One torch thread, as the script and every bench worker run (two spin under load)."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def test_fingerprints__repeat_exactly_and_move_with_a_tiny_change_of_the_weights(monkeypatch, one_thread) -> None:
     first = hashes.fingerprints(*CASE)
     assert hashes.fingerprints(*CASE) == first  # the same code gives the same bits
     # A tiny change of the initial weights (1e-5 of each Linear's first weight: a single ulp

@@ -75,7 +75,7 @@ def test_peak_rss__is_a_positive_number_of_megabytes() -> None:
     assert 10.0 < mb < 100_000.0 and not math.isnan(mb)
 
 
-@pytest.mark.parametrize("method", ["hierarchical", "decentralized"])
+@pytest.mark.parametrize("method", ["hierarchical", "decentralized", "ic3net"])
 def test_train_stack__stacks_seeds_of_a_stackable_method_and_equals_one_by_one(toy: str, monkeypatch,
                                                                                method: str) -> None:
     """A stack of three seeds of a stackable method trains through ``train_stacked`` (one
