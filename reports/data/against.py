@@ -14,7 +14,9 @@ settings, checked in this order (the first mismatch is one BenchError line):
    ``scenario`` hashes (starts and goals; algorithms/common/episodes.py), and every
    configuration must have at least one pair.
 
-REF cells whose id MINE already holds are MINE's (one row per cell). Nothing is written to
+REF cells whose id MINE already holds are MINE's (one row per cell). Where MINE re-ran one of
+REF's methods with other settings, MINE's cells are the headline and REF's the labelled
+variant (reports/data/variants.py). Nothing is written to
 REF; the merged report goes to MINE/report (or ``--out``) and says what it merged.
 """
 from __future__ import annotations
@@ -28,6 +30,7 @@ from bench.store.completeness import row_cell_rows
 from bench.store.run_store import RunStore
 from envs.errors import BenchError
 from reports.data.store import Store, fmt_p, load_store
+from reports.data.variants import MERGED
 
 SETTINGS = ("layout", "horizon", "groups", "on_goal", "loss_model", "eval_episodes")
 PAIR = ["n_robots", "loss_p", "seed", "episode"]
@@ -129,8 +132,11 @@ def merge_against(mine: Store, ref_dir: Path | str) -> Store:
     cells = ref.cells[ref.cells["cell_id"].isin(keep)]
     note = (f"merged with {len(cells)} done cells of {ref_dir} (bench report --against) at the "
             f"{len(_configs(mine.done))} configurations this run covers; settings and the scenarios of "
-            "paired evaluation episodes verified equal")
-    return Store(mine.run_dir, pd.concat([mine.cells, cells], ignore_index=True),
+            "paired evaluation episodes verified equal; where this run re-ran a method of "
+            f"{ref_dir} with other settings, this run's cells are the headline (leaderboard, figures, "
+            "Table I, claims) and the merged ones a variant labelled by how they differ")
+    merged = pd.concat([mine.cells.assign(**{MERGED: False}), cells.assign(**{MERGED: True})], ignore_index=True)
+    return Store(mine.run_dir, merged,
                  pd.concat([mine.train, ref.train[ref.train["cell_id"].isin(keep)]], ignore_index=True),
                  pd.concat([mine.eval, ref.eval[ref.eval["cell_id"].isin(keep)]], ignore_index=True),
                  mine.manifest, [*mine.problems, note])

@@ -15,6 +15,11 @@ configuration, and the seed is the statistical unit of every interval and test. 
 * The summary and the success table give each variant its own row (``variant_suffix``);
   the figures, Table I and the claims use the default variant only (``default_rows``):
   the paper's method at the method's defaults, the others' own defaults (docs/decisions/0048).
+* A report built with ``--against REF`` headlines the run, not the reference: in a group
+  that holds cells of the run itself and cells merged from REF (``MERGED`` marks those),
+  labels say how a cell departs from the settings the run's own cells share there, so the
+  run's cells are the default variant and REF's are labelled (``protocol=paper`` beside a
+  run under ``protocol = "mappo"``; docs/decisions/0243).
 """
 from __future__ import annotations
 
@@ -27,6 +32,7 @@ from algorithms.registry import find_method
 from bench.design.cells import LATER_FIELDS
 
 GROUP = ("method", "n_robots", "loss_p", "task")  # a one-shot and a lifelong cell are never variants of one another
+MERGED = "merged_from_against"  # bool column reports.data.against adds: True for REF's cells
 NOT_A_VARIANT = frozenset({"seed", "method", "n_robots", "loss_p", "params"})  # group keys, the seed, raw overrides
 
 
@@ -56,6 +62,18 @@ def _unset(key: str, settings: dict[str, str]) -> bool:
     return key in LATER_FIELDS and key not in settings
 
 
+def _reference(defaults: dict[str, str], group: pd.DataFrame,
+               settings: dict[str, dict[str, str]]) -> dict[str, str]:
+    """What a group's labels are relative to: the method's defaults, overridden, in a group
+    mixing the run's own cells with cells merged from ``--against``, by every setting the
+    run's own cells there share (see the module doc)."""
+    if MERGED not in group or not group[MERGED].any() or group[MERGED].all():
+        return defaults
+    own = [settings[cid] for cid in group.loc[~group[MERGED].astype(bool), "cell_id"]]
+    shared = {k: own[0][k] for k in own[0] if all(s.get(k) == own[0][k] for s in own)}
+    return {**defaults, **shared}
+
+
 def cell_tasks(cells: pd.DataFrame) -> pd.Series:
     """cell_id -> the cell's task, from its stored configuration (a cell stores ``task`` only
     when it is not the default "one-shot", docs/decisions/0209), so a pending cell has one too."""
@@ -78,9 +96,10 @@ def cell_variants(cells: pd.DataFrame) -> pd.Series:
         settings = {row.cell_id: {**defaults, **_settings(row)} for row in group.itertuples()}
         keys = sorted(set().union(*settings.values()))
         varying = [k for k in keys if len({s.get(k) for s in settings.values()}) > 1]
+        reference = _reference(defaults, group, settings)
         for cid, s in settings.items():
             labels[cid] = ", ".join(f"{k}={json.loads(s[k]) if k in s else None}" for k in varying
-                                    if (k not in defaults or s.get(k) != defaults[k]) and not _unset(k, s))
+                                    if (k not in reference or s.get(k) != reference[k]) and not _unset(k, s))
     return pd.Series(labels, dtype=object)
 
 

@@ -4,8 +4,12 @@ return fell, per learned method, variant and team size; and every seed's outcome
 ``robustness_frame``: two shares per (method, variant, N), each over that variant's seeds
 at every p of the run:
 
-* **collapsed**: seeds whose success rate (mean over evaluation episodes, in the first
-  execution mode of the run's order: argmax when it ran) is below ``COLLAPSE`` (10%); a
+* **collapsed**: seeds whose success rate (mean over evaluation episodes, in sample
+  execution, the policy as it was trained; in the first execution mode of the run's order
+  where the run has no sample evaluation) is below ``COLLAPSE`` (10%); argmax execution can
+  livelock a policy that trained well (the hierarchical method's joint-Wait fallback), which
+  is an execution result, shown per mode in ``seeds_frame``, not a training collapse
+  (docs/decisions/0244); a
   lifelong cell's success is near 0 by construction, so a lifelong seed counts as collapsed
   where its throughput is below ``COLLAPSE`` of the best mean throughput over seeds of any
   method (planners included, any mode) at its configuration (N, p) (docs/decisions/0238);
@@ -33,7 +37,7 @@ from reports.figures.plotting import label_order, method_label
 from reports.stats import curve_shape
 from reports.tables.mapf import with_score
 
-__all__ = ["COLLAPSE", "ROBUSTNESS_CAPTION", "SEEDS_CAPTION", "robustness_display", "robustness_frame",
+__all__ = ["COLLAPSE", "ROBUSTNESS_CAPTION", "collapse_mode", "SEEDS_CAPTION", "robustness_display", "robustness_frame",
            "robustness_markdown", "seeds_frame", "seeds_markdown"]
 
 COLLAPSE = 0.10  # a seed below this success rate counts as collapsed
@@ -41,8 +45,9 @@ LIFELONG_COLLAPSE = (f"A lifelong seed (success near 0 by construction) counts a
                      f"is below {COLLAPSE:.0%} of the best mean throughput of any method (planners included) at "
                      "its configuration (docs/decisions/0238).")
 ROBUSTNESS_CAPTION = (f"Robustness of training per learned method (and variant) and team size N (over its seeds "
-                      f"at every p): collapsed = seeds whose success rate, in the first execution mode, is below "
-                      f"{COLLAPSE:.0%}; falling = seeds whose team return over the last 20% of training "
+                      f"at every p): collapsed = seeds whose success rate in sample execution (the policy as "
+                      f"trained; argmax can livelock a policy that trained well, see seeds.md for every mode) is "
+                      f"below {COLLAPSE:.0%}; falling = seeds whose team return over the last 20% of training "
                       "episodes is below that over the first 20% (seeds with fewer than 50 episodes not counted).")
 SEEDS_CAPTION = ("Every seed of every learned configuration: success rate per seed (mean over its evaluation "
                  "episodes, in seed order), their mean, standard deviation over seeds (percentage points) and "
@@ -96,13 +101,20 @@ def _cell_scores(evals: pd.DataFrame) -> pd.DataFrame:
     return per.assign(floor=floor)
 
 
+def collapse_mode(modes: pd.Series) -> str | None:
+    """The execution mode a seed's collapse is judged in (module doc): sample where the run
+    evaluated it, else the first of the run's order; None for no evaluation row."""
+    present = set(map(str, modes))
+    return "sample" if "sample" in present else next(iter(execution_order(present)), None)
+
+
 def robustness_frame(train: pd.DataFrame, evals: pd.DataFrame, variants: pd.Series | None = None) -> pd.DataFrame:
     """One row per learned method, variant and N: seeds, collapsed seeds, seeds with a
     curve, falling ones. ``variants``: cell_id -> variant label (``cell_variants``)."""
     if train.empty:
         return pd.DataFrame(columns=COLUMNS)
     learned = set(map(str, train["method"]))
-    mode = next(iter(execution_order(evals["execution"])), None) if len(evals) else None
+    mode = collapse_mode(evals["execution"])
     scores = _cell_scores(evals[evals["execution"] == mode] if mode is not None else evals.iloc[0:0])
     scores = scores.reset_index(level="execution", drop=True)
     learned_ids = set(map(str, evals.loc[evals["method"].isin(learned), "cell_id"]))

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from reports.build import build_report
-from reports.data.variants import cell_variants, default_rows
+from reports.data.variants import MERGED, cell_variants, default_rows
 from reports.tables.success_table import success_frame
 from reports.tables.summary import summary_frame
 from tests.reports.synthetic import frames, write_store
@@ -41,6 +41,28 @@ def test_cell_variants__label_only_what_varies_and_only_where_it_departs_from_th
                            "e0": "episodes=100", "e1": "episodes=200"}
     kept = default_rows(cells, v)
     assert sorted(kept["cell_id"]) == ["a0", "a1", "d0"]
+
+
+def test_cell_variants__a_report_against_a_reference_headlines_the_run_s_own_cells() -> None:
+    """``bench report --against REF``: where the run re-ran a method of REF with other
+    settings, the run's cells are the default variant and REF's are labelled; a group the
+    run does not hold keeps REF's cells as its default; the run's own variants stay labelled
+    relative to what the run's cells share."""
+    cells = _cells([
+        ("m0", "hierarchical", 40, {"protocol": "mappo"}, {}),
+        ("m1", "hierarchical", 40, {"protocol": "mappo"}, {}),
+        ("r0", "hierarchical", 40, {}, {}),  # REF at the paper protocol (the method's default)
+        ("d0", "decentralized", 40, {"protocol": "mappo", "ref": 1}, {}),
+        ("d1", "decentralized", 40, {"protocol": "mappo", "ref": 2}, {}),  # the run's own two variants
+        ("s0", "decentralized", 40, {}, {}),
+        ("p0", "pibt", 40, {}, {}),  # only REF has it
+    ]).assign(**{MERGED: [False, False, True, False, False, True, True]})
+    v = cell_variants(cells).to_dict()
+    assert v == {"m0": "", "m1": "", "r0": "protocol=paper", "d0": "ref=1", "d1": "ref=2",
+                 "s0": "protocol=paper, ref=None", "p0": ""}
+    assert sorted(default_rows(cells, cell_variants(cells))["cell_id"]) == ["m0", "m1", "p0"]
+    alone = cells.drop(columns=[MERGED])  # the same cells in one run: labelled against the defaults
+    assert cell_variants(alone).to_dict()["r0"] == "" and cell_variants(alone).to_dict()["m0"] == "protocol=mappo"
 
 
 def test_cell_variants__a_store_without_settings_is_one_variant_per_group() -> None:
