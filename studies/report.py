@@ -1,5 +1,6 @@
-"""Study figures: optimization history, the L x |R_z| landscape, intermediate-value
-curves, parameter importances.
+"""Study figures: optimization history, the landscape (L x |R_z| for the paper's study, the
+objective per parameter value for any other), intermediate-value curves, parameter
+importances.
 
 Pure builders take the trials frame (studies/export.py ``trials_frame``) or the stored
 importances and return a ``Built`` figure (reports/figures/plotting.py); only
@@ -12,6 +13,7 @@ the built files into the run's report.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +29,12 @@ from bench.store.study_files import (
     TRIALS_FILE,
 )
 from envs.errors import BenchError
-from reports.figures.plotting import Built, new_figure, paper_style, placeholder
+from reports.figures.plotting import FONT_PT, Built, new_figure, paper_style, placeholder
 from studies.export import read_trials
-from studies.space import REF_SIZES, SEARCH_RADII
+from studies.space import REF_SIZES, SEARCH_RADII, plain
+from studies.trial_columns import param_columns
 
+PAPER_SPACE = {"ref_size", "search_radius", "c_max"}  # the paper's study (SPEC 6), drawn as L x |R_z|
 PARAM_LABELS = {"ref_size": r"$|\mathcal{R}_z|$ (reference-space size)", "search_radius": r"$L$ (search radius)",
                 "c_max": r"$C_{\max}$ (candidate budget)"}
 
@@ -80,19 +84,23 @@ def landscape_table(trials: pd.DataFrame, value: str = "success_rate",
     return mean, counts(comp), counts(done[done["state"] == "PRUNED"])
 
 
+def is_paper_space(trials: pd.DataFrame) -> bool:
+    """Whether the study searches L x |R_z| (with C_max at most): the paper's study, whose
+    landscape is the L x |R_z| heatmap; any other study's is the per-parameter slice."""
+    names = set(param_columns(trials))
+    return {"search_radius", "ref_size"} <= names <= PAPER_SPACE
+
+
 def landscape_figure(trials: pd.DataFrame) -> Built:
-    """Heatmap of the mean evaluation success rate over L x |R_z|; every cell says how many
-    trials completed and were pruned, and a cell whose trials were all pruned is hatched
-    (evaluated and stopped, not missing)."""
+    """The study's landscape. The paper's study (L x |R_z|, C_max at most): a heatmap of the
+    mean evaluation success rate over L x |R_z|; every cell says how many trials completed
+    and were pruned, and a cell whose trials were all pruned is hatched (evaluated and
+    stopped, not missing). Any other study: ``slice_figure``."""
     import seaborn as sns
     from matplotlib.patches import Patch, Rectangle
 
-    if not {"search_radius", "ref_size"} <= set(trials.columns):  # a study of other parameters
-        with paper_style():
-            fig = new_figure(2.6)
-            placeholder(fig.add_subplot(), "this study does not search L x |R_z|")
-        return Built(fig, ["the L x |R_z| landscape applies to the paper's study only; see the "
-                           "history and the per-configuration table"])
+    if not is_paper_space(trials):  # a study of other parameters: one panel per parameter
+        return slice_figure(trials)
     mean, n_comp, n_pruned = landscape_table(trials)
     notes = []
     if "c_max" in trials and trials["c_max"].notna().any():
@@ -134,6 +142,74 @@ def landscape_figure(trials: pd.DataFrame) -> Built:
         if missing:
             notes.append(f"{missing} of {mean.size} configurations not run")
         return Built(fig, notes)
+
+
+def slice_table(trials: pd.DataFrame) -> pd.DataFrame:
+    """One row per searched parameter and value: ``parameter``, ``value``, the mean
+    objective of its complete trials (``mean``, NaN if none), and its ``complete`` and
+    ``pruned`` trial counts (failed and running trials count nowhere)."""
+    done = trials[trials["state"].isin(["COMPLETE", "PRUNED"])]
+    rows = []
+    for name in param_columns(trials):
+        for value, part in done.dropna(subset=[name]).groupby(name, sort=True):
+            comp = part[part["state"] == "COMPLETE"]
+            rows.append({"parameter": name, "value": plain(value),
+                         "mean": float(comp["value"].mean()) if len(comp) else math.nan,
+                         "complete": len(comp), "pruned": int((part["state"] == "PRUNED").sum())})
+    return pd.DataFrame(rows, columns=["parameter", "value", "mean", "complete", "pruned"])
+
+
+def slice_figure(trials: pd.DataFrame) -> Built:
+    """One panel per searched parameter: the objective of every finished trial against the
+    parameter's value (complete trials as dots, pruned ones as red crosses at their last
+    intermediate value) and the mean of the complete trials per value (a black bar). With
+    many parameters a heatmap of two would average over all the others; this shows each
+    marginal with its spread."""
+    table = slice_table(trials)
+    names = list(dict.fromkeys(table["parameter"]))
+    ncols = min(3, max(1, len(names)))
+    nrows = max(1, -(-len(names) // ncols))
+    with paper_style():
+        fig = new_figure(1.25 * nrows + 0.5)
+        if not names:
+            placeholder(fig.add_subplot(), "no finished trial yet")
+            return Built(fig, ["no finished trial"])
+        axes = fig.subplots(nrows, ncols, sharey=True, squeeze=False).ravel()
+        done = trials[trials["state"].isin(["COMPLETE", "PRUNED"])]
+        for ax, name in zip(axes, names, strict=False):
+            rows = table[table["parameter"] == name].reset_index(drop=True)
+            for x, row in rows.iterrows():
+                part = done[done[name].map(plain) == row["value"]]
+                for state, marker, color in (("COMPLETE", "o", "C0"), ("PRUNED", "x", "C3")):
+                    ys = part.loc[part["state"] == state, "value"].to_numpy(float)
+                    offsets = np.linspace(-0.18, 0.18, len(ys)) if len(ys) > 1 else np.zeros(len(ys))
+                    ax.scatter(x + offsets, ys, marker=marker, color=color, s=6, linewidths=0.6,
+                               alpha=0.7, zorder=3)
+                if row["complete"]:
+                    ax.plot([x - 0.3, x + 0.3], [row["mean"]] * 2, color="0.1", linewidth=1.2, zorder=4)
+            ax.set_xticks(range(len(rows)), [_tick(v) for v in rows["value"]])
+            ax.set_xlim(-0.6, len(rows) - 0.4)
+            ax.set_title(PARAM_LABELS.get(name, name), fontsize=FONT_PT)
+            ax.grid(axis="x", visible=False)
+        for ax in axes[len(names):]:
+            ax.set_visible(False)
+        for ax in axes[::ncols]:
+            ax.set_ylabel("objective")
+        fig.suptitle("Objective per parameter value", fontsize=FONT_PT)
+        pruned = int((done["state"] == "PRUNED").sum())
+        notes = ["dots: complete trials; crosses: pruned trials; bar: mean of the complete trials",
+                 f"each of the {len(names)} panels pools all values of the other parameters"]
+        if pruned:
+            notes.append(f"{pruned} pruned trial(s) shown at their last intermediate value")
+        return Built(fig, notes)
+
+
+def _tick(value: Any) -> str:
+    """A compact tick label: 2e-4 rather than 0.0002."""
+    if isinstance(value, float) and 0 < abs(value) < 0.01:
+        mantissa, exponent = f"{value:.0e}".split("e")
+        return f"{mantissa}e{int(exponent)}"
+    return str(value)
 
 
 def intermediate_curves(trials: pd.DataFrame) -> list[tuple[int, str, np.ndarray, np.ndarray]]:

@@ -22,7 +22,7 @@ from studies.pruning import step_correlations
 from studies.trial_columns import TRIAL_COLUMNS, param_columns
 
 FIGURES = (("study_history", "Optimization history"),
-           ("study_landscape", "L x |R_z| landscape (complete and pruned trials)"),
+           ("study_landscape", "Landscape: L x |R_z|, or the objective per parameter value (all finished trials)"),
            ("study_curves", "Intermediate values per trial"),
            ("study_importances", "Parameter importances"))
 

@@ -9,7 +9,14 @@ import pandas as pd
 import pytest
 
 from envs.errors import BenchError
-from studies.report import build_study_report, importance_figure, landscape_figure, landscape_table
+from studies.report import (
+    build_study_report,
+    importance_figure,
+    is_paper_space,
+    landscape_figure,
+    landscape_table,
+    slice_table,
+)
 
 
 def _frame() -> pd.DataFrame:
@@ -69,3 +76,35 @@ def test_build_study_report__writes_figures_markdown_and_html(tmp_path: Path) ->
 def test_build_study_report__without_trials_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(BenchError, match="trials.parquet"):
         build_study_report(tmp_path)
+
+
+def _other_space() -> pd.DataFrame:
+    """A study of a baseline's parameters: two searched parameters, neither L nor |R_z|."""
+    return pd.DataFrame({
+        "study": ["b"] * 6, "number": range(6),
+        "state": ["COMPLETE", "COMPLETE", "COMPLETE", "PRUNED", "FAIL", "COMPLETE"],
+        "value": [0.5, 0.7, 0.9, 0.2, np.nan, 0.6],
+        "success_rate": [0.5, 0.7, 0.9, np.nan, np.nan, 0.6], "team_return": [1.0] * 6,
+        "ppo_lr": [1e-3, 1e-3, 5e-4, 5e-4, 1e-3, 2e-4], "hidden": [64, 128, 64, 64, 64, 128],
+        "intermediate_json": ["{}"] * 6,
+    })
+
+
+def test_slice_landscape__means_complete_trials_per_value_and_counts_pruned_ones_by_hand() -> None:
+    table = slice_table(_other_space()).set_index(["parameter", "value"])
+    assert list(table.index.get_level_values(0).unique()) == ["hidden", "ppo_lr"]
+    assert table.loc[("ppo_lr", 1e-3), "mean"] == pytest.approx(0.6)  # (0.5 + 0.7) / 2: the failed trial counts nowhere
+    assert table.loc[("ppo_lr", 5e-4), "mean"] == pytest.approx(0.9)  # the pruned trial's 0.2 is not averaged ...
+    assert table.loc[("ppo_lr", 5e-4), "pruned"] == 1  # ... but counted
+    assert table.loc[("hidden", 128), "complete"] == 2 and table.loc[("hidden", 64), "complete"] == 2
+    assert table["complete"].sum() == 2 * 4 and table["pruned"].sum() == 2
+
+
+def test_landscape_figure__a_study_of_other_parameters_gets_one_panel_per_parameter() -> None:
+    built = landscape_figure(_other_space())
+    visible = [ax for ax in built.fig.axes if ax.get_visible()]
+    assert [ax.get_title() for ax in visible] == ["hidden", "ppo_lr"]
+    assert any("1 pruned trial" in n for n in built.notes)
+    # the paper's study (L x |R_z|) keeps its heatmap, with a C_max column too
+    assert is_paper_space(_frame()) and is_paper_space(_frame().assign(c_max=500))
+    assert not is_paper_space(_frame().assign(share_params=True))
