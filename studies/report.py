@@ -13,7 +13,6 @@ the built files into the run's report.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -151,10 +150,10 @@ def slice_table(trials: pd.DataFrame) -> pd.DataFrame:
     done = trials[trials["state"].isin(["COMPLETE", "PRUNED"])]
     rows = []
     for name in param_columns(trials):
-        for value, part in done.dropna(subset=[name]).groupby(name, sort=True):
+        for value, part in done.dropna(subset=[name]).groupby(name):  # sorted by value
             comp = part[part["state"] == "COMPLETE"]
             rows.append({"parameter": name, "value": plain(value),
-                         "mean": float(comp["value"].mean()) if len(comp) else math.nan,
+                         "mean": float(comp["value"].mean()),  # NaN without a complete trial
                          "complete": len(comp), "pruned": int((part["state"] == "PRUNED").sum())})
     return pd.DataFrame(rows, columns=["parameter", "value", "mean", "complete", "pruned"])
 

@@ -10,6 +10,7 @@ import pytest
 
 from envs.errors import BenchError
 from studies.report import (
+    _tick,
     build_study_report,
     importance_figure,
     is_paper_space,
@@ -91,7 +92,9 @@ def _other_space() -> pd.DataFrame:
 
 
 def test_slice_landscape__means_complete_trials_per_value_and_counts_pruned_ones_by_hand() -> None:
-    table = slice_table(_other_space()).set_index(["parameter", "value"])
+    table = slice_table(_other_space())
+    assert table[table["parameter"] == "ppo_lr"]["value"].tolist() == [2e-4, 5e-4, 1e-3]  # by value
+    table = table.set_index(["parameter", "value"])
     assert list(table.index.get_level_values(0).unique()) == ["hidden", "ppo_lr"]
     assert table.loc[("ppo_lr", 1e-3), "mean"] == pytest.approx(0.6)  # (0.5 + 0.7) / 2: the failed trial counts nowhere
     assert table.loc[("ppo_lr", 5e-4), "mean"] == pytest.approx(0.9)  # the pruned trial's 0.2 is not averaged ...
@@ -108,3 +111,13 @@ def test_landscape_figure__a_study_of_other_parameters_gets_one_panel_per_parame
     # the paper's study (L x |R_z|) keeps its heatmap, with a C_max column too
     assert is_paper_space(_frame()) and is_paper_space(_frame().assign(c_max=500))
     assert not is_paper_space(_frame().assign(share_params=True))
+    # a study with no finished trial yet says so, whichever its parameters
+    unfinished = _other_space().assign(state="RUNNING")
+    assert slice_table(unfinished).columns.tolist() == ["parameter", "value", "mean", "complete", "pruned"]
+    assert landscape_figure(unfinished).notes == ["no finished trial"]
+
+
+@pytest.mark.parametrize(("value", "label"), [(2e-4, "2e-4"), (0.003, "3e-3"), (0.01, "0.01"), (0.03, "0.03"),
+                                              (0.0, "0.0"), (128, "128"), (False, "False")])
+def test_slice_ticks_are_short(value: object, label: str) -> None:
+    assert _tick(value) == label
