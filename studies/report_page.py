@@ -19,6 +19,7 @@ import pandas as pd
 
 from studies.points import coverage, point_table
 from studies.pruning import step_correlations
+from studies.space import plain
 from studies.trial_columns import TRIAL_COLUMNS, param_columns
 
 FIGURES = (("study_history", "Optimization history"),
@@ -160,7 +161,7 @@ def _best(trials: pd.DataFrame, replicates: int, names: list[str], n_points: int
         b = best_point(trials, replicates, n_points)
     except BenchError as exc:
         return Section("Best configuration", [f"Withheld: {exc}."])
-    label = ", ".join(f"{n}={int(b[n])}" for n in names)
+    label = ", ".join(f"{n}={plain(b[n])}" for n in names)
     return Section("Best configuration", [
         f"{label}: mean objective {b['value']:.4f} over {int(b['complete'])} replicates, 95% CI "
         f"[{_f(b['ci_low'], 4)}, {_f(b['ci_high'], 4)}] (Student t on the logit scale); "

@@ -121,3 +121,15 @@ def test_landscape_figure__a_study_of_other_parameters_gets_one_panel_per_parame
                                               (0.0, "0.0"), (128, "128"), (False, "False")])
 def test_slice_ticks_are_short(value: object, label: str) -> None:
     assert _tick(value) == label
+
+
+def test_study_page__names_a_best_of_floats_and_booleans_as_they_are(tmp_path: Path) -> None:
+    """The best configuration of a baseline's study prints ppo_lr=0.0005, not ppo_lr=0 (every
+    value was once cast to int, as the paper's integer space allowed)."""
+    frame = pd.concat([_other_space()] * 2, ignore_index=True).assign(number=range(12))
+    frame["ppo_lr"], frame["hidden"], frame["action_path"], frame["state"] = 5e-4, 64, False, "COMPLETE"
+    frame["value"] = 0.5
+    frame.to_parquet(tmp_path / "trials.parquet")
+    build_study_report(tmp_path)
+    text = (tmp_path / "report" / "study.md").read_text()
+    assert "action_path=False, hidden=64, ppo_lr=0.0005: mean objective" in text
