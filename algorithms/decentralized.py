@@ -193,7 +193,11 @@ class DecentralizedMethod(OwnNetworksStack, Method):
     line_style = "--"
     payload_model = "all-to-all robot messages: N (N - 1) d_m per step (Sec. III-A, C_dec)"
     Params = DecentralizedParams
-    presets = {"tuned": Preset.unpublished("studies/definitions/decentralized.toml")}  # decision 0215
+    # "tuned": the winner of the committed study reproduction/studies/tuned-decentralized (decisions
+    # 0215, 0245); tests/studies/test_published_presets.py checks these values against it.
+    presets = {"tuned": Preset({"protocol": "mappo", "ppo_lr": 0.001, "entropy_coef": 0.01, "hidden": 128,
+                                "critic_hidden": 128, "patch_radius": 2, "action_path": False},
+                               source="studies/definitions/decentralized.toml")}
     params: DecentralizedParams
 
     def __init__(self, env, params=None, seed: int = 0, device=None) -> None:

@@ -79,12 +79,6 @@ def test_missing_and_unpublished_presets_are_one_clear_error() -> None:
         cell(preset="later")
 
 
-@pytest.mark.parametrize("method", ["hierarchical", "decentralized", "ic3net"])
-def test_learned_methods_declare_tuned_but_have_no_study_yet(method: str) -> None:
-    with pytest.raises(BenchError, match=f"no published study for preset 'tuned' yet .*studies/definitions/{method}"):
-        Cell.make(method=method, n_robots=8, loss_p=0.2, preset="tuned")
-
-
 def test_a_grid_file_selects_presets_in_base_and_as_an_axis(tmp_path: Path) -> None:
     grid = tmp_path / "g.toml"
     grid.write_text(f'[base]\nmethod = "{TOY}"\nn_robots = 4\nloss_p = 0.2\nlayout = "tiny"\n'
@@ -98,7 +92,7 @@ def test_a_grid_file_selects_presets_in_base_and_as_an_axis(tmp_path: Path) -> N
 
 def test_bench_grids_reports_a_missing_preset_on_one_line_with_status_2(tmp_path: Path) -> None:
     grid = tmp_path / "g.toml"
-    grid.write_text('[base]\nmethod = "ic3net"\nn_robots = 8\nloss_p = 0.2\npreset = "tuned"\n')
+    grid.write_text('[base]\nmethod = "decentralized"\nn_robots = 8\nloss_p = 0.2\npreset = "best"\n')
     bench = Path(sys.executable).with_name("bench")
     res = subprocess.run([str(bench), "grids", "--grid-file", str(grid)], capture_output=True, text=True,
                          cwd=tmp_path, timeout=120)
