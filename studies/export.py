@@ -26,7 +26,7 @@ from envs.errors import BenchError
 from studies.points import best_point
 from studies.space import ordered, plain
 from studies.storage import CONFIG_ATTR, REPLICATE, RETRY_OF
-from studies.trial_columns import TRIAL_COLUMNS, param_columns
+from studies.trial_columns import FILTER_RATES, TRIAL_COLUMNS, param_columns
 
 MIN_IMPORTANCE_TRIALS = 10  # complete trials before fANOVA importances are computed
 IMPORTANCE_CAVEAT = (
@@ -50,7 +50,7 @@ def trials_frame(study: optuna.Study) -> pd.DataFrame:
     for col in ("number", "seed", "replicate", "retry_of", "last_step", "pruned_at_step", "prune_n",
                 "episodes", *ints):
         frame[col] = frame[col].astype("Int64")
-    for col in ("value", "value_return", "success_rate", "team_return", "prune_rho", "wall_s",
+    for col in ("value", "value_return", "success_rate", "team_return", *FILTER_RATES, "prune_rho", "wall_s",
                 "duration_s"):
         frame[col] = frame[col].astype("float64")
     for col in ("datetime_start", "datetime_complete"):
@@ -69,6 +69,7 @@ def _row(study: str, t: FrozenTrial, names: list[str]) -> dict[str, Any]:
         "value": values[0] if values else math.nan,
         "value_return": values[1] if len(values) > 1 else math.nan,
         "success_rate": ua.get("success_rate", math.nan), "team_return": ua.get("team_return", math.nan),
+        **{key: ua.get(key, math.nan) for key in FILTER_RATES},
         "seed": ua.get("seed"), "replicate": ua.get(REPLICATE), "cell_id": ua.get("cell_id"),
         "retry_of": ua.get(RETRY_OF), "last_step": t.last_step,
         "pruned_at_step": ua.get("pruned_at_step"), "prune_rho": ua.get("prune_rho", math.nan),

@@ -35,6 +35,7 @@ from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, Probability, format_validation_error
 from envs.errors import BenchError
 from studies.storage import Direction
+from studies.trial_columns import FILTER_RATES
 
 Objectives = Literal["success", "success,return"]
 TIE_BREAK = 1e-3  # weight of the squashed return in the single objective
@@ -158,9 +159,25 @@ class Segment:
     eval_episodes: int  # episodes behind the means
     done: bool  # training finished; this was the final evaluation
     wall_s: float  # seconds spent on this segment
+    # the safety filter's mean fallback and correction rates over the evaluation episodes
+    # (algorithms/common/episodes.py; NaN for a method without a filter)
+    fallback_rate: float = math.nan
+    correction_rate: float = math.nan
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+
+def filter_rates(rows: list[dict[str, Any]]) -> tuple[float, float]:
+    """(fallback, correction) rates of the safety filter, each the mean over the evaluation
+    episodes on which the filter ran (a non-NaN ``fallback_rate``: algorithms/common/episodes.py);
+    (NaN, NaN) when it ran on none, as for a method without a filter (whose correction rate
+    reads 0, since nothing changes its actions)."""
+    ran = [r for r in rows if not math.isnan(float(r.get("fallback_rate", math.nan)))]
+    if not ran:
+        return math.nan, math.nan
+    return (float(np.mean([r["fallback_rate"] for r in ran])),
+            float(np.mean([r["correction_rate"] for r in ran])))
 
 
 def load_method(path: str) -> type[Method]:
@@ -192,4 +209,5 @@ class TrialWorker:
         values = objective_values(success, ret, s.objectives, s.env.n_robots)
         return Segment(step=m.iterations, episodes=m.episodes_done, success_rate=success,
                        team_return=ret, values=tuple(values), eval_episodes=len(rows),
-                       done=done, wall_s=time.perf_counter() - t0)
+                       done=done, wall_s=time.perf_counter() - t0, **dict(zip(FILTER_RATES, filter_rates(rows),
+                                                                              strict=True)))

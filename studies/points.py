@@ -21,7 +21,7 @@ import pandas as pd
 from envs.errors import BenchError
 from reports.stats import rate_ci
 from studies.space import plain
-from studies.trial_columns import param_columns
+from studies.trial_columns import FILTER_RATES, param_columns
 
 CONFIDENCE = 0.95
 
@@ -36,16 +36,17 @@ def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
 
 def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
     """One row per configuration tried: parameters, counts per state, the mean objective
-    (``value``), success rate and team return over complete replicates, the objective's
+    (``value``), success rate, team return and the filter's rates (``FILTER_RATES``) over
+    complete replicates, the objective's
     95 % CI (``ci_low``, ``ci_high``) and ``eligible``; sorted best first (eligible, then
     mean value, then mean team return)."""
     names = param_columns(trials)
     cols = [*names, "complete", "pruned", "running", "failed", "value", "ci_low", "ci_high",
-            "success_rate", "team_return", "value_return", "trials", "eligible"]
+            "success_rate", "team_return", *FILTER_RATES, "value_return", "trials", "eligible"]
     if not names or trials.empty:
         return pd.DataFrame(columns=cols)
     trials = trials.copy()
-    for col in ("value_return", "team_return", "success_rate"):
+    for col in ("value_return", "team_return", "success_rate", *FILTER_RATES):
         if col not in trials:
             trials[col] = math.nan
     rows = []
@@ -62,6 +63,7 @@ def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
             "value": mean, "ci_low": low, "ci_high": high,
             "success_rate": float(comp["success_rate"].mean()) if len(comp) else math.nan,
             "team_return": float(comp["team_return"].mean()) if len(comp) else math.nan,
+            **{key: float(comp[key].mean()) for key in FILTER_RATES},  # NaN: no filter, or none complete
             "value_return": float(comp["value_return"].mean()) if len(comp) else math.nan,
             "trials": ",".join(str(int(n)) for n in part["number"]),
             "eligible": len(comp) >= replicates and n_pruned == 0,

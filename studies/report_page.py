@@ -20,8 +20,10 @@ import pandas as pd
 from studies.points import coverage, point_table
 from studies.pruning import step_correlations
 from studies.space import plain
-from studies.trial_columns import TRIAL_COLUMNS, param_columns
+from studies.trial_columns import FILTER_RATES, TRIAL_COLUMNS, param_columns
 
+# the safety filter's rates, shown beside the success rate wherever a trial recorded them
+RATE_LABELS = dict(zip(FILTER_RATES, ("fallback", "corrections"), strict=True))
 FIGURES = (("study_history", "Optimization history"),
            ("study_landscape", "Landscape: L x |R_z|, or the objective per parameter value (all finished trials)"),
            ("study_curves", "Intermediate values per trial"),
@@ -85,6 +87,10 @@ def _md_table(df: pd.DataFrame) -> str:
 
 def _f(x: Any, digits: int = 3) -> str:
     return "" if x is None or pd.isna(x) else f"{float(x):.{digits}f}"
+
+
+def _pct(x: Any) -> str:
+    return "" if x is None or pd.isna(x) else f"{float(x):.1%}"
 
 
 def correlation_table(trials: pd.DataFrame, warmup: int | None, min_rho: float | None,
@@ -165,8 +171,9 @@ def _best(trials: pd.DataFrame, replicates: int, names: list[str], n_points: int
     return Section("Best configuration", [
         f"{label}: mean objective {b['value']:.4f} over {int(b['complete'])} replicates, 95% CI "
         f"[{_f(b['ci_low'], 4)}, {_f(b['ci_high'], 4)}] (Student t on the logit scale); "
-        f"mean success rate {b['success_rate']:.3f}, "
-        f"mean team return {b['team_return']:.2f}; trials {b['trials']}.",
+        f"mean success rate {b['success_rate']:.3f}"
+        + "".join(f" ({label} {_pct(b[key])})" for key, label in RATE_LABELS.items() if pd.notna(b.get(key)))
+        + f", mean team return {b['team_return']:.2f}; trials {b['trials']}.",
         f"Chosen by the mean over replicates among configurations with {replicates} complete and no "
         "pruned replicate; overlapping CIs in the table below mean the ranking is not settled."])
 
@@ -209,6 +216,9 @@ def _points(trials: pd.DataFrame, replicates: int, names: list[str]) -> Section:
                        zip(table["ci_low"], table["ci_high"], strict=True)]
     shown["success rate"] = table["success_rate"].map(_f)
     shown["team return"] = table["team_return"].map(lambda v: _f(v, 2))
+    for key, label in RATE_LABELS.items():  # beside the success rate of a method with a filter
+        if table[key].notna().any():
+            shown[label] = table[key].map(_pct)
     shown["eligible"] = table["eligible"].map({True: "yes", False: "no"})
     shown["trials"] = table["trials"]
     return Section("Configurations (mean over replicates)", [
@@ -217,8 +227,12 @@ def _points(trials: pd.DataFrame, replicates: int, names: list[str]) -> Section:
 
 def _trials(trials: pd.DataFrame, names: list[str]) -> Section:
     cols = ["number", "state", *names, "replicate", "seed", "value", "success_rate", "team_return",
-            "last_step", "pruned_at_step", "prune_rho", "wall_s"]
-    df = trials[[c for c in cols if c in trials]].sort_values("number").copy()
+            *FILTER_RATES, "last_step", "pruned_at_step", "prune_rho", "wall_s"]
+    df = trials[[c for c in cols if c in trials and (c not in FILTER_RATES or trials[c].notna().any())]]
+    df = df.sort_values("number").copy()
+    for key in FILTER_RATES:
+        if key in df:
+            df[key] = df[key].map(_pct)
     for c, d in (("value", 4), ("success_rate", 3), ("team_return", 2), ("prune_rho", 2), ("wall_s", 1)):
         if c in df:
             df[c] = df[c].map(lambda v, d=d: _f(v, d))

@@ -13,6 +13,7 @@ Multi-objective studies cannot prune (Optuna); their segments are only recorded.
 """
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from studies.pruning import MIN_RHO, WARMUP, PredictivePruner, warmup_step
 from studies.schedule import SearchPlan, replicate_seed, trial_replicate
 from studies.space import distributions
 from studies.storage import LEASE_BEAT, REPLICATE, lease_attrs, recover_orphans, requeue
+from studies.trial_columns import FILTER_RATES
 
 FINISHED = (TrialState.COMPLETE, TrialState.PRUNED)
 HEARTBEAT_S = 60.0
@@ -197,6 +199,9 @@ def _on_segment(study: optuna.Study, trial: Trial, seg: Segment, executor: Execu
     trial.set_user_attr(LEASE_BEAT, time.time())
     trial.set_user_attr("success_rate", seg.success_rate)
     trial.set_user_attr("team_return", seg.team_return)
+    for key in FILTER_RATES:  # a method with a safety filter only
+        if not math.isnan(getattr(seg, key)):
+            trial.set_user_attr(key, getattr(seg, key))
     trial.set_user_attr("episodes", seg.episodes)
     trial.set_user_attr("wall_s", float(trial.user_attrs.get("wall_s", 0.0)) + seg.wall_s)
     if len(study.directions) == 1:
@@ -205,8 +210,10 @@ def _on_segment(study: optuna.Study, trial: Trial, seg: Segment, executor: Execu
         running.pop(trial.number)
         executor.stop(trial.number)
         study.tell(trial, list(seg.values))
+        rates = "".join(f", {key.removesuffix('_rate')} {getattr(seg, key):.1%}" for key in FILTER_RATES
+                        if not math.isnan(getattr(seg, key)))
         log(f"trial {trial.number} complete: success {seg.success_rate:.3f}, "
-            f"return {seg.team_return:.1f} ({_fmt(trial.params)}) {snapshot().line()}")
+            f"return {seg.team_return:.1f}{rates} ({_fmt(trial.params)}) {snapshot().line()}")
         return True
     if pruning and trial.should_prune():
         running.pop(trial.number)

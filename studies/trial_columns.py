@@ -7,10 +7,15 @@ import pandas as pd
 
 from studies.space import ordered
 
-__all__ = ["TRIAL_COLUMNS", "param_columns"]
+__all__ = ["FILTER_RATES", "TRIAL_COLUMNS", "param_columns"]
+
+# The safety filter's rates a trial records from its final evaluation (NaN for a method without a
+# filter): the fallback and correction rates that stand beside every hierarchical success number.
+FILTER_RATES = ("fallback_rate", "correction_rate")
 
 TRIAL_COLUMNS = (
     "study", "number", "state", "value", "value_return", "success_rate", "team_return",
+    "fallback_rate", "correction_rate",
     "seed", "replicate", "cell_id", "retry_of", "last_step", "pruned_at_step", "prune_rho",
     "prune_n", "episodes", "wall_s",
     "datetime_start", "datetime_complete", "duration_s", "intermediate_json", "error",

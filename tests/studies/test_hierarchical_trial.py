@@ -18,7 +18,10 @@ def test_hierarchical_trial__segments_run_and_repeat_exactly() -> None:
     def run() -> list[tuple[int, float, float]]:
         worker = TrialWorker(settings.spec(sampled, seed=11, eval_seed=eval_seed(0)))
         assert worker.method.params.ref_size == 4 and worker.method.params.search_radius == 1
-        return [(s.step, s.success_rate, s.team_return) for s in (worker.step(), worker.step())]
+        segments = [worker.step(), worker.step()]
+        # its filter ran: both rates recorded
+        assert all(0.0 <= s.fallback_rate <= 1.0 and 0.0 <= s.correction_rate <= 1.0 for s in segments)
+        return [(s.step, s.success_rate, s.team_return) for s in segments]
 
     first = run()
     assert [step for step, _, _ in first] == [1, 2]

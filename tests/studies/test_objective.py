@@ -1,6 +1,8 @@
 """Trial seeds, the objective's tie-break and a worker's segments (runtime ~1 s)."""
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from envs.errors import BenchError
@@ -60,3 +62,13 @@ def test_trial_cell__sampled_cell_fields_set_the_cell_and_other_names_the_method
     cell = settings.cell({"lr": 1e-3, "search_radius": 1}, seed=5)
     assert cell.search_radius == 1 and cell.params["lr"] == 1e-3 and "search_radius" not in cell.params
     assert cell.method_params().lr == 1e-3
+
+
+def test_filter_rates__mean_the_episodes_the_filter_ran_on_else_nan() -> None:
+    from studies.objective import filter_rates
+
+    rows = [{"fallback_rate": 0.2, "correction_rate": 0.1}, {"fallback_rate": float("nan"), "correction_rate": 0.0},
+            {"fallback_rate": 0.4, "correction_rate": 0.3}, {"correction_rate": 0.0}]
+    assert filter_rates(rows) == pytest.approx((0.3, 0.2))  # the episodes without a filter call are left out
+    no_filter = filter_rates(rows[1:2] + rows[3:])  # a baseline: correction 0, fallback NaN -> both NaN
+    assert math.isnan(no_filter[0]) and math.isnan(no_filter[1])

@@ -179,3 +179,31 @@ def test_runner__a_study_that_already_holds_n_trials_runs_nothing(tmp_path: Path
     run_study(study, settings, search_space(), 0, 2, SequentialExecutor(2))
     summary = run_study(study, settings, search_space(), 0, 2, SequentialExecutor(2))
     assert summary.started == 0 and summary.finished == 2
+
+
+def test_runner__records_the_filters_rates_beside_the_success_rate(
+        tmp_path: Path, settings: TrialSettings, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A trial of a method with a safety filter keeps its final evaluation's fallback and
+    correction rates (trials frame, log line, study page); one without keeps NaN and the
+    page shows no such column."""
+    from studies import objective
+    from studies.export import trials_frame
+    from studies.report_page import study_page
+
+    study = make_study(tmp_path, settings, pruner="none")
+    study.enqueue_trial(GOOD)
+    run_study(study, settings, SPACE, 0, 1, SequentialExecutor(1), pruning=False)
+    frame = trials_frame(study)
+    assert frame[["fallback_rate", "correction_rate"]].isna().all().all()  # the fake method has no filter
+    assert "fallback" not in study_page(frame, {}, {}, {}).markdown()
+
+    monkeypatch.setattr(objective, "filter_rates", lambda rows: (0.25, 0.5))
+    study = make_study(tmp_path / "filtered", settings, pruner="none")
+    study.enqueue_trial(GOOD)
+    logs: list[str] = []
+    run_study(study, settings, SPACE, 0, 1, SequentialExecutor(1), pruning=False, log=logs.append)
+    frame = trials_frame(study)
+    assert frame[["fallback_rate", "correction_rate"]].iloc[0].tolist() == [0.25, 0.5]
+    assert ", fallback 25.0%, correction 50.0% (" in next(m for m in logs if "complete" in m)
+    page = study_page(frame, {}, {"replicates": 1}, {}).markdown()
+    assert "(fallback 25.0%) (corrections 50.0%)" in page and "| fallback | corrections |" in page
