@@ -207,3 +207,10 @@ def test_runner__records_the_filters_rates_beside_the_success_rate(
     assert ", fallback 25.0%, correction 50.0% (" in next(m for m in logs if "complete" in m)
     page = study_page(frame, {}, {"replicates": 1}, {}).markdown()
     assert "(fallback 25.0%) (corrections 50.0%)" in page and "| fallback | corrections |" in page
+    assert "| 25.0% | 50.0% | yes |" in page  # the configuration's row: its rates, then eligible
+
+
+def test_study_page__percentages_leave_a_missing_rate_blank() -> None:
+    from studies.report_page import _pct
+
+    assert (_pct(0.25), _pct(float("nan")), _pct(None)) == ("25.0%", "", "")
