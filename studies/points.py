@@ -36,10 +36,9 @@ def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
 
 def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
     """One row per configuration tried: parameters, counts per state, the mean objective
-    (``value``), success rate, team return and the filter's rates (``FILTER_RATES``) over
-    complete replicates, the objective's
-    95 % CI (``ci_low``, ``ci_high``) and ``eligible``; sorted best first (eligible, then
-    mean value, then mean team return)."""
+    (``value``), success rate, team return and the safety filter's rates (``FILTER_RATES``)
+    over complete replicates, the objective's 95 % CI (``ci_low``, ``ci_high``) and
+    ``eligible``; sorted best first (eligible, then mean value, then mean team return)."""
     names = param_columns(trials)
     cols = [*names, "complete", "pruned", "running", "failed", "value", "ci_low", "ci_high",
             "success_rate", "team_return", *FILTER_RATES, "value_return", "trials", "eligible"]

@@ -172,7 +172,7 @@ def _best(trials: pd.DataFrame, replicates: int, names: list[str], n_points: int
         f"{label}: mean objective {b['value']:.4f} over {int(b['complete'])} replicates, 95% CI "
         f"[{_f(b['ci_low'], 4)}, {_f(b['ci_high'], 4)}] (Student t on the logit scale); "
         f"mean success rate {b['success_rate']:.3f}"
-        + "".join(f" ({label} {_pct(b[key])})" for key, label in RATE_LABELS.items() if pd.notna(b.get(key)))
+        + "".join(f" ({what} {_pct(b[key])})" for key, what in RATE_LABELS.items() if pd.notna(b.get(key)))
         + f", mean team return {b['team_return']:.2f}; trials {b['trials']}.",
         f"Chosen by the mean over replicates among configurations with {replicates} complete and no "
         "pruned replicate; overlapping CIs in the table below mean the ranking is not settled."])
