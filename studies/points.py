@@ -34,7 +34,7 @@ def t_interval(values: np.ndarray, confidence: float = CONFIDENCE) -> tuple[floa
     return mean, low, high
 
 
-def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
+def point_table(trials: pd.DataFrame, replicates: int) -> pd.DataFrame:
     """One row per configuration tried: parameters, counts per state, the mean objective
     (``value``), success rate, team return and the safety filter's rates (``FILTER_RATES``)
     over complete replicates, the objective's 95 % CI (``ci_low``, ``ci_high``) and
@@ -49,7 +49,7 @@ def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
         if col not in trials:
             trials[col] = math.nan
     rows = []
-    for key, part in trials.dropna(subset=names).groupby(names, sort=True):
+    for key, part in trials.dropna(subset=names).groupby(names):  # in parameter order
         key = key if isinstance(key, tuple) else (key,)
         comp = part[part["state"] == "COMPLETE"]
         mean, low, high = t_interval(comp["value"].to_numpy(float))
@@ -60,17 +60,16 @@ def point_table(trials: pd.DataFrame, replicates: int = 2) -> pd.DataFrame:
             "running": int(part["state"].isin(["RUNNING", "WAITING"]).sum()),
             "failed": int((part["state"] == "FAIL").sum()),
             "value": mean, "ci_low": low, "ci_high": high,
-            "success_rate": float(comp["success_rate"].mean()) if len(comp) else math.nan,
-            "team_return": float(comp["team_return"].mean()) if len(comp) else math.nan,
-            **{key: float(comp[key].mean()) for key in FILTER_RATES},  # NaN: no filter, or none complete
-            "value_return": float(comp["value_return"].mean()) if len(comp) else math.nan,
+            # means over the complete replicates (NaN when none is complete, or no filter ran)
+            **{col: float(comp[col].mean()) for col in ("success_rate", "team_return", *FILTER_RATES,
+                                                        "value_return")},
             "trials": ",".join(str(int(n)) for n in part["number"]),
             "eligible": len(comp) >= replicates and n_pruned == 0,
         })
     table = pd.DataFrame(rows, columns=cols)
     order = table.assign(_ret=table["value_return"].fillna(table["team_return"]))
-    order = order.sort_values(["eligible", "value", "_ret"], ascending=[False, False, False],
-                              na_position="last", kind="mergesort")
+    # several keys: pandas sorts with a stable lexsort, NaN last, so ties keep parameter order
+    order = order.sort_values(["eligible", "value", "_ret"], ascending=[False, False, False])
     return table.loc[order.index].reset_index(drop=True)
 
 
