@@ -35,7 +35,6 @@ from bench.design.limits import limit, with_reasons
 from envs.config import EnvConfig, Probability, format_validation_error
 from envs.errors import BenchError
 from studies.storage import Direction
-from studies.trial_columns import FILTER_RATES
 
 Objectives = Literal["success", "success,return"]
 TIE_BREAK = 1e-3  # weight of the squashed return in the single objective
@@ -207,7 +206,8 @@ class TrialWorker:
         success = float(np.mean([r["success_rate"] for r in rows]))
         ret = float(np.mean([r["team_return"] for r in rows]))
         values = objective_values(success, ret, s.objectives, s.env.n_robots)
+        fallback, correction = filter_rates(rows)
         return Segment(step=m.iterations, episodes=m.episodes_done, success_rate=success,
                        team_return=ret, values=tuple(values), eval_episodes=len(rows),
-                       done=done, wall_s=time.perf_counter() - t0, **dict(zip(FILTER_RATES, filter_rates(rows),
-                                                                              strict=True)))
+                       done=done, wall_s=time.perf_counter() - t0, fallback_rate=fallback,
+                       correction_rate=correction)

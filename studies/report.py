@@ -177,8 +177,9 @@ def slice_figure(trials: pd.DataFrame) -> Built:
         done = trials[trials["state"].isin(["COMPLETE", "PRUNED"])]
         for ax, name in zip(axes, names, strict=False):
             rows = table[table["parameter"] == name].reset_index(drop=True)
+            values = done[name].map(plain)
             for x, row in rows.iterrows():
-                part = done[done[name].map(plain) == row["value"]]
+                part = done[values == row["value"]]
                 for state, marker, color in (("COMPLETE", "o", "C0"), ("PRUNED", "x", "C3")):
                     ys = part.loc[part["state"] == state, "value"].to_numpy(float)
                     offsets = np.linspace(-0.18, 0.18, len(ys)) if len(ys) > 1 else np.zeros(len(ys))
