@@ -33,7 +33,7 @@ from studies.export import read_trials
 from studies.space import REF_SIZES, SEARCH_RADII, plain
 from studies.trial_columns import param_columns
 
-PAPER_SPACE = {"ref_size", "search_radius", "c_max"}  # the paper's study (SPEC 6), drawn as L x |R_z|
+HEATMAP_SPACE = {"ref_size", "search_radius", "c_max"}  # the paper's study (SPEC 6), drawn as L x |R_z|
 PARAM_LABELS = {"ref_size": r"$|\mathcal{R}_z|$ (reference-space size)", "search_radius": r"$L$ (search radius)",
                 "c_max": r"$C_{\max}$ (candidate budget)"}
 
@@ -87,7 +87,7 @@ def is_paper_space(trials: pd.DataFrame) -> bool:
     """Whether the study searches L x |R_z| (with C_max at most): the paper's study, whose
     landscape is the L x |R_z| heatmap; any other study's is the per-parameter slice."""
     names = set(param_columns(trials))
-    return {"search_radius", "ref_size"} <= names <= PAPER_SPACE
+    return {"search_radius", "ref_size"} <= names <= HEATMAP_SPACE
 
 
 def landscape_figure(trials: pd.DataFrame) -> Built:
