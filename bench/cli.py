@@ -356,6 +356,9 @@ def eval_(
              "of the cell)."),
     device: str | None = typer.Option(None, "--device",
         help="Torch device of the networks: cpu (default), cuda or cuda:N."),
+    set_: list[str] | None = typer.Option(None, "--set",
+        help="KEY=VALUE: a cell field or params.NAME set for this evaluation (repeatable), e.g. "
+             "params.fallback=per_robot to evaluate a checkpoint under another fallback rule."),
 ) -> None:
     """Evaluate one method in every execution mode (argmax, sample, sample@0.5; planner for
     a planner) on the same scenarios; print the eval metrics, one column per mode."""
@@ -367,10 +370,12 @@ def eval_(
 
         if not is_path(method) and method not in available():
             method_class(method)  # the registry's one-line error, naming the registered methods
+    from bench.design.overrides import parse_overrides
     from bench.execute.quick_eval import quick_eval, summarize
 
+    overrides = parse_overrides(set_ or [])["set"]
     cell, rows = quick_eval(method, str(checkpoint) if checkpoint else None, n_robots, loss_p, layout,
-                            episodes, seed, horizon, execution=execution, device=device)
+                            episodes, seed, horizon, execution=execution, device=device, sets=overrides)
     means = summarize(rows)
     if as_json:
         typer.echo(json.dumps({"cell": json.loads(cell.canonical_json()), "checkpoint": str(checkpoint or ""),
@@ -382,6 +387,7 @@ def eval_(
     from rich.table import Table
 
     src = f"checkpoint {checkpoint}" if checkpoint else "untrained initialization"
+    src += "".join(f", {k}={v}" for k, v in overrides.items())  # what --set changed
     per_mode = len(rows) // max(len(means), 1)
     table = Table(title=f"{cell.method} N={cell.n_robots} p={cell.loss_p} layout={cell.layout} "
                         f"seed={cell.seed}, {per_mode} episodes per mode (same scenarios), {src}")

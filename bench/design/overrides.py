@@ -24,7 +24,7 @@ from bench.design.cells import Cell
 from bench.design.grids import Grid, dedup
 from envs.errors import BenchError
 
-__all__ = ["apply_overrides", "check_resume_overrides", "describe_overrides", "parse_overrides"]
+__all__ = ["apply_overrides", "check_resume_overrides", "describe_overrides", "override_cell", "parse_overrides"]
 
 # What a run without overrides records (and what a manifest without the key means).
 NO_OVERRIDES: dict[str, dict[str, Any]] = {"set": {}, "axis": {}}
@@ -69,7 +69,8 @@ def parse_overrides(sets: Iterable[str] = (), axes: Iterable[str] = ()) -> dict[
     return out
 
 
-def _with(cell: Cell, values: Mapping[str, Any]) -> Cell:
+def override_cell(cell: Cell, values: Mapping[str, Any]) -> Cell:
+    """``cell`` with ``values`` (cell fields, or ``params.NAME`` for a hyperparameter) set."""
     spec = cell.model_dump()
     params = dict(spec.pop("params"))
     for key, value in values.items():
@@ -97,12 +98,12 @@ def apply_overrides(grid: Grid, overrides: Mapping[str, Mapping[str, Any]]) -> G
         for key, value in table.items():
             for v in value if kind == "axis" else [value]:
                 try:
-                    _with(first, {key: v})
+                    override_cell(first, {key: v})
                 except BenchError as exc:
                     raise BenchError(f"{_option_text(key, value, kind)}: {exc}") from None
     combos = [dict(zip(axes, combo, strict=True)) for combo in itertools.product(*axes.values())]
     try:
-        cells = dedup(_with(cell, {**sets, **combo}) for cell in grid.cells for combo in combos)
+        cells = dedup(override_cell(cell, {**sets, **combo}) for cell in grid.cells for combo in combos)
     except BenchError as exc:
         raise BenchError(f"{describe_overrides(overrides)}: {exc}") from None
     return Grid(grid.name, f"{grid.description} ({describe_overrides(overrides)})", cells)

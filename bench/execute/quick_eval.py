@@ -10,6 +10,7 @@ import contextlib
 import json
 import math
 import sys
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ from algorithms.common.episodes import EVAL_METRICS
 from algorithms.common.execution import parse_execution
 from algorithms.registry import is_builtin
 from bench.design.cells import Cell
+from bench.design.overrides import override_cell
 from bench.execute.plan import cell_spec
 from bench.execute.worker import CellWorker
 from bench.store.checkpoints import load_checkpoint
@@ -30,11 +32,13 @@ EVAL_COLUMNS = EVAL_METRICS  # the eval table's metric columns (bench/store/sche
 def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robots: int | None = None,
                loss_p: float | None = None, layout: str | None = None, episodes: int = 10,
                seed: int | None = None, horizon: int | None = None, groups: int | None = None,
-               execution: str | None = None, device: str = "cpu",
+               execution: str | None = None, device: str = "cpu", sets: Mapping[str, Any] | None = None,
                ) -> tuple[Cell, list[dict[str, Any]]]:
     """(the evaluated cell, one row per episode and execution mode, mode by mode). CLI values
-    override the checkpoint's cell; ``execution`` restricts the modes to one; ``device`` runs
-    the networks there (``bench eval --device``)."""
+    override the checkpoint's cell, and ``sets`` (``bench eval --set``: cell fields or
+    ``params.NAME``, bench/design/overrides.py) override after them, e.g. a rule that acts at
+    evaluation only (``params.fallback``); ``execution`` restricts the modes to one;
+    ``device`` runs the networks there (``bench eval --device``)."""
     base: dict[str, Any] = {}
     state = None
     if checkpoint is not None:
@@ -53,7 +57,7 @@ def quick_eval(method: str | None = None, checkpoint: str | None = None, n_robot
     if layout is None and n_robots is not None:
         spec["layout"] = preset_for(n_robots)  # a new team size gets its own preset
     spec.update(episodes=0, eval_episodes=episodes)
-    cell = Cell.make(**spec)
+    cell = override_cell(Cell.make(**spec), sets or {})
     modes = cell.execution_modes() if execution is None else (
         parse_execution(execution, where="--execution").name,)
     worker = CellWorker(device)  # the runner's evaluator code path: same rows as the eval table

@@ -193,6 +193,25 @@ def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFix
     assert all(mode in stdout for mode in ("argmax", "sample", "sample@0.5"))
 
 
+def test_eval__set_overrides_what_the_evaluation_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    """--set reaches the evaluated method: without the safety filter the filter's rates are
+    NaN; a hyperparameter lands in the printed cell; a bad key is one line, status 2."""
+    base = ("eval", "--method", "hierarchical", "--n-robots", "4", "--layout", "tiny", "--episodes", "2",
+            "--horizon", "8", "--execution", "argmax", "--json")
+    code, stdout, err = _cli(capsys, *base, "--set", "params.fallback=per_robot")
+    assert code == 0, err
+    printed = json.loads(stdout)
+    assert printed["cell"]["params"]["fallback"] == "per_robot"
+    assert printed["mean"]["argmax"]["fallback_rate"] is not None
+    code, stdout, err = _cli(capsys, *base, "--set", "safety_filter=false")
+    assert code == 0, err
+    assert json.loads(stdout)["mean"]["argmax"]["fallback_rate"] is None  # NaN: no filter ran
+    code, _, err = _cli(capsys, *base, "--set", "fallback=per_robot")
+    assert code == 2 and err.count("\n") == 1 and "unknown cell field 'fallback'" in err
+    code, _, err = _cli(capsys, *base, "--set", "params.fallbak=per_robot")
+    assert code == 2 and err.count("\n") == 1 and "fallbak" in err
+
+
 def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -> None:
     code, stdout, _ = _cli(capsys, "grids")
     assert code == 0
