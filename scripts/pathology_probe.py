@@ -14,6 +14,10 @@ episodes), then measures on evaluation scenarios:
 * with ``--eval-n M``, the same fallback table for the trained weights evaluated with M
   robots (the architecture handles any group size; a transfer, labelled as such).
 
+``--checkpoint PATH`` probes a bench checkpoint of the method instead of training one (e.g.
+a cell of a committed run): its cell gives N, p, the horizon, the map and the parameters,
+and ``params``, ``--n``, ``--p``, ``--horizon``, ``--iters`` and ``--seed`` are not used.
+
 One JSON line per arm to results/pathology_probe/NAME.json. One thread; minutes per arm.
 """
 from __future__ import annotations
@@ -29,6 +33,8 @@ import torch
 from reference_probe import probe_reference  # scripts/reference_probe.py
 
 from algorithms.hierarchical.method import HierarchicalMethod
+from bench.design.cells import Cell
+from bench.store.checkpoints import load_checkpoint
 from envs.config import EnvConfig
 
 FALLBACKS: dict[str, dict[str, Any]] = {
@@ -57,6 +63,31 @@ def fallback_table(m: HierarchicalMethod, chunks: int) -> dict[str, dict[str, fl
     return out
 
 
+def _trained(a: argparse.Namespace) -> tuple[HierarchicalMethod, dict[str, Any]]:
+    """One arm trained here: a.iters updates at a.n robots, p = a.p, horizon a.horizon."""
+    params = {"eval_chunk": 10, **json.loads(a.params)}
+    env = EnvConfig.make(n_robots=a.n, layout=MAP, horizon=a.horizon, loss_p=a.p)
+    m = HierarchicalMethod(env, params, seed=a.seed)
+    t0 = time.time()
+    train = [float(np.mean([r["success_rate"] for r in m.train_iteration()])) for _ in range(a.iters)]
+    return m, {"name": a.name, "params": params, "n": a.n, "p": a.p, "horizon": a.horizon, "seed": a.seed,
+               "episodes": m.episodes_done, "train_wall_s": round(time.time() - t0, 1),
+               "train_success_last10": float(np.mean(train[-10:]))}
+
+
+def _from_checkpoint(name: str, path: str) -> tuple[HierarchicalMethod, dict[str, Any]]:
+    """The method of a bench checkpoint, at its cell's configuration, with its weights."""
+    ckpt = load_checkpoint(path)
+    cell = Cell.make(**json.loads(ckpt["cell"]))
+    if cell.method != "hierarchical":
+        raise SystemExit(f"pathology_probe: {path}: a {cell.method} checkpoint; the probe is the hierarchical method's")
+    params = cell.method_params().model_dump(mode="json")
+    m = HierarchicalMethod(cell.to_env_config(), params, seed=cell.seed)
+    m.load_state_dict(ckpt["state"])
+    return m, {"name": name, "checkpoint": path, "cell_id": cell.cell_id, "params": params, "n": cell.n_robots,
+               "p": cell.loss_p, "horizon": cell.horizon, "seed": cell.seed, "episodes": int(ckpt["episodes_done"])}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("name")
@@ -68,21 +99,20 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--chunks", type=int, default=2, help="evaluation chunks of 10 episodes per fallback rule")
     ap.add_argument("--eval-n", type=int, default=0, help="also evaluate the weights with this many robots")
+    ap.add_argument("--checkpoint", default="", help="probe this bench checkpoint instead of training")
     a = ap.parse_args()
     torch.set_num_threads(1)
-    params = {"eval_chunk": 10, **json.loads(a.params)}
-    env = EnvConfig.make(n_robots=a.n, layout=MAP, horizon=a.horizon, loss_p=a.p)
-    m = HierarchicalMethod(env, params, seed=a.seed)
     t0 = time.time()
-    train = [float(np.mean([r["success_rate"] for r in m.train_iteration()])) for _ in range(a.iters)]
-    rec: dict[str, Any] = {"name": a.name, "params": params, "n": a.n, "p": a.p, "horizon": a.horizon,
-                           "seed": a.seed, "episodes": m.episodes_done, "train_wall_s": round(time.time() - t0, 1),
-                           "train_success_last10": float(np.mean(train[-10:]))}
+    if a.checkpoint:
+        m, rec = _from_checkpoint(a.name, a.checkpoint)
+    else:
+        m, rec = _trained(a)
+    env = m.env
     rec["reference"] = probe_reference(m, batches=2, batch_size=5, seed=1000)
     rec["fallback"] = fallback_table(m, a.chunks)
     if a.eval_n:
-        big = HierarchicalMethod(EnvConfig.make(n_robots=a.eval_n, layout=MAP, horizon=a.horizon,
-                                                loss_p=a.p), params, seed=a.seed)
+        big = HierarchicalMethod(EnvConfig.make(n_robots=a.eval_n, layout=env.layout, horizon=env.horizon,
+                                                loss_p=env.loss_p), m.params.model_dump(mode="json"), seed=m.seed)
         big.load_state_dict(m.state_dict())
         rec[f"fallback_n{a.eval_n}"] = fallback_table(big, a.chunks)
     rec["wall_s"] = round(time.time() - t0, 1)
