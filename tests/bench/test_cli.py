@@ -193,6 +193,53 @@ def test_eval__untrained_initialization_prints_a_table(capsys: pytest.CaptureFix
     assert all(mode in stdout for mode in ("argmax", "sample", "sample@0.5"))
 
 
+def test_eval__options_override_the_checkpoints_cell(capsys: pytest.CaptureFixture[str], toy: str,
+                                                    tmp_path: Path) -> None:
+    """Each option replaces the checkpoint's value (a new N gets the layout sized for it);
+    without a checkpoint the cell is N = 20, p = 0.2; a method other than the checkpoint's,
+    or neither a method nor a checkpoint, is one line and status 2."""
+    from envs.layouts import preset_for
+
+    grid_file = write_grid_file(tmp_path / "g.toml", toy_spec(eval_episodes=2), {"seed": [3]})
+    write_finished_store(tmp_path / "run", load_grid_file(grid_file))
+    store = RunStore(tmp_path / "run")
+    ckpt = str(store.ckpt_path(store.read_cells()["cell_id"].iloc[0]))
+    code, stdout, err = _cli(capsys, "eval", "--checkpoint", ckpt, "--n-robots", "6", "--loss-p", "0.5", "--seed",
+                             "9", "--horizon", "7", "--episodes", "3", "--execution", "argmax", "--json")
+    assert code == 0, err
+    printed = json.loads(stdout)
+    cell = printed["cell"]
+    assert (cell["method"], cell["n_robots"], cell["loss_p"], cell["seed"], cell["horizon"]) == ("toy", 6, 0.5, 9, 7)
+    assert cell["layout"] == preset_for(6) and cell["episodes"] == 0 and cell["eval_episodes"] == 3
+    assert len(printed["episodes"]) == 3 and max(r["steps"] for r in printed["episodes"]) <= 7
+    code, stdout, err = _cli(capsys, "eval", "--method", "toy", "--layout", "tiny", "--episodes", "1",
+                             "--horizon", "5", "--execution", "argmax", "--json")
+    assert code == 0, err
+    cell = json.loads(stdout)["cell"]
+    assert (cell["n_robots"], cell["loss_p"], cell["seed"], cell["layout"]) == (20, 0.2, 0, "tiny")
+    code, _, err = _cli(capsys, "eval", "--checkpoint", ckpt, "--method", "decentralized")
+    assert code == 2 and err.count("\n") == 1
+    assert "--method 'decentralized' does not match the checkpoint's method 'toy'" in err
+    code, _, err = _cli(capsys, "eval")
+    assert code == 2 and err == "bench: error: give --method (untrained initialization) or --checkpoint\n"
+    code, _, err = _cli(capsys, "eval", "--checkpoint", ckpt, "--execution", "sampel")
+    assert code == 2 and err.startswith("bench: error: --execution: unknown execution mode 'sampel'"), err
+
+
+def test_eval__a_checkpoint_that_does_not_fit_the_settings_is_one_line(capsys: pytest.CaptureFixture[str],
+                                                                       tmp_path: Path) -> None:
+    grid_file = write_grid_file(tmp_path / "g.toml", toy_spec(method="decentralized", eval_episodes=2,
+                                                               params={"batch_episodes": 2, "eval_chunk": 2}),
+                                {"seed": [0]})
+    write_finished_store(tmp_path / "run", load_grid_file(grid_file))
+    store = RunStore(tmp_path / "run")
+    ckpt = str(store.ckpt_path(store.read_cells()["cell_id"].iloc[0]))
+    code, _, err = _cli(capsys, "eval", "--checkpoint", ckpt, "--set", "params.hidden=8", "--episodes", "1")
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"bench: error: checkpoint {ckpt!r} does not fit decentralized with these settings: ")
+    assert "size mismatch" in err
+
+
 def test_eval__set_overrides_what_the_evaluation_runs(capsys: pytest.CaptureFixture[str]) -> None:
     """--set reaches the evaluated method: without the safety filter the filter's rates are
     NaN; a hyperparameter lands in the printed cell; a bad key is one line, status 2."""

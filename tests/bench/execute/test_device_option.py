@@ -37,6 +37,7 @@ def _eval(device: str) -> str:
     cell, rows = quick_eval("hierarchical", n_robots=6, layout="tiny", episodes=2, horizon=8, groups=3,
                             device=device)
     assert "device" not in cell.canonical_json()  # an execution choice, no cell field
+    assert (cell.n_robots, cell.groups, cell.horizon, cell.eval_episodes) == (6, 3, 8, 2)
     return json.dumps([{k: v for k, v in r.items() if k != "wall_s"} for r in rows], default=float)  # NaN-safe
 
 
