@@ -24,6 +24,7 @@ from algorithms.common.episodes import Decision
 ACTIONS = None
 PAYLOAD = 0.0
 NOISY = False
+RAISE = ""
 
 
 class Waiter(Method):
@@ -37,6 +38,8 @@ class Waiter(Method):
     def decide(self, batch, state, choice):
         if NOISY:
             print("decide was here")
+        if RAISE:
+            raise ValueError(RAISE)
         core = batch.core
         actions = np.full(core.pos.shape, 4, dtype=np.int64) if ACTIONS is None else np.full(core.pos.shape, ACTIONS)
         return Decision(actions=actions, payload=PAYLOAD)
@@ -46,6 +49,7 @@ PLUGINS = {
     "raises_at_import": "raise RuntimeError('the plugin broke at import')\n",
     "syntax_error": "def broken(:\n    pass\n",
     "noisy": "print('imported noisy')\n" + WAITER + "NOISY = True\n",
+    "raises_in_decide": WAITER + "RAISE = 'the plugin broke in decide ' + 'x' * 300\n",
     "nan_actions": WAITER + "ACTIONS = float('nan')\n",
     "nan_payload": WAITER + "PAYLOAD = float('inf')\n",
     "undeclared_nan_payload": WAITER + "PAYLOAD = float('nan')\n",
@@ -107,6 +111,29 @@ def test_d14_plugin_prints_go_to_stderr_and_json_stays_parseable(
     assert code == 0, err
     assert json.loads(out)["executions"] == ["planner"]
     assert "decide was here" in err
+
+
+def test_d15_an_outside_method_that_raises_is_one_line_naming_it(
+        plugins: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """An untrained outside method that raises (here a ValueError) is the method's error, cut
+    to 200 characters, not a checkpoint that does not fit."""
+    code, _, err = run_cli(capsys, *EVAL, "--method", "p52_raises_in_decide:Waiter")
+    assert code == 2
+    prefix = "bench: error: method p52_raises_in_decide:Waiter: ValueError: "
+    one_error_line(err, prefix + "the plugin broke in decide xxx")
+    assert len(err.strip()) == len(prefix) + 200, err
+
+
+def test_d15_a_builtin_methods_bug_keeps_its_traceback(monkeypatch: pytest.MonkeyPatch) -> None:
+    from algorithms.pibt import PIBTMethod
+    from bench.execute.quick_eval import quick_eval
+
+    def broken(*args: object, **kwargs: object) -> None:
+        raise ZeroDivisionError("a bug of this package")
+
+    monkeypatch.setattr(PIBTMethod, "decide", broken)
+    with pytest.raises(ZeroDivisionError, match="a bug of this package"):
+        quick_eval("pibt", n_robots=4, layout="tiny", horizon=6, episodes=1)
 
 
 def test_d15_nan_actions_are_one_line_naming_the_method(plugins: Path, capsys: pytest.CaptureFixture[str]) -> None:
