@@ -230,7 +230,11 @@ class IC3NetMethod(OwnNetworksStack, Method):
     line_style = "-."
     payload_model = "communication vectors of the robots whose gate is open, counted as sent"
     Params = IC3NetParams
-    presets = {"tuned": Preset.unpublished("studies/definitions/ic3net.toml")}  # decision 0215
+    # "tuned": the winner of the committed study reproduction/studies/tuned-ic3net (decisions
+    # 0215, 0245); tests/studies/test_published_presets.py checks these values against it.
+    presets = {"tuned": Preset({"protocol": "mappo", "ppo_lr": 0.001, "entropy_coef": 0.01, "hidden": 64,
+                                "comm_passes": 2, "gate": "open", "critic_hidden": 128, "optimizer": "adam"},
+                               source="studies/definitions/ic3net.toml")}
     params: IC3NetParams
 
     def __init__(self, env, params=None, seed: int = 0, device=None) -> None:

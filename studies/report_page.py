@@ -61,7 +61,8 @@ class Page:
             body.append(f"<h2>{html.escape(s.title)}</h2>")
             body += [f"<p>{html.escape(p)}</p>" for p in s.paragraphs]
             if s.table is not None:
-                body.append(s.table.to_html(index=False, na_rep="", border=0, classes="tbl", escape=True))
+                body.append('<div class="wide">'  # a wide table scrolls inside the page, not the page
+                            + s.table.to_html(index=False, na_rep="", border=0, classes="tbl", escape=True) + "</div>")
             for stem, caption, notes in s.figures:
                 text = html.escape(caption + "." + "".join(f" {n}." for n in notes))
                 body.append(f'<figure><img src="{stem}.png" alt="{html.escape(caption)}">'
@@ -69,7 +70,7 @@ class Page:
         style = ("body{font-family:DejaVu Sans,Helvetica,Arial,sans-serif;max-width:1100px;margin:2em auto;"
                  "padding:0 1em;color:#222}table.tbl{border-collapse:collapse;font-size:13px;margin:.5em 0}"
                  ".tbl th,.tbl td{border-bottom:1px solid #ddd;padding:2px 8px;text-align:right}"
-                 "figure{margin:1em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}")
+                 "figure{margin:1em 0}img{max-width:100%}figcaption{font-size:13px;color:#444}.wide{overflow-x:auto}")
         return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
                 f"<title>{html.escape(self.title)}</title><style>{style}</style></head><body>\n"
                 + "\n".join(body) + "\n</body></html>\n")
