@@ -168,7 +168,7 @@ def method_target(spec: str) -> str:
 
 
 def describe(spec: str) -> dict[str, Any]:
-    """What ``bench methods`` shows of one method: its traits and hyperparameters."""
+    """What ``bench methods`` shows of one method: its traits, hyperparameters and presets."""
     cls = method_class(spec)
     info = available().get(spec)
     params = {name: (None if f.is_required() else f.default, f.description or "")
@@ -178,4 +178,6 @@ def describe(spec: str) -> dict[str, Any]:
         "target": info.target if info else spec, "learned": cls.learned,
         "executions": ", ".join(cls.execution_modes()), "safety_filter": cls.safety_filter_default,
         "payload": cls.payload_model, "color": cls.color, "params": params,
+        "presets": {name: {"values": dict(p.values), "source": p.source, "published": not p.pending}
+                    for name, p in sorted(cls.presets.items())},  # beside the implicit "paper" (the defaults)
     }

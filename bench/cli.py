@@ -331,6 +331,15 @@ def _methods_table(info: list[dict[str, Any]], method: str | None, as_json: bool
         for name, (default, text) in info[0]["params"].items():
             params.add_row(name, json.dumps(default), text)
         console.print(params)
+        if info[0]["presets"]:
+            presets = Table(title=f'{method} presets (a grid file selects one with preset = "NAME"; '
+                                  '"paper" is the defaults above)')
+            for col in ("preset", "values", "source"):
+                presets.add_column(col)
+            for name, p in info[0]["presets"].items():
+                values = ", ".join(f"{k}={json.dumps(v)}" for k, v in p["values"].items())
+                presets.add_row(name, values if p["published"] else "(no published study yet)", p["source"])
+            console.print(presets)
 
 
 # -------------------------------------------------------------------- eval

@@ -259,6 +259,27 @@ def test_eval__set_overrides_what_the_evaluation_runs(capsys: pytest.CaptureFixt
     assert code == 2 and err.count("\n") == 1 and "fallbak" in err
 
 
+@pytest.mark.parametrize("method", ["decentralized", "ic3net", "hierarchical"])
+def test_methods__one_method_lists_its_presets_with_their_values(capsys: pytest.CaptureFixture[str],
+                                                                 method: str) -> None:
+    from algorithms.registry import method_class
+
+    code, stdout, err = _cli(capsys, "methods", method, "--json")
+    assert code == 0, err
+    declared = method_class(method).presets["tuned"]
+    source = f"studies/definitions/{method}.toml"
+    assert json.loads(stdout)[0]["presets"]["tuned"] == {
+        "values": dict(declared.values), "published": not declared.pending, "source": source}
+    code, stdout, _ = _cli(capsys, "methods", method)
+    assert code == 0 and f"{method} presets" in stdout
+    assert ("(no published study yet)" if declared.pending else 'protocol="mappo"') in stdout
+
+
+def test_methods__a_method_without_presets_prints_no_presets_table(capsys: pytest.CaptureFixture[str]) -> None:
+    code, stdout, _ = _cli(capsys, "methods", "pibt")
+    assert code == 0 and "hyperparameters" in stdout and "presets" not in stdout
+
+
 def test_grids__lists_cell_counts_and_cost(capsys: pytest.CaptureFixture[str]) -> None:
     code, stdout, _ = _cli(capsys, "grids")
     assert code == 0
