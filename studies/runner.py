@@ -26,7 +26,7 @@ from envs.errors import BenchError
 from studies.executors import Outcome
 from studies.objective import Segment, TrialSettings, TrialSpec, eval_seed
 from studies.progress import TuneSnapshot
-from studies.pruning import MIN_RHO, WARMUP, PredictivePruner, warmup_step
+from studies.pruning import MIN_RHO, WARMUP, PredictivePruner, configuration_score, warmup_step
 from studies.schedule import SearchPlan, replicate_seed, trial_replicate
 from studies.space import distributions
 from studies.storage import LEASE_BEAT, REPLICATE, lease_attrs, recover_orphans, requeue
@@ -221,11 +221,17 @@ def _on_segment(study: optuna.Study, trial: Trial, seg: Segment, executor: Execu
         trial.set_user_attr("pruned_at_step", seg.step)
         why = "below the median"
         if isinstance(study.pruner, PredictivePruner):
-            _, rho, n, median = study.pruner.decision(study, _frozen(study, trial.number))
+            frozen = _frozen(study, trial.number)
+            _, rho, n, median = study.pruner.decision(study, frozen)
             trial.set_user_attr("prune_rho", rho)
             trial.set_user_attr("prune_n", n)
             trial.set_user_attr("prune_median", median)
             why = f"below the median {median:.3f} of {n} complete trials; rank correlation {rho:.2f}"
+            complete = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+            others = sum(t.params == frozen.params for t in complete)
+            if others:  # a later replicate: the configuration's mean is what was judged
+                score = configuration_score(complete, frozen, seg.values[0])
+                why = f"(configuration mean {score:.3f} with {others} complete replicate(s)) {why}"
         study.tell(trial, state=TrialState.PRUNED)
         log(f"trial {trial.number} pruned at step {seg.step}: objective {seg.values[0]:.3f} "
             f"{why} ({_fmt(trial.params)}) {snapshot().line()}")

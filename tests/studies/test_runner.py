@@ -63,6 +63,7 @@ def test_runner__reports_each_segment_and_prunes_a_bad_trial_only_after_the_warm
     assert "pruned" in summary.reason()
     pruned_line = next(m for m in logs if "pruned at step" in m)
     assert "rank correlation" in pruned_line and "[6/6 finished, 0 running" in pruned_line
+    assert "configuration mean" not in pruned_line  # a first replicate is judged on its own value
 
 
 def test_runner__no_pruning_gives_all_complete_and_says_why(tmp_path: Path, settings: TrialSettings) -> None:
@@ -214,3 +215,20 @@ def test_study_page__percentages_leave_a_missing_rate_blank() -> None:
     from studies.report_page import _pct
 
     assert (_pct(0.25), _pct(float("nan")), _pct(None)) == ("25.0%", "", "")
+
+
+def test_runner__a_pruned_later_replicate_logs_the_configuration_mean_that_was_judged(
+        tmp_path: Path, settings: TrialSettings) -> None:
+    study = make_study(tmp_path, settings)
+    ranked = [{"ref_size": r, "search_radius": 2} for r in (2, 4, 8, 16, 32)]
+    for params in (*ranked, BAD):
+        study.enqueue_trial(params)
+    space = search_space(overrides={"ref_size": [1, 2, 4, 8, 16, 32]})
+    run_study(study, settings, space, 0, 6, SequentialExecutor(1), pruning=False)
+    study.enqueue_trial(BAD)  # its second replicate: judged with the first one's final value
+    logs: list[str] = []
+    run_study(study, settings, space, 0, 7, SequentialExecutor(1), log=logs.append)
+    line = next(m for m in logs if "pruned at step" in m)
+    first = study.get_trials(deepcopy=False)[5]
+    assert first.state == TrialState.COMPLETE and first.params == BAD
+    assert "(configuration mean " in line and "with 1 complete replicate(s)) below the median" in line
