@@ -13,8 +13,12 @@ from algorithms.base import LearnedParams
 from algorithms.presets import Preset
 
 # Named presets beside the paper's defaults (algorithms/presets.py): "tuned" is the winner
-# of the published study studies/definitions/hierarchical.toml, not run yet (decision 0215).
-PRESETS = {"tuned": Preset.unpublished("studies/definitions/hierarchical.toml")}
+# of the committed study reproduction/studies/tuned-hierarchical (decisions 0215, 0246);
+# tests/studies/test_published_presets.py checks these values against it.
+PRESETS = {"tuned": Preset({"protocol": "mappo", "ref_size": 8, "search_radius": 3, "c_max": 1000,
+                            "share_params": True, "fallback": "per_robot", "resample_on_fallback": True,
+                            "ref_hold": 10, "ppo_lr": 0.001, "entropy_coef": 0.03},
+                           source="studies/definitions/hierarchical.toml")}
 
 
 class HierarchicalParams(LearnedParams):
