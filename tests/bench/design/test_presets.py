@@ -38,12 +38,15 @@ def cell(**fields: object) -> Cell:
 @pytest.mark.parametrize("store", STORES, ids=[p.parent.name for p in STORES])
 def test_every_committed_cell_keeps_its_id(store: Path) -> None:
     """The paper preset is the default and is not recorded: every committed cell rebuilds
-    from its config JSON to the id it was stored under."""
+    from its config JSON to the id it was stored under, and only a cell its grid file
+    (``reproduction/<store>.toml``) selects with a preset records one."""
     cells = pd.read_parquet(store, columns=["cell_id", "config_json"])
     assert len(cells) > 0
+    grid_file = store.parent.with_suffix(".toml")
+    selected = {c.cell_id: c.preset for c in load_grid_file(grid_file).cells} if grid_file.exists() else {}
     for row in cells.itertuples():
         rebuilt = Cell.from_json(row.config_json)
-        assert rebuilt.preset == "paper"
+        assert rebuilt.preset == selected.get(row.cell_id, "paper")
         assert rebuilt.cell_id == row.cell_id
         assert rebuilt.canonical_json() == row.config_json
 
