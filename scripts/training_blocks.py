@@ -1,6 +1,6 @@
 """Training rows of a run in blocks of episodes: per method, the mean over its cells (seeds)
 of each block's per-episode success, collision, correction and fallback rates (sampled
-execution, as trained). Used for finding 2026-12-08 (the tuned hierarchical preset at the
+execution, as trained), team return and episode length (steps). Used for finding 2026-12-08 (the tuned hierarchical preset at the
 paper's budget), e.g.
 
     .venv/bin/python scripts/training_blocks.py reproduction/tuned-n40 --block 400
@@ -17,6 +17,8 @@ import pandas as pd
 from bench.store.run_store import RunStore
 
 RATES = ("success_rate", "collision_rate", "correction_rate", "fallback_rate")
+MEANS = ("team_return", "steps")
+COLUMNS = (*RATES, *MEANS)
 
 
 def blocks(run: str, block: int) -> pd.DataFrame:
@@ -27,7 +29,7 @@ def blocks(run: str, block: int) -> pd.DataFrame:
         raise SystemExit(f"training_blocks: {run!r} has no cells.parquet")
     rows = store.read_train().merge(cells[["cell_id", "method"]], on="cell_id")
     rows["block"] = rows["episode"] // block * block
-    per_cell = rows.groupby(["method", "block", "cell_id"])[list(RATES)].mean()
+    per_cell = rows.groupby(["method", "block", "cell_id"])[list(COLUMNS)].mean()
     out = per_cell.groupby(["method", "block"]).mean()
     out["cells"] = per_cell.groupby(["method", "block"]).size()
     return out.reset_index()
@@ -42,7 +44,9 @@ def main() -> None:
     table["episodes"] = [f"{b}-{b + args.block - 1}" for b in table.pop("block")]
     for col in RATES:
         table[col] = (100 * table[col]).map(lambda v: "" if pd.isna(v) else f"{v:.2f}%")
-    cols = ["method", "episodes", "cells", *RATES]
+    for col in MEANS:
+        table[col] = table[col].map(lambda v: f"{v:.1f}")
+    cols = ["method", "episodes", "cells", *COLUMNS]
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for _, r in table[cols].iterrows():

@@ -465,3 +465,19 @@ def test_rate_ci__inside_0_1_by_construction_and_covers_at_3_seeds():
     x = rng.beta(0.6 * k, 0.4 * k, (2000, 3))
     hits = [lo <= 0.6 <= hi for lo, hi in (mean_ci(r)[1:] for r in x)]
     assert np.mean(hits) < 0.92
+
+
+def test_rate_ci__holds_the_mean_printed_beside_it():
+    """A skewed sample puts the logit interval's centre off the plain mean: tuned-n40's
+    decentralized seeds printed 100.0% [99.8%, 99.9%] (decision 0248). The interval
+    extends to the mean, and no further (widening cannot lower its coverage)."""
+    from scipy.special import expit, logit
+
+    from reports.stats import rate_ci
+
+    seeds = [0.998, 1.0, 1.0, 1.0, 1.0]  # tuned-n40, decentralized, argmax
+    m, lo, hi = rate_ci(seeds)
+    assert m == pytest.approx(0.9996) and lo < 0.999 and hi == m  # the logit interval ended at 0.9995
+    x = [0.2, 0.3, 0.25]  # where the logit interval holds the mean, it is that interval
+    ci = sps.ttest_1samp(logit(x), 0.0).confidence_interval(0.95)
+    assert rate_ci(x)[1:] == (pytest.approx(expit(ci.low)), pytest.approx(expit(ci.high)))

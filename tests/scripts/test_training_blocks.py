@@ -50,6 +50,8 @@ def test_training_blocks__mean_over_cells_of_each_cells_block_mean(run: Path) ->
             per_cell = inside.groupby("cell_id")["success_rate"].mean()
             got = table.loc[table["block"] == first].iloc[0]
             assert got["success_rate"] == pytest.approx(per_cell.mean())
+            steps = inside.groupby("cell_id")["steps"].mean()
+            assert got["steps"] == pytest.approx(steps.mean())
             assert got["cells"] == len(per_cell)
     # the one-block table weighs the cells alike, not their episodes
     pooled = rows["success_rate"].mean()
