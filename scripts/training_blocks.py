@@ -1,16 +1,18 @@
 """Training rows of a run in blocks of episodes: per method, the mean over its cells (seeds)
 of each block's per-episode success, collision, correction and fallback rates (sampled
-execution, as trained), team return and episode length (steps). Used for finding 2026-12-08 (the tuned hierarchical preset at the
-paper's budget), e.g.
+execution, as trained), team return and episode length (steps). Used for finding
+2026-12-08 (the tuned presets at the paper's budget), e.g.
 
     .venv/bin/python scripts/training_blocks.py reproduction/tuned-n40 --block 400
 
 Prints a Markdown table; a cell still training contributes the blocks it has reached, and
-the ``cells`` column says how many cells each block averages.
+the ``cells`` column says how many cells each block averages. A folder without cells:
+one line on stderr, exit status 2.
 """
 from __future__ import annotations
 
 import argparse
+import sys
 
 import pandas as pd
 
@@ -26,7 +28,8 @@ def blocks(run: str, block: int) -> pd.DataFrame:
     store = RunStore(run)
     cells = store.read_cells()
     if cells is None:
-        raise SystemExit(f"training_blocks: {run!r} has no cells.parquet")
+        print(f"training_blocks: {run!r} is no bench run folder (no cells.parquet)", file=sys.stderr)
+        raise SystemExit(2)
     rows = store.read_train().merge(cells[["cell_id", "method"]], on="cell_id")
     rows["block"] = rows["episode"] // block * block
     per_cell = rows.groupby(["method", "block", "cell_id"])[list(COLUMNS)].mean()
@@ -38,8 +41,10 @@ def blocks(run: str, block: int) -> pd.DataFrame:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", help="a bench run directory")
-    ap.add_argument("--block", type=int, default=400, help="episodes per block")
+    ap.add_argument("--block", type=int, default=400, help="episodes per block (>= 1)")
     args = ap.parse_args()
+    if args.block < 1:
+        ap.error(f"--block must be at least 1, got {args.block}")
     table = blocks(args.run, args.block)
     table["episodes"] = [f"{b}-{b + args.block - 1}" for b in table.pop("block")]
     for col in RATES:

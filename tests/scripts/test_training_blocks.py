@@ -56,3 +56,11 @@ def test_training_blocks__mean_over_cells_of_each_cells_block_mean(run: Path) ->
     # the one-block table weighs the cells alike, not their episodes
     pooled = rows["success_rate"].mean()
     assert blocks(str(run), 8)["success_rate"].iloc[0] != pytest.approx(pooled)
+
+
+def test_training_blocks__a_folder_without_cells_is_one_line_and_status_2(tmp_path: Path, capsys) -> None:
+    with pytest.raises(SystemExit) as stop:
+        blocks(str(tmp_path), 4)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(tmp_path) in err
