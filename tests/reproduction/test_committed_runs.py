@@ -28,7 +28,7 @@ RUNS = [name for name in ("paper", "ablation", "full") if (ROOT / name / "cells.
 REPORTED = [name for name in RUNS if name != "full" or (ROOT / name / "report").is_dir()]
 # Runs from grid files of their own (reproduction/<name>.toml) whose report is committed, each
 # with the run its report is built --against (None: none): a rebuild must give it too.
-GRID_FILE_REPORTS = {"probe-mappo": "full", "lifelong": None, "tuned-n40": None}
+GRID_FILE_REPORTS = {"probe-mappo": "full", "lifelong": None, "tuned-n40": None, "tuned-n40-480": None}
 
 
 @pytest.fixture(params=RUNS)
